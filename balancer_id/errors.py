@@ -1,0 +1,77 @@
+"""The error hierarchy of balancer-id.
+
+Every error carries the exit code the command line uses (see CONTRACT.md) and a
+one-line message that says what went wrong, where, and what to do.
+"""
+
+from __future__ import annotations
+
+
+class BalancerIdError(Exception):
+    """Base class of every error balancer-id raises on purpose."""
+
+    exit_code: int = 1
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+
+    def __str__(self) -> str:  # one line, always
+        return " ".join(self.message.split())
+
+
+class UsageError(BalancerIdError):
+    """A command was called with arguments that do not make sense (exit 2)."""
+
+    exit_code = 2
+
+
+class LogReadError(BalancerIdError):
+    """A log cannot be read or is not valid (exit 3).
+
+    The message names the file and, where known, the line or column.
+    """
+
+    exit_code = 3
+
+    def __init__(
+        self,
+        path: object,
+        problem: str,
+        *,
+        line: int | None = None,
+        column: str | None = None,
+        hint: str | None = None,
+    ) -> None:
+        where = str(path)
+        if line is not None:
+            where += f", line {line}"
+        if column is not None:
+            where += f", column '{column}'"
+        text = f"{where}: {problem}"
+        if hint:
+            text += f" ({hint})"
+        super().__init__(text)
+        self.path = path
+        self.line = line
+        self.column = column
+
+
+class ModelSpecError(UsageError):
+    """A model specification names unknown or incompatible effects (exit 2)."""
+
+
+class EffectError(BalancerIdError):
+    """A user-supplied effect is malformed or failed while running (exit 2)."""
+
+    exit_code = 2
+
+
+class IdentificationError(BalancerIdError):
+    """Identification is impossible: no trial, too few thrust levels, no convergence (exit 4)."""
+
+    exit_code = 4
+
+
+class NoTrialError(IdentificationError):
+    """A log reads fine but holds no step trial (exit 4)."""

@@ -1,0 +1,159 @@
+"""The paper's method: steady acceleration, 3 T_a settling, m_a by a line through the origin.
+
+Per trial, a first-order step ``a(t) = a_zc (1 - exp(-(t - t0)/T_a))`` is fitted to the
+first seconds after the onset (the least-squares form of the paper's rule "the time to
+reach the steady value is 3 T_a"; it averages through the sensor's 0.2 m/s^2
+quantization). Then ``f_in = m_a a_zc`` over all trials gives ``m_a`` (Fig. 7) and the
+per-trial ``T_a`` shows its drift with thrust and direction (Fig. 8). The method assumes
+little viscosity during the window (the paper sets D = 0 for it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from balancer_id.fit.data import TrialData
+
+#: Length of the window after the onset used for the first-order fit (s).
+CLASSIC_WINDOW_S = 2.0
+
+
+@dataclass
+class ClassicTrial:
+    """Paper-method figures of one trial."""
+
+    index: int
+    thrust_N: float
+    direction: str
+    a_zc: float
+    T_a: float
+    settling_time: float
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "index": self.index,
+            "thrust_N": self.thrust_N,
+            "direction": self.direction,
+            "a_zc": self.a_zc,
+            "T_a": self.T_a,
+            "settling_time_s": self.settling_time,
+        }
+
+
+@dataclass
+class ClassicResult:
+    """The paper's identification over all trials.
+
+    Attributes
+    ----------
+    m_a : float
+        Slope of ``f_in = m_a a_zc`` through the origin (kg).
+    m_a_stderr : float
+        Its standard error from the scatter about the line (kg).
+    T_a : float
+        Median of the per-trial time constants (s).
+    intercept_N : float
+        Intercept a free line ``f_in = m a_zc + c`` would have (N): far from 0 hints at
+        friction (a thrust that produces no motion).
+    free_slope : float
+        Slope of that free line (kg).
+    scatter_N : float
+        RMS of ``f_in - m_a a_zc`` (N).
+    trials : list of ClassicTrial
+    """
+
+    m_a: float
+    m_a_stderr: float
+    T_a: float
+    intercept_N: float
+    free_slope: float
+    scatter_N: float
+    trials: list[ClassicTrial] = field(default_factory=list)
+
+    def T_a_table(self) -> list[dict[str, object]]:
+        """Mean T_a per thrust level and direction (the paper's Fig. 8 as a table)."""
+        groups: dict[tuple[float, str], list[float]] = {}
+        for t in self.trials:
+            groups.setdefault((round(abs(t.thrust_N), 2), t.direction), []).append(t.T_a)
+        return [
+            {"thrust_N": k[0], "direction": k[1], "T_a": float(np.mean(v)), "n": len(v)}
+            for k, v in sorted(groups.items())
+        ]
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict (CONTRACT.md ``classic`` plus details)."""
+        return {
+            "m_a": self.m_a,
+            "T_a": self.T_a,
+            "m_a_stderr": self.m_a_stderr,
+            "intercept_N": self.intercept_N,
+            "free_slope": self.free_slope,
+            "scatter_N": self.scatter_N,
+            "trials": [t.to_dict() for t in self.trials],
+            "T_a_by_thrust": self.T_a_table(),
+        }
+
+
+def first_order_step(trial: TrialData, window_s: float = CLASSIC_WINDOW_S) -> ClassicTrial:
+    """Fit ``a_zc (1 - exp(-(t - t0)/T))`` to the window after the onset of one trial."""
+    t, a = trial.time, trial.accel
+    rest = t < trial.t_step
+    offset = float(np.median(a[rest])) if rest.sum() >= 5 else 0.0
+    sel = (t >= trial.t_step) & (t <= trial.t_step + window_s)
+    tt, aa = t[sel] - trial.t_step, a[sel] - offset
+    if tt.size < 5:
+        return ClassicTrial(trial.index, trial.thrust_N, trial.direction, np.nan, np.nan, np.nan)
+    tail = aa[tt > 0.6 * tt[-1]]
+    a0 = float(np.mean(tail)) if tail.size else float(np.mean(aa))
+
+    def resid(x: np.ndarray) -> np.ndarray:
+        return x[0] * (1.0 - np.exp(-tt / x[1])) - aa
+
+    sol = least_squares(resid, x0=[a0, 0.3], bounds=([-np.inf, 0.005], [np.inf, 5.0]))
+    a_zc, T = float(sol.x[0]), float(sol.x[1])
+    return ClassicTrial(trial.index, trial.thrust_N, trial.direction, a_zc, T, 3 * T)
+
+
+def paper_method(trials: Sequence[TrialData], window_s: float = CLASSIC_WINDOW_S) -> ClassicResult:
+    """Identify ``m_a`` and ``T_a`` the paper's way.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The step trials.
+    window_s : float
+        Window after each onset for the first-order fit (s).
+
+    Returns
+    -------
+    ClassicResult
+    """
+    per = [first_order_step(t, window_s) for t in trials]
+    ok = [p for p in per if np.isfinite(p.a_zc) and abs(p.a_zc) > 0]
+    f = np.array([p.thrust_N for p in ok])
+    a = np.array([p.a_zc for p in ok])
+    if a.size == 0:
+        return ClassicResult(np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, per)
+    m_a = float(f @ a / (a @ a))
+    resid = f - m_a * a
+    dof = max(a.size - 1, 1)
+    m_se = float(np.sqrt(resid @ resid / dof / (a @ a))) if a.size > 1 else np.nan
+    if a.size >= 2 and np.ptp(a) > 0:
+        slope, intercept = np.polyfit(a, f, 1)
+    else:
+        slope, intercept = m_a, 0.0
+    T_a = float(np.median([p.T_a for p in ok]))
+    return ClassicResult(
+        m_a=m_a,
+        m_a_stderr=m_se,
+        T_a=T_a,
+        intercept_N=float(intercept),
+        free_slope=float(slope),
+        scatter_N=float(np.sqrt(np.mean(resid**2))),
+        trials=per,
+    )

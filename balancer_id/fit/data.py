@@ -1,0 +1,104 @@
+"""Trials as the fitters see them: simulation inputs plus the measured acceleration."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.segment.trial import Trial
+from balancer_id.simulate.engine import PackedTrials, TrialInput
+from balancer_id.simulate.inputs import Thrust, Trapezoid
+
+
+@dataclass
+class TrialData:
+    """One trial ready for fitting.
+
+    Attributes
+    ----------
+    index : int
+        Trial index (over all logs of a fit).
+    thrust_N : float
+        Signed thrust (N).
+    direction : str
+        ``"up"`` or ``"down"``.
+    t_step : float
+        Onset of the thrust (s).
+    input : TrialInput
+        What drives the simulation (rest at ``input.time[0]``).
+    accel : numpy.ndarray
+        Measured vertical acceleration at ``input.time`` (m/s^2).
+    source : str
+        File and run the trial came from.
+    """
+
+    index: int
+    thrust_N: float
+    direction: str
+    t_step: float
+    input: TrialInput
+    accel: np.ndarray
+    source: str = ""
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times (s)."""
+        return self.input.time
+
+    @classmethod
+    def from_trial(
+        cls, trial: Trial, index: int | None = None, trajectory: Trapezoid | None = None
+    ) -> TrialData:
+        """Build from a segmented :class:`~balancer_id.segment.trial.Trial` (step thrust)."""
+        z_ref = v_ref = None
+        if trajectory is not None:
+            z_ref, v_ref = trajectory.evaluate(trial.time)
+        return cls(
+            index=trial.index if index is None else index,
+            thrust_N=float(trial.thrust_N),
+            direction=trial.direction,
+            t_step=float(trial.t_step),
+            input=TrialInput(
+                np.asarray(trial.time, float),
+                Thrust.step(trial.t_step, trial.thrust_N),
+                z_ref,
+                v_ref,
+            ),
+            accel=np.asarray(trial.accel, float),
+            source=f"{trial.source} [{trial.recording}]",
+        )
+
+
+def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:
+    """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other."""
+    levels: list[float] = []
+    for f in sorted(abs(t.thrust_N) for t in trials):
+        if not levels or f > levels[-1] * (1 + rel_tol):
+            levels.append(f)
+    return levels
+
+
+@dataclass
+class FitData:
+    """Several trials packed once for repeated simulation."""
+
+    trials: list[TrialData]
+    packed: PackedTrials
+    y: np.ndarray
+
+    @classmethod
+    def build(cls, trials: Sequence[TrialData]) -> FitData:
+        """Pack ``trials`` (in order)."""
+        trials = list(trials)
+        return cls(
+            trials=trials,
+            packed=PackedTrials.pack([t.input for t in trials]),
+            y=np.concatenate([t.accel for t in trials]),
+        )
+
+    def slices(self) -> list[slice]:
+        """The slice of each trial in the packed arrays."""
+        o = self.packed.offsets
+        return [slice(int(o[j]), int(o[j + 1])) for j in range(len(self.trials))]

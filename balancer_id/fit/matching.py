@@ -1,0 +1,250 @@
+"""Simulation matching: one bounded least-squares fit of a model over all trials at once."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.errors import IdentificationError
+from balancer_id.fit.data import FitData, TrialData, thrust_levels
+from balancer_id.fit.metrics import error_metrics
+from balancer_id.model.spec import Model
+
+#: Parameters that need trials at two or more thrust levels.
+NEEDS_THRUST_LEVELS = ("A",)
+
+
+@dataclass
+class ParameterEstimate:
+    """One fitted (or held) parameter."""
+
+    name: str
+    value: float
+    stderr: float | None
+    unit: str
+    vary: bool
+    at_bound: str | None = None
+
+    @property
+    def ci95(self) -> tuple[float, float] | None:
+        """Approximate 95 % confidence interval (value ± 1.96 stderr)."""
+        if self.stderr is None or not np.isfinite(self.stderr):
+            return None
+        return (self.value - 1.96 * self.stderr, self.value + 1.96 * self.stderr)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "value": self.value,
+            "stderr": self.stderr,
+            "unit": self.unit,
+            "vary": self.vary,
+            "ci95": list(self.ci95) if self.ci95 else None,
+            "at_bound": self.at_bound,
+        }
+
+
+@dataclass
+class MatchResult:
+    """The outcome of :func:`match_trials`."""
+
+    model: Model
+    parameters: dict[str, ParameterEstimate]
+    correlations: dict[str, dict[str, float]]
+    metrics: dict[str, float]
+    trial_rmse: list[float]
+    y: np.ndarray
+    y_model: np.ndarray
+    data: FitData
+    success: bool
+    message: str
+    nfev: int
+    warnings: list[str] = field(default_factory=list)
+
+    def values(self) -> dict[str, float]:
+        """Parameter name -> value."""
+        return {k: p.value for k, p in self.parameters.items()}
+
+    @property
+    def residual(self) -> np.ndarray:
+        """Measured minus simulated acceleration over all samples."""
+        return self.y - self.y_model
+
+
+def _residual_function(model: Model, data: FitData):
+    y = data.y
+
+    def residual(params) -> np.ndarray:
+        vals = params.valuesdict()
+        pvec = np.array([vals[n] for n in model.param_names], dtype=float)
+        out = data.packed.run(model, pvec)
+        r = out[:, 0] - y
+        if not np.all(np.isfinite(r)):
+            r = np.where(np.isfinite(r), r, 1e3)
+        return r
+
+    return residual
+
+
+def match_trials(
+    model: Model,
+    trials: Sequence[TrialData],
+    *,
+    start: Mapping[str, float] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    n_starts: int = 1,
+    seed: int = 0,
+    max_nfev: int = 2000,
+) -> MatchResult:
+    """Fit every free parameter of ``model`` to all ``trials`` at once.
+
+    Parameters
+    ----------
+    model : Model
+        The model to fit.
+    trials : sequence of TrialData
+        Step trials (any number of logs).
+    start : mapping, optional
+        Start values (the paper's method gives ``m_a`` and ``T_a``).
+    fixed : mapping, optional
+        Parameters held at the given values (``--fix``).
+    n_starts : int
+        Starts in all; the extra ones are drawn around ``start`` (seeded) and the lowest
+        cost wins, for costs with more than one minimum.
+    seed : int
+        Seed of the extra starts.
+    max_nfev : int
+        Budget of model evaluations per start.
+
+    Returns
+    -------
+    MatchResult
+
+    Raises
+    ------
+    IdentificationError
+        No trial, or the optimizer failed on every start.
+    """
+    import lmfit
+
+    if not trials:
+        raise IdentificationError("no trial to fit; check the log with 'balancer-id inspect'")
+    fixed = dict(fixed or {})
+    notes: list[str] = []
+    levels = thrust_levels(trials)
+    for name in NEEDS_THRUST_LEVELS:
+        if name in model.param_names and name not in fixed and len(levels) < 2:
+            value = dict(start or {}).get(name, model.param(name).value)
+            fixed[name] = value
+            notes.append(
+                f"{name} is only identifiable from trials at two or more thrust levels "
+                f"(found {len(levels)}: {', '.join(f'{x:g} N' for x in levels)}); held at {value:g}"
+            )
+    values = dict(start or {})
+    values.update(fixed)
+    params = model.lmfit_parameters(values, fixed=tuple(fixed))
+    data = FitData.build(trials)
+    residual = _residual_function(model, data)
+
+    starts = [params]
+    rng = np.random.default_rng(seed)
+    for _ in range(max(n_starts, 1) - 1):
+        p2 = params.copy()
+        for p in p2.values():
+            if p.vary:
+                lo, hi = p.min, p.max
+                x = (
+                    p.value * float(np.exp(rng.normal(0.0, 0.5)))
+                    if p.value != 0
+                    else rng.normal(0.0, 0.1)
+                )
+                p.value = float(np.clip(x, lo, hi))
+        starts.append(p2)
+
+    best = None
+    for p0 in starts:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                out = lmfit.minimize(
+                    residual, p0, method="least_squares", max_nfev=max_nfev, x_scale="jac"
+                )
+            except (ValueError, FloatingPointError) as exc:
+                notes.append(f"a start failed: {exc}")
+                continue
+        if best is None or out.chisqr < best.chisqr:
+            best = out
+    if best is None:
+        raise IdentificationError(
+            f"fit of '{model.spec}' did not converge from any start; "
+            "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
+        )
+    return _collect(model, best, data, notes)
+
+
+def _collect(model: Model, out, data: FitData, notes: list[str]) -> MatchResult:
+    y_model = data.y + out.residual
+    n_free = sum(1 for p in out.params.values() if p.vary)
+    metrics = error_metrics(data.y, y_model, n_free)
+    estimates: dict[str, ParameterEstimate] = {}
+    correlations: dict[str, dict[str, float]] = {}
+    for spec in model.params:
+        p = out.params[spec.name]
+        at_bound = None
+        if p.vary:
+            span = spec.max - spec.min
+            if p.value <= spec.min + 1e-6 * span:
+                at_bound = "min"
+            elif p.value >= spec.max - 1e-6 * span:
+                at_bound = "max"
+        stderr = float(p.stderr) if (p.vary and p.stderr is not None) else None
+        estimates[spec.name] = ParameterEstimate(
+            spec.name, float(p.value), stderr, spec.unit, bool(p.vary), at_bound
+        )
+        if p.vary and p.correl:
+            correlations[spec.name] = {k: float(v) for k, v in p.correl.items()}
+        if at_bound:
+            notes.append(
+                f"{spec.name} stopped at its {at_bound}imum bound ({p.value:g} {spec.unit}): "
+                "the data push it out of range or it is not in the data"
+            )
+    poorly = [
+        e.name
+        for e in estimates.values()
+        if e.vary
+        and e.at_bound is None
+        and (e.stderr is None or not np.isfinite(e.stderr) or e.stderr > abs(e.value))
+    ]
+    if poorly:
+        notes.append(
+            f"the data cannot determine {', '.join(poorly)} (standard error larger than the value "
+            "or undefined); fix them with --fix NAME=VALUE or add trials that excite them"
+        )
+    strong = sorted(
+        {
+            tuple(sorted((a, b)))
+            for a, row in correlations.items()
+            for b, c in row.items()
+            if abs(c) > 0.98
+        }
+    )
+    for a, b in strong:
+        notes.append(f"{a} and {b} are almost fully correlated ({correlations[a][b]:+.3f})")
+    trial_rmse = [float(np.sqrt(np.mean((data.y[s] - y_model[s]) ** 2))) for s in data.slices()]
+    return MatchResult(
+        model=model,
+        parameters=estimates,
+        correlations=correlations,
+        metrics=metrics,
+        trial_rmse=trial_rmse,
+        y=data.y,
+        y_model=y_model,
+        data=data,
+        success=bool(out.success),
+        message=str(out.message),
+        nfev=int(out.nfev),
+        warnings=notes,
+    )

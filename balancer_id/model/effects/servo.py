@@ -1,0 +1,31 @@
+"""A position-controlled robot holding the load (paper section IV)."""
+
+from __future__ import annotations
+
+from balancer_id.model.effect import Effect, Param
+
+
+class Servo(Effect):
+    """Robot coupling: the load is held by a servo spring-damper tracking a reference::
+
+        h = u + k_r (z_ref - z) + c_r (v_ref - v)
+
+    With the lag in the loop the closed loop is
+    ``T_a m_a s^3 + (T_a D + m_a) s^2 + (D + c_r) s + k_r`` and is stable only when
+    ``(T_a D + m_a)(D + c_r) > T_a m_a k_r``: a stiff, lightly damped servo oscillates
+    where a person does not (paper section IV, finding 3).
+    """
+
+    name = "servo"
+    summary = "robot servo spring k_r and damper c_r tracking its reference (section IV)"
+    source = "paper IV, Figs. 14-16"
+    parameters = (
+        Param("k_r", 300.0, 0.0, 1e6, "N/m", "servo stiffness of the robot"),
+        Param("c_r", 50.0, 0.0, 1e5, "N s/m", "servo damping of the robot"),
+    )
+
+    @staticmethod
+    def operating_force(
+        t: float, u: float, z: float, v: float, z_ref: float, v_ref: float, k_r: float, c_r: float
+    ) -> float:
+        return u + k_r * (z_ref - z) + c_r * (v_ref - v)

@@ -1,0 +1,23 @@
+"""Saturation of the winding speed."""
+
+from __future__ import annotations
+
+from balancer_id.model.effect import Effect, Param
+
+
+class SpeedLimit(Effect):
+    """The drum's winding speed saturates at ``v_max`` (specification: 500 mm/s).
+
+    Where ``|v| >= v_max`` and the net force pushes outward the acceleration is zero, so
+    the measured acceleration drops to zero abruptly and the speed plateaus at the same
+    value in every long trial.
+    """
+
+    name = "speed_limit"
+    summary = "winding speed saturates at v_max (spec 0.5 m/s); acceleration drops to 0"
+    source = "paper Table III (maximum winding speed 500 mm/s)"
+    parameters = (Param("v_max", 0.5, 0.01, 5.0, "m/s", "maximum winding speed"),)
+
+    @staticmethod
+    def speed_limit(v_max: float) -> float:
+        return v_max

@@ -1,0 +1,175 @@
+"""Where effects come from: the built-ins, installed plug-ins and user effect files.
+
+A :class:`Registry` maps spec names to effect classes. The default registry holds the
+built-ins plus every effect that an installed package announces in the entry-point group
+``balancer_id.effects``; ``--effects-file FILE.py`` adds the :class:`Effect` subclasses
+defined in that file. Callers (and tests) may build their own registry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+from collections.abc import Iterable, Iterator
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from balancer_id.errors import EffectError, ModelSpecError
+from balancer_id.model.effect import Effect
+
+ENTRY_POINT_GROUP = "balancer_id.effects"
+
+
+class Registry:
+    """A name -> effect-class mapping with user extensions.
+
+    Parameters
+    ----------
+    effects : iterable of Effect subclasses, optional
+        The initial effects; by default the built-ins.
+    """
+
+    def __init__(self, effects: Iterable[type[Effect]] | None = None) -> None:
+        from balancer_id.model.effects import BUILTIN_EFFECTS
+
+        self._effects: dict[str, type[Effect]] = {}
+        self._origin: dict[str, str] = {}
+        for cls in BUILTIN_EFFECTS.values() if effects is None else effects:
+            self.add(cls, origin="built-in")
+
+    def add(self, cls: type[Effect], *, origin: str = "user") -> None:
+        """Register one effect class.
+
+        Raises
+        ------
+        ModelSpecError
+            When the class is malformed or its name is taken by another effect.
+        """
+        if not (isinstance(cls, type) and issubclass(cls, Effect)):
+            raise ModelSpecError(f"{origin}: {cls!r} is not a subclass of balancer_id.Effect")
+        cls.validate_definition()
+        known = self._effects.get(cls.name)
+        if known is not None and known is not cls:
+            raise ModelSpecError(
+                f"{origin}: effect name '{cls.name}' is already taken by the "
+                f"{self._origin[cls.name]} effect; rename yours"
+            )
+        self._effects[cls.name] = cls
+        self._origin[cls.name] = origin
+
+    def __getitem__(self, name: str) -> type[Effect]:
+        try:
+            return self._effects[name]
+        except KeyError:
+            raise ModelSpecError(
+                f"unknown effect '{name}'; known effects: {', '.join(self.names())}"
+            ) from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._effects
+
+    def __iter__(self) -> Iterator[type[Effect]]:
+        return iter(self._effects.values())
+
+    def names(self) -> list[str]:
+        """Spec names of every registered effect."""
+        return list(self._effects)
+
+    def origin(self, name: str) -> str:
+        """Where an effect came from (``built-in``, ``entry point ...``, a file path)."""
+        return self._origin[name]
+
+    def load_entry_points(self) -> None:
+        """Add the effects installed packages announce in ``balancer_id.effects``."""
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            try:
+                cls = ep.load()
+            except Exception as exc:
+                raise EffectError(
+                    f"entry point {ep.name} = {ep.value} ({ENTRY_POINT_GROUP}) "
+                    f"failed to load: {exc}"
+                ) from None
+            self.add(cls, origin=f"entry point {ep.value}")
+
+    def load_file(self, path: str | Path) -> list[type[Effect]]:
+        """Add every Effect subclass defined in a Python file.
+
+        Parameters
+        ----------
+        path : str or Path
+            A ``.py`` file with one or more ``Effect`` subclasses.
+
+        Returns
+        -------
+        list of Effect subclasses
+            The effects the file defined.
+
+        Raises
+        ------
+        EffectError
+            When the file is missing, fails to import or defines no effect.
+        """
+        classes = load_effects_file(path)
+        for cls in classes:
+            self.add(cls, origin=str(Path(path)))
+        return classes
+
+
+def load_effects_file(path: str | Path) -> list[type[Effect]]:
+    """Import a user effects file and return the Effect subclasses it defines.
+
+    The module is imported under a name derived from the file's absolute path, so the
+    simulator's compiled kernels can import it again in another process.
+    """
+    file = Path(path).resolve()
+    if not file.is_file():
+        raise EffectError(f"{path}: effects file not found; give the path of a .py file")
+    module = import_file_module(file)
+    classes = [
+        obj
+        for obj in vars(module).values()
+        if isinstance(obj, type)
+        and issubclass(obj, Effect)
+        and obj is not Effect
+        and obj.__module__ == module.__name__
+    ]
+    if not classes:
+        raise EffectError(
+            f"{path}: defines no subclass of balancer_id.Effect; "
+            "see README 'Writing your own effect'"
+        )
+    return classes
+
+
+def module_name_for(file: Path) -> str:
+    """The import name used for a user effects file (stable across processes)."""
+    digest = hashlib.sha1(str(file).encode()).hexdigest()[:12]
+    return f"balancer_id_user_effects_{file.stem}_{digest}"
+
+
+def import_file_module(file: Path):
+    """Import a Python file by path once per process (cached in ``sys.modules``)."""
+    name = module_name_for(file)
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, file)
+    if spec is None or spec.loader is None:
+        raise EffectError(f"{file}: cannot be imported as a Python module")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        del sys.modules[name]
+        raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
+    return module
+
+
+def default_registry(effects_files: Iterable[str | Path] = ()) -> Registry:
+    """The built-ins, the installed plug-ins and the given effect files."""
+    registry = Registry()
+    registry.load_entry_points()
+    for path in effects_files:
+        registry.load_file(path)
+    return registry

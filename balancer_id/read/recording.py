@@ -1,0 +1,111 @@
+"""What a reader returns: one :class:`Log` per file, one :class:`Recording` per run."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: The layouts a reader may report (CONTRACT.md, ``inspect --json`` ``format``).
+FORMATS = ("pasco-capstone", "pasco-sparkvue", "phyphox", "generic")
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A stretch of dropped samples in a recording's time column.
+
+    Attributes
+    ----------
+    t_before, t_after : float
+        Times (s) of the last sample before and the first sample after the gap.
+    n_missing : int
+        Samples that the nominal rate says are missing.
+    """
+
+    t_before: float
+    t_after: float
+    n_missing: int
+
+    def to_dict(self) -> dict[str, float | int]:
+        """Return the gap as a JSON-ready dict."""
+        return {"t_before": self.t_before, "t_after": self.t_after, "n_missing": self.n_missing}
+
+
+@dataclass
+class Recording:
+    """One run of a log, on its own time base.
+
+    Attributes
+    ----------
+    name : str
+        The run's name as the export wrote it (``"Run 1"``, ``"Run #2"``, ``"9.9"``, ...).
+    time : numpy.ndarray
+        Sample times (s), strictly increasing, as in the file (the first need not be 0).
+    force : numpy.ndarray or None
+        Force channel (N), sensor convention (compression positive), or None when absent.
+    accel : numpy.ndarray or None
+        Acceleration, shape ``(n, k)`` with ``k`` = 1 or 3 (m/s^2), sensor frame.
+    accel_includes_gravity : bool
+        True when the accelerometer reads specific force (``+g`` up at rest); False for
+        "linear acceleration" exports (phyphox "without g").
+    accel_axes : tuple of str
+        Axis labels of the ``accel`` columns (``("x", "y", "z")`` or ``("z",)``).
+    sample_rate_hz : float
+        Rate estimated from the median time step.
+    gaps : list of Gap
+        Dropped-sample stretches (a step longer than 1.5 nominal steps).
+    saturated : dict
+        Channel name -> number of samples at the sensor's limits.
+    extra : dict
+        Other numeric channels kept by name (gyro, position, ...).
+    """
+
+    name: str
+    time: np.ndarray
+    force: np.ndarray | None = None
+    accel: np.ndarray | None = None
+    accel_includes_gravity: bool = True
+    accel_axes: tuple[str, ...] = ("x", "y", "z")
+    sample_rate_hz: float = float("nan")
+    gaps: list[Gap] = field(default_factory=list)
+    saturated: dict[str, int] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples in the run."""
+        return int(self.time.size)
+
+
+@dataclass
+class Log:
+    """Everything read from one file.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file read.
+    format : str
+        One of :data:`FORMATS`.
+    recordings : list of Recording
+        One per run, in file order.
+    warnings : list of str
+        Things the user should know (saturation, gaps, guessed units).
+    """
+
+    path: Path
+    format: str
+    recordings: list[Recording]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        """Total samples over all runs."""
+        return sum(r.n_samples for r in self.recordings)
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """The rate of the longest run (Hz)."""
+        longest = max(self.recordings, key=lambda r: r.n_samples)
+        return longest.sample_rate_hz

@@ -1,0 +1,72 @@
+"""A step trial: the window of one recording that follows one step of thrust."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Trial:
+    """One step trial, ready for identification.
+
+    Times are on the recording's own time base. ``accel`` is the vertical acceleration
+    with gravity removed (up positive); ``force`` is the change of the operating force
+    since the rest before the step, signed so that up is positive (MODEL.md).
+
+    Attributes
+    ----------
+    index : int
+        Position of the trial in the log (0-based, over all runs).
+    recording : str
+        Name of the run the trial comes from.
+    t_step : float
+        Onset of the thrust step (s).
+    t_start, t_end : float
+        The analysis window (s): a little rest before the onset, up to the next event.
+    thrust_N : float
+        Signed size of the step (N), up positive.
+    direction : str
+        ``"up"`` or ``"down"``; agrees with the sign of ``thrust_N``.
+    time : numpy.ndarray
+        Sample times inside the window (s).
+    accel : numpy.ndarray
+        Vertical acceleration inside the window (m/s^2), gravity removed.
+    force : numpy.ndarray or None
+        Operating-force change inside the window (N), up positive, or None.
+    end_reason : str
+        What ended the window: ``"next step"``, ``"catch"``, ``"gap"``, ``"end of run"``.
+    source : str
+        The file the trial was read from.
+    notes : list of str
+        Anything unusual (thrust given by the user, saturation in the window, ...).
+    """
+
+    index: int
+    recording: str
+    t_step: float
+    t_start: float
+    t_end: float
+    thrust_N: float
+    direction: str
+    time: np.ndarray
+    accel: np.ndarray
+    force: np.ndarray | None = None
+    end_reason: str = "end of run"
+    source: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, object]:
+        """Return the CONTRACT.md ``inspect`` trial record."""
+        return {
+            "index": self.index,
+            "recording": self.recording,
+            "t_step": round(float(self.t_step), 6),
+            "t_start": round(float(self.t_start), 6),
+            "t_end": round(float(self.t_end), 6),
+            "thrust_N": round(float(self.thrust_N), 4),
+            "direction": self.direction,
+            "end_reason": self.end_reason,
+            "n_samples": int(self.time.size),
+        }

@@ -1,0 +1,225 @@
+"""Simulate a model for one trial or many (the public face of the kernel)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from balancer_id.model.spec import Model
+from balancer_id.simulate.inputs import Thrust
+from balancer_id.simulate.kernel import OUT_COLUMNS, get_kernel
+
+#: Internal RK4 steps per sample interval.
+DEFAULT_SUBSTEPS = 1
+
+
+@dataclass
+class Simulation:
+    """The simulated signals of one trial at the requested sample times.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        Sample times (s).
+    accel : numpy.ndarray
+        What the accelerometer sees after gravity removal (m/s^2), incl. ``output`` hooks.
+    velocity, position : numpy.ndarray
+        Load velocity (m/s) and position (m), up positive, zero at the start.
+    drive_force : numpy.ndarray
+        Drive force ``f`` after the lag (N).
+    operating_force : numpy.ndarray
+        Operating force ``h`` (N).
+    """
+
+    time: np.ndarray
+    accel: np.ndarray
+    velocity: np.ndarray
+    position: np.ndarray
+    drive_force: np.ndarray
+    operating_force: np.ndarray
+
+    def to_frame(self) -> pd.DataFrame:
+        """The signals as a DataFrame indexed by time."""
+        return pd.DataFrame(
+            {
+                "accel": self.accel,
+                "velocity": self.velocity,
+                "position": self.position,
+                "drive_force": self.drive_force,
+                "operating_force": self.operating_force,
+            },
+            index=pd.Index(self.time, name="time"),
+        )
+
+
+@dataclass(frozen=True)
+class TrialInput:
+    """Everything that drives one simulated trial.
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        Output sample times (s); the state is at rest at ``time[0]``.
+    thrust : Thrust
+        The operating thrust.
+    z_ref, v_ref : numpy.ndarray or None
+        A robot's reference position (m) and velocity (m/s) at ``time`` (``servo`` only).
+    """
+
+    time: np.ndarray
+    thrust: Thrust
+    z_ref: np.ndarray | None = None
+    v_ref: np.ndarray | None = None
+
+
+def _param_vector(model: Model, params: Mapping[str, float] | Sequence[float]) -> np.ndarray:
+    if isinstance(params, Mapping):
+        return np.asarray(model.vector(params), dtype=float)
+    vec = np.asarray(params, dtype=float)
+    if vec.shape != (len(model.param_names),):
+        raise ValueError(f"expected {len(model.param_names)} parameters {model.param_names}")
+    return vec
+
+
+def simulate(
+    model: Model,
+    params: Mapping[str, float] | Sequence[float],
+    time: np.ndarray,
+    thrust: Thrust,
+    *,
+    z_ref: np.ndarray | None = None,
+    v_ref: np.ndarray | None = None,
+    substeps: int = DEFAULT_SUBSTEPS,
+) -> Simulation:
+    """Simulate one trial of ``model``.
+
+    Parameters
+    ----------
+    model : Model
+        The model (see :func:`balancer_id.model.parse_model`).
+    params : mapping or sequence
+        Parameter values by name (missing ones take their defaults) or a vector in
+        ``model.param_names`` order.
+    time : numpy.ndarray
+        Output sample times (s), increasing; the state is at rest at ``time[0]``.
+    thrust : Thrust
+        The operating thrust (a step or a measured series).
+    z_ref, v_ref : numpy.ndarray, optional
+        A robot's reference position and velocity at ``time`` (for ``servo``).
+    substeps : int
+        RK4 steps per sample interval.
+
+    Returns
+    -------
+    Simulation
+    """
+    out = simulate_many(
+        model,
+        params,
+        [TrialInput(np.asarray(time, dtype=float), thrust, z_ref, v_ref)],
+        substeps=substeps,
+    )
+    return out[0]
+
+
+@dataclass
+class PackedTrials:
+    """Trials packed into flat arrays for the batch kernel (built once per fit)."""
+
+    t_all: np.ndarray
+    offsets: np.ndarray
+    bt_all: np.ndarray
+    bu_all: np.ndarray
+    boffsets: np.ndarray
+    zr_all: np.ndarray
+    vr_all: np.ndarray
+
+    @classmethod
+    def pack(cls, trials: Sequence[TrialInput]) -> PackedTrials:
+        """Concatenate the trials' arrays."""
+        times = [np.ascontiguousarray(tr.time, dtype=float) for tr in trials]
+        zeros = [np.zeros_like(t) for t in times]
+        zr = [
+            z if tr.z_ref is None else np.asarray(tr.z_ref, float)
+            for z, tr in zip(zeros, trials, strict=True)
+        ]
+        vr = [
+            z if tr.v_ref is None else np.asarray(tr.v_ref, float)
+            for z, tr in zip(zeros, trials, strict=True)
+        ]
+        return cls(
+            t_all=np.concatenate(times),
+            offsets=np.concatenate([[0], np.cumsum([t.size for t in times])]).astype(np.int64),
+            bt_all=np.concatenate([tr.thrust.times for tr in trials]).astype(float),
+            bu_all=np.concatenate([tr.thrust.values for tr in trials]).astype(float),
+            boffsets=np.concatenate(
+                [[0], np.cumsum([tr.thrust.times.size for tr in trials])]
+            ).astype(np.int64),
+            zr_all=np.concatenate(zr),
+            vr_all=np.concatenate(vr),
+        )
+
+    def run(self, model: Model, pvec: np.ndarray, substeps: int = DEFAULT_SUBSTEPS) -> np.ndarray:
+        """Simulate every trial; returns the ``(n_total, 5)`` output array."""
+        out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
+        get_kernel(model).simulate_batch(
+            self.t_all,
+            self.offsets,
+            self.bt_all,
+            self.bu_all,
+            self.boffsets,
+            self.zr_all,
+            self.vr_all,
+            pvec,
+            substeps,
+            out,
+        )
+        return out
+
+
+def simulate_many(
+    model: Model,
+    params: Mapping[str, float] | Sequence[float],
+    trials: Sequence[TrialInput],
+    *,
+    substeps: int = DEFAULT_SUBSTEPS,
+) -> list[Simulation]:
+    """Simulate several trials with the same parameters in one kernel call.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    params : mapping or sequence
+        Parameter values (see :func:`simulate`).
+    trials : sequence of TrialInput
+        The trials.
+    substeps : int
+        RK4 steps per sample interval.
+
+    Returns
+    -------
+    list of Simulation
+    """
+    for tr in trials:
+        if tr.time.ndim != 1 or tr.time.size < 2 or np.any(np.diff(tr.time) <= 0):
+            raise ValueError("simulation times must be a strictly increasing 1-D array")
+    packed = PackedTrials.pack(trials)
+    out = packed.run(model, _param_vector(model, params), substeps)
+    sims = []
+    for j in range(len(trials)):
+        seg = out[packed.offsets[j] : packed.offsets[j + 1]]
+        sims.append(
+            Simulation(
+                time=packed.t_all[packed.offsets[j] : packed.offsets[j + 1]],
+                accel=seg[:, 0].copy(),
+                velocity=seg[:, 1].copy(),
+                position=seg[:, 2].copy(),
+                drive_force=seg[:, 3].copy(),
+                operating_force=seg[:, 4].copy(),
+            )
+        )
+    return sims

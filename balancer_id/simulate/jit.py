@@ -1,0 +1,41 @@
+"""The one place that decides how kernels are compiled.
+
+numba compiles the simulator's generated kernels to machine code and caches them on
+disk. Setting ``BALANCER_ID_NO_JIT=1`` (or a missing numba) runs the very same code as
+plain Python, slowly: useful for debugging a user effect.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any
+
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+_DISABLED = os.environ.get("BALANCER_ID_NO_JIT", "") not in ("", "0")
+
+try:  # pragma: no cover - exercised through both branches by environment
+    if _DISABLED:
+        raise ImportError
+    import numba
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover
+    numba = None
+    HAVE_NUMBA = False
+
+
+def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
+    """Compile ``func`` in numba's nopython mode, or return it unchanged without numba."""
+
+    def wrap(f: Callable[..., Any]) -> Any:
+        if not HAVE_NUMBA:
+            return f
+        return numba.njit(cache=cache, error_model="numpy", fastmath=FASTMATH)(f)
+
+    return wrap if func is None else wrap(func)
+
+
+def jit_enabled() -> bool:
+    """Whether kernels are compiled (False: plain Python)."""
+    return HAVE_NUMBA
