@@ -99,6 +99,9 @@ class Effect:
         Base parameters this effect makes meaningless (they are dropped from the model).
     source : str
         Where the equation comes from.
+    example : dict
+        Typical true values of the effect's parameters (tests, docs, ``simulate``);
+        parameters missing here use their start value.
     """
 
     name: ClassVar[str] = ""
@@ -107,6 +110,7 @@ class Effect:
     excludes: ClassVar[tuple[str, ...]] = ()
     replaces: ClassVar[tuple[str, ...]] = ()
     source: ClassVar[str] = ""
+    example: ClassVar[dict[str, float]] = {}
 
     @classmethod
     def hooks(cls) -> tuple[str, ...]:
@@ -153,6 +157,7 @@ class Effect:
             "excludes": list(cls.excludes),
             "replaces": list(cls.replaces),
             "source": cls.source,
+            "example": dict(cls.example),
         }
 
     @classmethod

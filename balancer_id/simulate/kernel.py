@@ -28,7 +28,7 @@ from balancer_id.model.effect import HOOKS, Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulate.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "4"
+KERNEL_VERSION = "6"
 
 #: Columns of the kernel's output array.
 OUT_COLUMNS = ("a", "v", "z", "f", "h")
@@ -79,12 +79,12 @@ def rk4(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p):
     f1 = f + dt / 6.0 * (k1f + 2.0 * k2f + 2.0 * k3f + k4f)
     v1 = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
     z1 = z + dt / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
-    return f1, v1, z1
+    return f1, v1, z1, k1v
 
 
 @jit(cache={cache})
 def step(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p):
-    f1, v1, z1 = rk4(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
+    f1, v1, z1, a0 = rk4(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
 {event_lines}
     return f1, v1, z1
 
@@ -149,10 +149,15 @@ def simulate_batch(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, p, 
 """
 
 _FRICTION_EVENT = """\
-    if v != 0.0 and v * v1 < 0.0:
-        theta = v / (v - v1)
-        fa, va, za = rk4(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
-        f1, v1, z1 = rk4(t + theta * dt, (1.0 - theta) * dt, fa, 0.0, za, u, zr0, vr0, szr, svr,
+    if v != 0.0:
+        v_euler = v + dt * a0
+        v_cross = v1 if v * v1 < 0.0 else v_euler
+    else:
+        v_cross = 0.0
+    if v != 0.0 and v * v_cross < 0.0:
+        theta = v / (v - v_cross)
+        fa, va, za, _ = rk4(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
+        f1, v1, z1, _ = rk4(t + theta * dt, (1.0 - theta) * dt, fa, 0.0, za, u, zr0, vr0, szr, svr,
                          tk, p)
         if v1 * v > 0.0:
             v1 = 0.0"""
@@ -162,9 +167,9 @@ _LIMIT_EVENT = """\
     if abs(v1) > vm:
         if abs(v) < vm:
             theta = (vm - abs(v)) / (abs(v1) - abs(v))
-            fa, va, za = rk4(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
+            fa, va, za, _ = rk4(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
             va = vm if v1 > 0.0 else -vm
-            f1, v1, z1 = rk4(t + theta * dt, (1.0 - theta) * dt, fa, va, za, u, zr0, vr0, szr,
+            f1, v1, z1, _ = rk4(t + theta * dt, (1.0 - theta) * dt, fa, va, za, u, zr0, vr0, szr,
                              svr, tk, p)
         v1 = vm if v1 > 0.0 else -vm"""
 

@@ -18,6 +18,7 @@ class AsymmetricLag(Effect):
     summary = "separate drive lags T_up and T_down for upward and downward pushes (Fig. 8)"
     source = "paper III.A, Fig. 8"
     replaces = ("T_a",)
+    example = {"T_up": 0.3, "T_down": 0.38}
     parameters = (
         Param("T_up", 0.3, 0.005, 5.0, "s", "drive lag while the drive force rises"),
         Param("T_down", 0.3, 0.005, 5.0, "s", "drive lag while the drive force falls"),

@@ -21,6 +21,7 @@ class Base(Effect):
     name = "base"
     summary = "virtual mass m_a with first-order drive lag T_a (always present)"
     source = "paper III.A, eq. (1)"
+    example = {"m_a": 15.1, "T_a": 0.33}
     parameters = (
         Param("m_a", 15.0, 0.5, 500.0, "kg", "virtual equivalent mass"),
         Param("T_a", 0.3, 0.005, 5.0, "s", "time constant of the drive's first-order lag"),

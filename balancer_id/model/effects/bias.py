@@ -15,6 +15,7 @@ class Bias(Effect):
     name = "bias"
     summary = "constant acceleration offset b left after gravity removal (tilt, drift)"
     source = "MODEL.md"
+    example = {"b": 0.05}
     parameters = (Param("b", 0.0, -2.0, 2.0, "m/s^2", "acceleration offset"),)
 
     @staticmethod

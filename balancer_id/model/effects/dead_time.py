@@ -16,6 +16,7 @@ class DeadTime(Effect):
     name = "dead_time"
     summary = "transport delay tau_d between thrust and drive (wireless link, motor)"
     source = "MODEL.md"
+    example = {"tau_d": 0.08}
     parameters = (Param("tau_d", 0.05, 0.0, 1.0, "s", "dead time"),)
 
     @staticmethod

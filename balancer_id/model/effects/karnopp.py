@@ -21,6 +21,7 @@ class Karnopp(Effect):
     name = "karnopp"
     summary = "stick-slip friction f_s = f_d with a zero-velocity band (paper eqs. 3-5)"
     source = "paper III.C, eqs. (3)-(5); Karnopp (1985)"
+    example = {"f_s": 0.98}
     parameters = (Param("f_s", 1.0, 0.0, 50.0, "N", "static (= dynamic) friction force"),)
 
     @staticmethod

@@ -16,6 +16,7 @@ class SpeedLimit(Effect):
     name = "speed_limit"
     summary = "winding speed saturates at v_max (spec 0.5 m/s); acceleration drops to 0"
     source = "paper Table III (maximum winding speed 500 mm/s)"
+    example = {"v_max": 0.5}
     parameters = (Param("v_max", 0.5, 0.01, 5.0, "m/s", "maximum winding speed"),)
 
     @staticmethod

@@ -20,9 +20,10 @@ class VariableViscosity(Effect):
     summary = "viscosity D0*exp(-A|h|) that falls with the operating force h (paper eq. 2)"
     source = "paper III.B, eq. (2)"
     excludes = ("viscous",)
+    example = {"D0": 6.0, "A": 0.4}
     parameters = (
         Param("D0", 3.0, 0.0, 200.0, "kg/s", "viscosity at zero operating force"),
-        Param("A", 0.2, 0.0, 5.0, "1/N", "sensitivity of the viscosity to the operating force"),
+        Param("A", 0.4, 0.0, 5.0, "1/N", "sensitivity of the viscosity to the operating force"),
     )
 
     @staticmethod

@@ -16,6 +16,7 @@ class Viscous(Effect):
     summary = "constant velocity viscosity, force -D0*v"
     source = "paper III.B (A = 0)"
     excludes = ("variable_viscosity",)
+    example = {"D0": 6.0}
     parameters = (Param("D0", 3.0, 0.0, 200.0, "kg/s", "velocity viscosity coefficient"),)
 
     @staticmethod

@@ -1,0 +1,376 @@
+"""The ``balancer-id`` command: it parses arguments, calls the library and writes output.
+
+Data go to stdout (one JSON object with ``--json``), messages to stderr. Errors are one
+line with the exit codes of CONTRACT.md; there is never a traceback (set
+``BALANCER_ID_DEBUG=1`` to see one).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Identify a passive balancer's dynamics from force/acceleration step logs.",
+)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+# Options shared by several commands -----------------------------------------------------
+ModelOpt = Annotated[
+    str | None,
+    typer.Option("--model", "-m", help="Effects joined by '+' (default variable_viscosity)."),
+]
+EffectsFileOpt = Annotated[
+    list[Path] | None,
+    typer.Option("--effects-file", help="A .py file of user effects (repeatable)."),
+]
+ThrustOpt = Annotated[
+    str | None,
+    typer.Option("--thrust", help="Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."),
+]
+ForceSignOpt = Annotated[
+    int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
+]
+VerticalOpt = Annotated[
+    str, typer.Option("--vertical", help="auto|x|y|z: vertical axis of logs without gravity.")
+]
+ColumnsOpt = Annotated[
+    str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
+]
+GOpt = Annotated[float, typer.Option("--g", help="Gravity in m/s^2.")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
+FixOpt = Annotated[
+    list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
+]
+TrajectoryOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--trajectory", help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..'."
+    ),
+]
+
+
+def _fail(message: str, code: int) -> None:
+    typer.echo(f"balancer-id: error: {' '.join(str(message).split())}", err=True)
+    raise typer.Exit(code)
+
+
+def guarded(func: F) -> F:
+    """Turn library errors into one-line messages and CONTRACT.md exit codes."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from balancer_id.errors import BalancerIdError
+
+        try:
+            return func(*args, **kwargs)
+        except (typer.Exit, typer.Abort):
+            raise
+        except BalancerIdError as exc:
+            _fail(str(exc), exc.exit_code)
+        except KeyboardInterrupt:
+            _fail("interrupted", 130)
+        except Exception as exc:  # never a traceback for the user
+            if os.environ.get("BALANCER_ID_DEBUG"):
+                raise
+            _fail(
+                f"internal error {type(exc).__name__}: {exc} "
+                "(rerun with BALANCER_ID_DEBUG=1 and report it)",
+                1,
+            )
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _floats(text: str | None, what: str) -> list[float] | None:
+    from balancer_id.errors import UsageError
+
+    if text is None:
+        return None
+    try:
+        return [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise UsageError(f"{what} '{text}': give numbers separated by commas") from None
+
+
+def _assignments(items: list[str] | None, what: str) -> dict[str, float]:
+    from balancer_id.errors import UsageError
+
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise UsageError(f"{what} '{item}': expected NAME=VALUE, e.g. m_a=15.1") from None
+    return out
+
+
+def _read_options(
+    thrust: str | None, force_sign: int | None, vertical: str, columns: str | None, g: float
+):
+    from balancer_id.errors import UsageError
+    from balancer_id.pipeline import ReadOptions
+
+    if force_sign not in (None, 1, -1):
+        raise UsageError("--force-sign must be +1 or -1")
+    if vertical not in ("auto", "x", "y", "z"):
+        raise UsageError("--vertical must be auto, x, y or z")
+    cmap = None
+    if columns:
+        cmap = {}
+        for item in columns.split(","):
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise UsageError(f"--columns '{item}': expected ROLE=COLUMN, e.g. time=t")
+            cmap[key.strip()] = value.strip()
+    return ReadOptions(
+        columns=cmap,
+        thrusts=_floats(thrust, "--thrust"),
+        force_sign=force_sign,
+        vertical=vertical,
+        g=g,
+    )
+
+
+def _trajectory(text: str | None):
+    from balancer_id.errors import UsageError
+    from balancer_id.simulate.inputs import parse_trajectory
+
+    if text is None:
+        return None
+    try:
+        return parse_trajectory(text)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _emit_json(obj: object) -> None:
+    sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
+
+
+def _console():
+    from rich.console import Console
+
+    return Console(width=max(100, Console().width))
+
+
+# Commands -----------------------------------------------------------------------------
+@app.command()
+@guarded
+def inspect(
+    log: Annotated[Path, typer.Argument(help="The log to read.")],
+    json_out: JsonOpt = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Show what was read from LOG and the step trials found in it."""
+    from balancer_id.errors import NoTrialError
+    from balancer_id.pipeline import describe_log
+    from balancer_id.read import read_log
+    from balancer_id.segment import find_trials
+
+    options = _read_options(thrust, force_sign, vertical, columns, g)
+    data = read_log(log, columns=options.columns)
+    try:
+        trials = find_trials(
+            data,
+            thrusts=options.thrusts,
+            force_sign=options.force_sign,
+            vertical=options.vertical,
+            g=options.g,
+        )
+        problem = None
+    except NoTrialError as exc:
+        trials, problem = [], exc
+    info = describe_log(data, trials)
+    if plot is not None:
+        from balancer_id.report.inspect_plot import plot_inspection
+
+        plot_inspection(data, trials, plot)
+    if json_out:
+        _emit_json(info)
+    else:
+        print_inspection = __import__(
+            "balancer_id.report.terminal", fromlist=["print_inspection"]
+        ).print_inspection
+        print_inspection(_console(), info)
+    if problem is not None:
+        raise problem
+
+
+@app.command()
+@guarded
+def fit(
+    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    model: ModelOpt = None,
+    thrust: ThrustOpt = None,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    report: Annotated[
+        Path | None, typer.Option("--report", help="Write FILE.html or FILE.pdf.")
+    ] = None,
+    per_trial: Annotated[
+        bool, typer.Option("--per-trial", help="Also fit each trial alone.")
+    ] = False,
+    starts: Annotated[int, typer.Option("--starts", help="Optimizer starts.")] = 1,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Identify the parameters of the model over all trials of all LOGS."""
+    from balancer_id.fit import fit as run_fit
+
+    options = _read_options(thrust, force_sign, vertical, columns, g)
+    result = run_fit(
+        logs,
+        model=model,
+        fixed=_assignments(fix, "--fix"),
+        options=options,
+        effects_files=effects_file or (),
+        trajectory=_trajectory(trajectory),
+        per_trial=per_trial,
+        n_starts=starts,
+    )
+    out = result.to_dict()
+    if report is not None:
+        from balancer_id.report.document import write_fit_report
+
+        write_fit_report(result, report)
+    if json_out:
+        _emit_json(out)
+    else:
+        from balancer_id.report.terminal import print_fit
+
+        print_fit(_console(), out)
+
+
+@app.command()
+@guarded
+def simulate(
+    model: ModelOpt = None,
+    param: Annotated[
+        list[str] | None, typer.Option("--param", help="NAME=VALUE of the true model (repeatable).")
+    ] = None,
+    thrust: Annotated[str, typer.Option("--thrust", help="Thrusts in N, one run each.")] = (
+        "2.45,-2.45,4.9,-4.9,7.35,-7.35"
+    ),
+    out: Annotated[Path, typer.Option("--out", help="The CSV to write (PASCO Capstone).")] = Path(
+        "simulated.csv"
+    ),
+    noise: Annotated[float, typer.Option("--noise", help="Acceleration noise (m/s^2).")] = 0.03,
+    force_noise: Annotated[float, typer.Option("--force-noise", help="Force noise (N).")] = 0.03,
+    quantize: Annotated[bool, typer.Option("--quantize", help="Sensor resolution.")] = False,
+    tilt: Annotated[float, typer.Option("--tilt", help="Sensor tilt (degrees).")] = 10.0,
+    drop: Annotated[float, typer.Option("--drop", help="Fraction of samples dropped.")] = 0.0,
+    rate: Annotated[float, typer.Option("--rate", help="Sample rate (Hz).")] = 200.0,
+    rest: Annotated[float, typer.Option("--rest", help="Rest before each step (s).")] = 2.0,
+    duration: Annotated[
+        float, typer.Option("--duration", help="Motion after each step (s).")
+    ] = 8.0,
+    force_sign: Annotated[int, typer.Option("--force-sign", help="Sign of the force channel.")] = 1,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing file.")
+    ] = False,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
+    from balancer_id.errors import UsageError
+    from balancer_id.fit import resolve_model
+    from balancer_id.read.writers import write_log
+    from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
+
+    mdl = resolve_model(model, effects_file or ())
+    values = mdl.resolve(_assignments(param, "--param"))
+    thrusts = _floats(thrust, "--thrust") or []
+    if not thrusts:
+        raise UsageError("--thrust: give at least one thrust")
+    traj = _trajectory(trajectory)
+    if mdl.has("servo") and traj is None:
+        raise UsageError("a model with 'servo' needs --trajectory")
+    if force_sign not in (1, -1):
+        raise UsageError("--force-sign must be +1 or -1")
+    sensor = SensorSettings(
+        rate_hz=rate,
+        accel_noise=noise,
+        force_noise=force_noise,
+        quantize=quantize,
+        tilt_deg=tilt,
+        drop_fraction=drop,
+        force_sign=force_sign,
+    )
+    recs = synthetic_recordings(
+        mdl,
+        values,
+        thrusts,
+        sensor=sensor,
+        rest_s=rest,
+        duration_s=duration,
+        trajectory=traj,
+        seed=seed,
+    )
+    write_log(out, recs, "pasco-capstone", overwrite=overwrite)
+    info = {
+        "out": str(out),
+        "model": mdl.spec,
+        "parameters": values,
+        "thrusts": thrusts,
+        "seed": seed,
+    }
+    if json_out:
+        _emit_json(info)
+    else:
+        typer.echo(f"wrote {out}: {len(recs)} runs of model {mdl.spec}", err=True)
+
+
+@app.command()
+@guarded
+def effects(
+    json_out: JsonOpt = False,
+    effects_file: EffectsFileOpt = None,
+) -> None:
+    """List the effects available, built in and user-supplied, with their parameters."""
+    from balancer_id.model.effects.base import Base
+    from balancer_id.model.registry import default_registry
+
+    registry = default_registry(effects_file or ())
+    items = [{**Base.describe(), "origin": "built-in (always present)"}]
+    items += [{**cls.describe(), "origin": registry.origin(cls.name)} for cls in registry]
+    if json_out:
+        _emit_json({"effects": items})
+    else:
+        from balancer_id.report.terminal import print_effects
+
+        print_effects(_console(), items)
+
+
+def main() -> None:
+    """Entry point of the ``balancer-id`` console script."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

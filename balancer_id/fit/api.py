@@ -1,0 +1,156 @@
+"""``balancer_id.fit``: the whole identification, as the ``fit`` command runs it."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from balancer_id.errors import IdentificationError
+from balancer_id.fit.classic import paper_method
+from balancer_id.fit.coupling import coupling
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import match_trials
+from balancer_id.fit.result import FitResult, PerTrialFit
+from balancer_id.model.registry import Registry, default_registry
+from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
+from balancer_id.pipeline import ReadOptions, load_trials
+from balancer_id.segment.trial import Trial
+from balancer_id.simulate.inputs import Trapezoid
+
+
+def resolve_model(
+    model: str | Model | None,
+    effects_files: Sequence[str | Path] = (),
+    registry: Registry | None = None,
+) -> Model:
+    """A Model from a spec string (loading user effect files) or a ready Model."""
+    if isinstance(model, Model):
+        return model
+    registry = registry or default_registry(effects_files)
+    return parse_model(model or DEFAULT_SPEC, registry)
+
+
+def trial_data(
+    sources: Sequence[str | Path | Trial | TrialData],
+    options: ReadOptions | None = None,
+    trajectory: Trapezoid | None = None,
+) -> tuple[list[TrialData], list[str]]:
+    """Turn log paths, segmented trials or ready TrialData into TrialData (renumbered)."""
+    paths = [s for s in sources if isinstance(s, str | Path)]
+    data: list[TrialData] = []
+    names: list[str] = []
+    if paths:
+        for item in load_trials(paths, options):
+            names.append(str(item.log.path))
+            data.extend(TrialData.from_trial(t, trajectory=trajectory) for t in item.trials)
+    for s in sources:
+        if isinstance(s, Trial):
+            data.append(TrialData.from_trial(s, trajectory=trajectory))
+        elif isinstance(s, TrialData):
+            data.append(s)
+    for k, td in enumerate(data):
+        td.index = k
+    return data, names
+
+
+def fit(
+    sources: Sequence[str | Path | Trial | TrialData],
+    *,
+    model: str | Model | None = None,
+    fixed: Mapping[str, float] | None = None,
+    options: ReadOptions | None = None,
+    effects_files: Sequence[str | Path] = (),
+    registry: Registry | None = None,
+    trajectory: Trapezoid | None = None,
+    per_trial: bool = False,
+    n_starts: int = 1,
+    seed: int = 0,
+) -> FitResult:
+    """Identify a balancer from its step trials: the paper's method, then simulation matching.
+
+    Parameters
+    ----------
+    sources : sequence
+        Log paths, segmented :class:`Trial` objects or :class:`TrialData`.
+    model : str or Model, optional
+        Spec (default ``variable_viscosity``).
+    fixed : mapping, optional
+        Parameters held at known values (nameplate figures).
+    options : ReadOptions, optional
+        Reading and segmentation options (column map, thrusts, force sign, ...).
+    effects_files : sequence of path
+        User effect files.
+    registry : Registry, optional
+        A registry to resolve effect names in (tests, plug-ins).
+    trajectory : Trapezoid, optional
+        The robot's reference move (``servo``).
+    per_trial : bool
+        Also fit each trial alone, so drift with thrust and direction shows.
+    n_starts : int
+        Optimizer starts (see :func:`~balancer_id.fit.matching.match_trials`).
+    seed : int
+        Seed of the extra starts.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    IdentificationError
+        No trial, or no convergence.
+    """
+    mdl = resolve_model(model, effects_files, registry)
+    if mdl.has("servo") and trajectory is None:
+        raise IdentificationError(
+            "a model with 'servo' needs the robot's reference move: give --trajectory "
+            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
+        )
+    trials, names = trial_data(sources, options, trajectory)
+    if not trials:
+        raise IdentificationError("no step trial found in the given logs; nothing to fit")
+    classic = paper_method(trials)
+    start: dict[str, float] = {}
+    for name in ("m_a", "T_a"):
+        value = getattr(classic, name)
+        spec_param = mdl.param(name) if name in mdl.param_names else None
+        if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
+            start[name] = float(value)
+    match = match_trials(mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed)
+    result = FitResult(match=match, classic=classic, sources=names)
+    if not match.success:
+        result.warnings.append(f"the optimizer stopped early: {match.message}")
+    if mdl.has("servo"):
+        v = match.values()
+        result.coupling = coupling(
+            v["m_a"], v.get("T_a", v.get("T_up", 0.3)), v.get("D0", 0.0), v["k_r"], v["c_r"]
+        )
+    if per_trial:
+        result.per_trial = fit_each_trial(mdl, trials, match.values(), fixed)
+    return result
+
+
+def fit_each_trial(
+    model: Model,
+    trials: Sequence[TrialData],
+    start: Mapping[str, float],
+    fixed: Mapping[str, float] | None = None,
+) -> list[PerTrialFit]:
+    """Fit ``model`` to each trial alone, starting from the joint fit."""
+    out = []
+    for td in trials:
+        try:
+            m = match_trials(model, [td], start=start, fixed=fixed)
+        except IdentificationError:
+            continue
+        out.append(
+            PerTrialFit(
+                index=td.index,
+                thrust_N=td.thrust_N,
+                direction=td.direction,
+                values=m.values(),
+                stderr={k: p.stderr for k, p in m.parameters.items()},
+                rmse=m.metrics["rmse"],
+            )
+        )
+    return out

@@ -1,0 +1,130 @@
+"""Read logs and find their trials: the shared front half of every command."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from balancer_id.constants import G_DEFAULT
+from balancer_id.errors import NoTrialError, UsageError
+from balancer_id.read.recording import Log
+from balancer_id.segment.trial import Trial
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How logs are read and segmented (the CLI's common options).
+
+    Attributes
+    ----------
+    columns : dict or None
+        Column map for generic CSVs (``time=..., force=..., ax=...``).
+    thrusts : list of float or None
+        Thrust of each trial (N), when the force channel is missing or unreliable.
+    force_sign : int or None
+        Sign of the force channel (+1/-1); None: direction from the motion.
+    vertical : str
+        ``auto``, ``x``, ``y`` or ``z`` for logs without gravity.
+    g : float
+        Gravity (m/s^2).
+    """
+
+    columns: dict[str, str] | None = None
+    thrusts: list[float] | None = None
+    force_sign: int | None = None
+    vertical: str = "auto"
+    g: float = G_DEFAULT
+
+
+@dataclass
+class LoadedLog:
+    """A log and the trials found in it."""
+
+    log: Log
+    trials: list[Trial] = field(default_factory=list)
+
+
+def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
+    """Read one log and find its trials (raises NoTrialError when there is none)."""
+    from balancer_id.read import read_log
+    from balancer_id.segment import find_trials
+
+    options = options or ReadOptions()
+    log = read_log(path, columns=options.columns)
+    trials = find_trials(
+        log,
+        thrusts=options.thrusts,
+        force_sign=options.force_sign,
+        vertical=options.vertical,
+        g=options.g,
+    )
+    return LoadedLog(log, trials)
+
+
+def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None) -> list[LoadedLog]:
+    """Read several logs; trials are renumbered across logs.
+
+    Raises
+    ------
+    UsageError
+        ``thrusts`` given with more than one log.
+    NoTrialError
+        When no log holds a trial.
+    """
+    options = options or ReadOptions()
+    if options.thrusts is not None and len(paths) > 1:
+        raise UsageError("--thrust lists the trials of one log; give one log per command")
+    loaded = []
+    problems = []
+    for path in paths:
+        try:
+            loaded.append(load_log(path, options))
+        except NoTrialError as exc:
+            if len(paths) == 1:
+                raise
+            problems.append(str(exc))
+    if not loaded:
+        raise NoTrialError("; ".join(problems) or "no step trial found")
+    k = 0
+    for item in loaded:
+        for trial in item.trials:
+            trial.index = k
+            k += 1
+    return loaded
+
+
+def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
+    """The CONTRACT.md ``inspect`` object: what was read and the trials found."""
+    runs = []
+    gaps = []
+    for rec in log.recordings:
+        channels = ["time"]
+        if rec.force is not None:
+            channels.append("force")
+        if rec.accel is not None:
+            kind = "accel" if rec.accel_includes_gravity else "linear accel"
+            channels += [f"{kind} {ax}" for ax in rec.accel_axes]
+        channels += list(rec.extra)
+        runs.append(
+            {
+                "name": rec.name,
+                "n_samples": rec.n_samples,
+                "sample_rate_hz": rec.sample_rate_hz,
+                "t_first": float(rec.time[0]) if rec.n_samples else None,
+                "t_last": float(rec.time[-1]) if rec.n_samples else None,
+                "channels": channels,
+                "saturated": dict(rec.saturated),
+            }
+        )
+        gaps += [{"run": rec.name, **g.to_dict()} for g in rec.gaps]
+    return {
+        "file": str(log.path),
+        "format": log.format,
+        "sample_rate_hz": log.sample_rate_hz,
+        "n_samples": log.n_samples,
+        "gaps": gaps,
+        "runs": runs,
+        "warnings": list(log.warnings),
+        "trials": [t.to_dict() for t in trials],
+    }

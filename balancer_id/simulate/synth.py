@@ -1,0 +1,152 @@
+"""Synthetic logs: what a PASCO sensor on the load would have recorded.
+
+One run per thrust: rest, a thrust step, the motion. The accelerometer reads specific
+force (``+g`` up at rest) in a tilted sensor frame; force and acceleration get seeded
+noise and optional quantization; wireless drop-outs remove samples (never filled in).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.constants import ACCEL_RESOLUTION, FORCE_RESOLUTION_N, G_DEFAULT
+from balancer_id.model.spec import Model
+from balancer_id.read.recording import Recording
+from balancer_id.simulate.engine import TrialInput, simulate_many
+from balancer_id.simulate.inputs import Thrust, Trapezoid
+
+
+@dataclass(frozen=True)
+class SensorSettings:
+    """How the simulated sensor records.
+
+    Attributes
+    ----------
+    rate_hz : float
+        Sample rate.
+    accel_noise, force_noise : float
+        Standard deviation of white noise (m/s^2, N).
+    quantize : bool
+        Round to the sensor's resolution (0.2 m/s^2, 0.03 N).
+    tilt_deg : float
+        Angle between the sensor's z axis and the vertical (degrees).
+    tilt_azimuth_deg : float or None
+        Direction of the tilt; None draws it from the seed.
+    drop_fraction : float
+        Fraction of samples lost in wireless drop-outs (bursts of 1-5 samples).
+    force_sign : int
+        +1 when the force channel's change equals the thrust (sensor in tension under the
+        load), -1 for the opposite mounting.
+    force_offset : float
+        Reading of the force channel before the step (N).
+    g : float
+        Gravity (m/s^2).
+    """
+
+    rate_hz: float = 200.0
+    accel_noise: float = 0.03
+    force_noise: float = 0.03
+    quantize: bool = False
+    tilt_deg: float = 10.0
+    tilt_azimuth_deg: float | None = None
+    drop_fraction: float = 0.0
+    force_sign: int = 1
+    force_offset: float = 0.0
+    g: float = G_DEFAULT
+
+
+def up_vector(tilt_deg: float, azimuth_deg: float) -> np.ndarray:
+    """The vertical (up) direction in the sensor frame of a sensor tilted by ``tilt_deg``."""
+    th, ph = np.radians(tilt_deg), np.radians(azimuth_deg)
+    return np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+
+
+def synthetic_recordings(
+    model: Model,
+    params: Mapping[str, float],
+    thrusts: Sequence[float],
+    *,
+    sensor: SensorSettings | None = None,
+    rest_s: float = 2.0,
+    duration_s: float = 8.0,
+    trajectory: Trapezoid | None = None,
+    seed: int = 0,
+) -> list[Recording]:
+    """Simulate one run per thrust and record it as the sensor would.
+
+    Parameters
+    ----------
+    model : Model
+        The true model.
+    params : mapping
+        True parameter values (defaults for the rest).
+    thrusts : sequence of float
+        Signed thrust of each run (N, up positive).
+    sensor : SensorSettings, optional
+        Noise, quantization, tilt, drop-outs.
+    rest_s : float
+        Rest before the step (s).
+    duration_s : float
+        Recording after the step (s).
+    trajectory : Trapezoid, optional
+        A robot's reference move (``servo``), relative to each run's start.
+    seed : int
+        Seed of every random choice.
+
+    Returns
+    -------
+    list of Recording
+        One per thrust, named ``Run #1``, ``Run #2``, ...
+    """
+    sensor = sensor or SensorSettings()
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / sensor.rate_hz
+    n = round((rest_s + duration_s) / dt) + 1
+    time = np.arange(n) * dt
+    azimuth = (
+        float(rng.uniform(0, 360)) if sensor.tilt_azimuth_deg is None else sensor.tilt_azimuth_deg
+    )
+    up = up_vector(sensor.tilt_deg, azimuth)
+    inputs = []
+    for f_in in thrusts:
+        z_ref = v_ref = None
+        if trajectory is not None:
+            z_ref, v_ref = trajectory.evaluate(time)
+        inputs.append(TrialInput(time, Thrust.step(rest_s, float(f_in)), z_ref, v_ref))
+    sims = simulate_many(model, params, inputs)
+    recordings = []
+    for k, sim in enumerate(sims):
+        specific = (sim.accel + sensor.g)[:, None] * up[None, :]
+        accel = specific + rng.normal(0.0, sensor.accel_noise, specific.shape)
+        force = sensor.force_offset + sensor.force_sign * sim.operating_force
+        force = force + rng.normal(0.0, sensor.force_noise, force.shape)
+        if sensor.quantize:
+            accel = np.round(accel / ACCEL_RESOLUTION) * ACCEL_RESOLUTION
+            force = np.round(force / FORCE_RESOLUTION_N) * FORCE_RESOLUTION_N
+        keep = _keep_mask(n, sensor.drop_fraction, rng)
+        recordings.append(
+            Recording(
+                name=f"Run #{k + 1}",
+                time=time[keep],
+                force=force[keep],
+                accel=accel[keep],
+                accel_includes_gravity=True,
+                accel_axes=("x", "y", "z"),
+                sample_rate_hz=sensor.rate_hz,
+            )
+        )
+    return recordings
+
+
+def _keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.ndarray:
+    keep = np.ones(n, dtype=bool)
+    if drop_fraction <= 0:
+        return keep
+    target = int(drop_fraction * n)
+    while (~keep).sum() < target:
+        start = int(rng.integers(1, n - 6))
+        keep[start : start + int(rng.integers(1, 6))] = False
+    return keep

@@ -1,0 +1,40 @@
+"""Shared fixtures: paths, seeded synthetic trials, the CLI runner."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+REAL_LOGS = SHARED / "real_logs"
+EXAMPLES = REPO / "examples"
+SAMPLE_LOGS = REPO / "sample_logs"
+
+#: The paper's balancer (MODEL.md reference values).
+PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
+PAPER_THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A seeded generator, fresh for each test."""
+    return np.random.default_rng(20261122)
+
+
+@pytest.fixture
+def cli():
+    """Run the installed command's typer app in-process; returns (exit code, stdout, stderr)."""
+    from typer.testing import CliRunner
+
+    from balancer_id.cli import app
+
+    runner = CliRunner()
+
+    def run(*args: str) -> tuple[int, str, str]:
+        res = runner.invoke(app, [str(a) for a in args])
+        return res.exit_code, res.stdout, res.stderr
+
+    return run

@@ -1,0 +1,141 @@
+"""The simulator against analytic solutions, the paper's Fig. 11 and a solve_ivp reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from balancer_id.model import parse_model
+from balancer_id.model.effects import BUILTIN_EFFECTS
+from balancer_id.simulate import Thrust, Trapezoid, TrialInput, simulate
+from balancer_id.simulate.reference import simulate_reference
+
+M, T = 15.1, 0.33
+DT = 0.005
+
+
+def grid(seconds: float) -> np.ndarray:
+    return np.arange(0.0, seconds, DT)
+
+
+def test_first_order_step_without_viscosity():
+    t = grid(5.0)
+    t0, f_in = 0.5023, 2.45  # onset between two samples
+    sim = simulate(parse_model("base"), {"m_a": M, "T_a": T}, t, Thrust.step(t0, f_in))
+    a_zc = f_in / M
+    exact = np.where(t >= t0, a_zc * (1.0 - np.exp(-(t - t0) / T)), 0.0)
+    assert np.max(np.abs(sim.accel - exact)) < 1e-4 * a_zc
+    # the paper's settling rule: ~95 % at 3 T_a
+    k = np.searchsorted(t, t0 + 3 * T)
+    assert sim.accel[k] / a_zc == pytest.approx(1 - np.exp(-3 * T / T), abs=2e-3)
+
+
+def test_exponential_decay_with_constant_viscosity():
+    t = grid(12.0)
+    D, f_in = 6.0, 4.9
+    sim = simulate(parse_model("viscous"), {"m_a": M, "T_a": T, "D0": D}, t, Thrust.step(0.0, f_in))
+    # A(s) = f_in / ((T s + 1)(M s + D)): a(t) = f_in/(T M) (e^{-D t/M} - e^{-t/T}) / (1/T - D/M)
+    exact = f_in / (T * M) * (np.exp(-D * t / M) - np.exp(-t / T)) / (1 / T - D / M)
+    assert np.max(np.abs(sim.accel - exact)) < 1e-4 * np.max(exact)
+    late = t > 3.0
+    rate = -np.polyfit(t[late], np.log(sim.accel[late]), 1)[0]
+    assert rate == pytest.approx(D / M, rel=1e-4)
+
+
+@pytest.mark.parametrize(("A", "peak", "half_time"), [(0.0, 0.12, 2.9), (0.4, 0.139, 6.0)])
+def test_paper_fig11(A, peak, half_time):
+    t = grid(15.0)
+    sim = simulate(
+        parse_model("variable_viscosity"),
+        {"m_a": M, "T_a": T, "D0": 6.0, "A": A},
+        t,
+        Thrust.step(0.0, 2.45),
+    )
+    i = int(np.argmax(sim.accel))
+    j = i + int(np.argmax(sim.accel[i:] < sim.accel[i] / 2))
+    assert sim.accel[i] == pytest.approx(peak, abs=0.002)
+    assert t[j] == pytest.approx(half_time, abs=0.1)
+
+
+def test_stuck_below_the_friction_threshold():
+    t = grid(5.0)
+    sim = simulate(
+        parse_model("karnopp"), {"m_a": M, "T_a": T, "f_s": 0.98}, t, Thrust.step(0.5, 0.9)
+    )
+    assert np.all(sim.velocity == 0.0)
+    assert np.all(sim.accel == 0.0)
+
+
+def test_sticks_again_without_chattering_after_the_thrust_is_removed():
+    t = grid(8.0)
+    thrust = Thrust(np.array([0.5, 2.0]), np.array([4.9, 0.0]))
+    sim = simulate(
+        parse_model("viscous+karnopp"), {"m_a": M, "T_a": T, "D0": 3.0, "f_s": 0.98}, t, thrust
+    )
+    assert sim.velocity.max() > 0.05
+    stopped = np.flatnonzero(sim.velocity == 0.0)
+    last_motion = np.flatnonzero(sim.velocity != 0.0)[-1]
+    assert last_motion < t.size - 100  # it stops, and stays stopped
+    assert np.all(sim.velocity[last_motion + 1 :] == 0.0)
+    assert np.all(sim.velocity[: last_motion + 1] >= 0.0)  # never reverses: no chattering
+    assert stopped.size > 100
+
+
+def test_speed_plateau_at_v_max():
+    t = grid(6.0)
+    sim = simulate(
+        parse_model("speed_limit"), {"m_a": M, "T_a": T, "v_max": 0.5}, t, Thrust.step(0.0, 7.35)
+    )
+    t_hit = t[np.argmax(sim.velocity >= 0.5 - 1e-12)]
+    assert t_hit == pytest.approx(1.4, abs=0.1)  # MODEL.md: about 1.4 s at 7.35 N
+    after = t > t_hit + 0.01
+    assert np.allclose(sim.velocity[after], 0.5, atol=1e-12)
+    assert np.all(sim.accel[after] == 0.0)
+
+
+def test_dead_time_is_exact_to_the_sample():
+    t = grid(4.0)
+    tau = 0.0173  # not a multiple of the sample interval
+    delayed = simulate(
+        parse_model("dead_time"), {"m_a": M, "T_a": T, "tau_d": tau}, t, Thrust.step(0.5, 4.9)
+    )
+    shifted = simulate(parse_model("base"), {"m_a": M, "T_a": T}, t, Thrust.step(0.5 + tau, 4.9))
+    assert np.max(np.abs(delayed.accel - shifted.accel)) < 1e-12
+
+
+def _scenario(name: str) -> tuple[dict[str, float], TrialInput]:
+    cls = BUILTIN_EFFECTS[name]
+    params = {"m_a": M, "T_a": T, **cls.example}
+    t = grid(6.0)
+    if name == "servo":
+        z_ref, v_ref = Trapezoid(0.2, 0.1, 0.5, start=1.0).evaluate(t)
+        return params, TrialInput(t, Thrust.step(0.5, 0.0), z_ref, v_ref)
+    return params, TrialInput(t, Thrust.step(0.5023, -4.9 if name == "asymmetric_lag" else 4.9))
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN_EFFECTS))
+def test_agrees_with_solve_ivp(name):
+    model = parse_model(name)
+    params, trial = _scenario(name)
+    params = {k: v for k, v in params.items() if k in model.param_names}
+    fast = simulate(model, params, trial.time, trial.thrust, z_ref=trial.z_ref, v_ref=trial.v_ref)
+    ref = simulate_reference(model, params, trial, max_step=0.01)
+    for got, want in ((fast.accel, ref.accel), (fast.velocity, ref.velocity)):
+        assert np.max(np.abs(got - want)) <= 1e-3 * np.max(np.abs(want))
+
+
+@pytest.mark.parametrize(
+    "spec", ["variable_viscosity+karnopp+speed_limit+dead_time", "servo+variable_viscosity"]
+)
+def test_halving_the_internal_step_changes_little(spec):
+    model = parse_model(spec)
+    t = grid(8.0)
+    params = {"m_a": M, "T_a": T, "D0": 6.0, "A": 0.4, "f_s": 0.98, "tau_d": 0.05}
+    params.update({"k_r": 400.0, "c_r": 180.0})
+    params = {k: v for k, v in params.items() if k in model.param_names}
+    z_ref, v_ref = Trapezoid(0.2, 0.1, 0.5, start=1.0).evaluate(t)
+    kw = {"z_ref": z_ref, "v_ref": v_ref}
+    one = simulate(model, params, t, Thrust.step(0.5, 7.35), substeps=1, **kw)
+    two = simulate(model, params, t, Thrust.step(0.5, 7.35), substeps=2, **kw)
+    assert np.max(np.abs(one.accel - two.accel)) < 1e-4 * np.max(np.abs(two.accel))
+    assert np.max(np.abs(one.position - two.position)) < 1e-4 * np.max(np.abs(two.position))
