@@ -300,8 +300,7 @@ def simulate(
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
     from balancer_id.errors import UsageError
     from balancer_id.fit import resolve_model
-    from balancer_id.read.writers import write_log
-    from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
+    from balancer_id.simulate.synth import SensorSettings, write_synthetic_log
 
     mdl = resolve_model(model, effects_file or ())
     values = mdl.resolve(_assignments(param, "--param"))
@@ -322,7 +321,8 @@ def simulate(
         drop_fraction=drop,
         force_sign=force_sign,
     )
-    recs = synthetic_recordings(
+    recs = write_synthetic_log(
+        out,
         mdl,
         values,
         thrusts,
@@ -331,8 +331,8 @@ def simulate(
         duration_s=duration,
         trajectory=traj,
         seed=seed,
+        overwrite=overwrite,
     )
-    write_log(out, recs, "pasco-capstone", overwrite=overwrite)
     info = {
         "out": str(out),
         "model": mdl.spec,

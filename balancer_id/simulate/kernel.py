@@ -28,9 +28,10 @@ from balancer_id.model.effect import HOOKS, Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulate.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "6"
+KERNEL_VERSION = "7"
 
-#: Columns of the kernel's output array.
+#: Columns of the kernel's output array. ``h`` is the operating force as the force sensor
+#: sees it: with the thrust undelayed (the dead time acts between sensor and drive).
 OUT_COLUMNS = ("a", "v", "z", "f", "h")
 
 _TEMPLATE = """\
@@ -102,6 +103,8 @@ def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out):
     while k < nb and bt[k] + delay <= t_out[0]:
         u = bu[k]
         k += 1
+    u_now = 0.0
+    k_now = 0
     for i in range(n):
         t = t_out[i]
         if i > 0:
@@ -128,11 +131,14 @@ def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out):
                     u = bu[k]
                     k += 1
         df, a, h = rhs(t, f, v, z, u, zref[i], vref[i], p)
+        while k_now < nb and bt[k_now] <= t:
+            u_now = bu[k_now]
+            k_now += 1
         out[i, 0] = {output_expr}
         out[i, 1] = v
         out[i, 2] = z
         out[i, 3] = f
-        out[i, 4] = h
+        out[i, 4] = h - u + u_now
 
 
 @jit(cache={cache})

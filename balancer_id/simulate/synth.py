@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -150,3 +151,42 @@ def _keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.nda
         start = int(rng.integers(1, n - 6))
         keep[start : start + int(rng.integers(1, 6))] = False
     return keep
+
+
+def write_synthetic_log(
+    path: str | Path,
+    model: Model,
+    params: Mapping[str, float],
+    thrusts: Sequence[float],
+    *,
+    sensor: SensorSettings | None = None,
+    rest_s: float = 2.0,
+    duration_s: float = 8.0,
+    trajectory: Trapezoid | None = None,
+    seed: int = 0,
+    overwrite: bool = False,
+) -> list[Recording]:
+    """Simulate and write a PASCO Capstone CSV (what ``balancer-id simulate`` does).
+
+    The file is written whole or not at all, and an existing file is only replaced with
+    ``overwrite=True``. Parameters are those of :func:`synthetic_recordings`.
+
+    Returns
+    -------
+    list of Recording
+        What was written.
+    """
+    from balancer_id.read.writers import write_log
+
+    recordings = synthetic_recordings(
+        model,
+        params,
+        thrusts,
+        sensor=sensor,
+        rest_s=rest_s,
+        duration_s=duration_s,
+        trajectory=trajectory,
+        seed=seed,
+    )
+    write_log(Path(path), recordings, "pasco-capstone", overwrite=overwrite)
+    return recordings

@@ -1,0 +1,99 @@
+"""Candidate effects: which models to try next, and the quick refit that ranks them."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from balancer_id.errors import BalancerIdError, ModelSpecError
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import MatchResult, match_trials
+from balancer_id.model.effect import Effect
+from balancer_id.model.spec import Model, parse_model
+
+
+@dataclass
+class Candidate:
+    """A model one effect away from the current one."""
+
+    effect: type[Effect]
+    model: Model
+    replaces: str | None = None
+
+    @property
+    def label(self) -> str:
+        """``+karnopp`` or ``viscous -> variable_viscosity``."""
+        if self.replaces:
+            return f"{self.replaces} -> {self.effect.name}"
+        return f"+{self.effect.name}"
+
+
+def candidates(model: Model, *, with_trajectory: bool = False) -> list[Candidate]:
+    """Every model that adds one registered effect to ``model`` (or swaps an exclusive one).
+
+    Effects that need a robot reference (an ``operating_force`` hook) are only tried when
+    a trajectory is known.
+    """
+    out = []
+    present = {e.name for e in model.effects}
+    for effect in model.registry:
+        if effect.name in present:
+            continue
+        if "operating_force" in effect.hooks() and not with_trajectory:
+            continue
+        clash = [n for n in effect.excludes if n in present]
+        base = model
+        for name in clash:
+            base = base.without(name)
+        names = [e.name for e in base.effects] + [effect.name]
+        try:
+            cand = parse_model("+".join(names), model.registry)
+        except ModelSpecError:
+            continue
+        if clash and len(cand.param_names) <= len(model.param_names):
+            continue  # a swap must add freedom, not remove it
+        out.append(Candidate(effect, cand, clash[0] if clash else None))
+    return out
+
+
+@dataclass
+class Refit:
+    """The outcome of refitting one candidate."""
+
+    candidate: Candidate
+    match: MatchResult | None
+    error: str | None = None
+
+
+def quick_refit(
+    candidate: Candidate,
+    trials: Sequence[TrialData],
+    current: MatchResult,
+    start: dict[str, float],
+    fixed: dict[str, float] | None = None,
+) -> Refit:
+    """Fit a candidate model starting from the current fit and the signature's start values.
+
+    A user effect that raises or produces NaN gives a Refit with ``error`` set, naming
+    the effect, instead of stopping the others.
+    """
+    values = {k: v for k, v in current.values().items() if k in candidate.model.param_names}
+    for name, value in start.items():
+        if name in candidate.model.param_names:
+            p = candidate.model.param(name)
+            values[name] = min(max(value, p.min), p.max)
+    if "T_up" in candidate.model.param_names and "T_a" in current.values():
+        values.setdefault("T_up", current.values()["T_a"])
+        values.setdefault("T_down", current.values()["T_a"])
+    fixed = {k: v for k, v in (fixed or {}).items() if k in candidate.model.param_names}
+    try:
+        match = match_trials(candidate.model, trials, start=values, fixed=fixed, max_nfev=400)
+    except BalancerIdError as exc:
+        return Refit(candidate, None, f"{candidate.effect.name}: {exc}")
+    except Exception as exc:  # a user's effect must not stop the diagnosis
+        return Refit(candidate, None, f"effect '{candidate.effect.name}' failed: {exc!r}")
+    if not all(abs(v) < float("inf") for v in match.values().values()) or not (
+        match.metrics["rmse"] == match.metrics["rmse"]
+    ):
+        return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
+    return Refit(candidate, match)

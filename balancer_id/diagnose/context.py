@@ -1,0 +1,134 @@
+"""What every residual test and signature check looks at, computed once per fit."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import MatchResult
+
+#: Regimes of a trial, in the order they occur (see :func:`regime_masks`).
+REGIMES = ("rest", "rise", "steady", "stuck")
+
+
+@dataclass
+class TrialView:
+    """One trial's measured and simulated signals side by side.
+
+    Attributes
+    ----------
+    data : TrialData
+        The trial.
+    t : numpy.ndarray
+        Time since the onset (s).
+    y, y_model, residual : numpy.ndarray
+        Measured and simulated acceleration and their difference (m/s^2).
+    v, z, f, h : numpy.ndarray
+        Simulated velocity, position, drive force and operating force.
+    regimes : dict
+        Regime name -> boolean mask over the trial's samples.
+    """
+
+    data: TrialData
+    t: np.ndarray
+    y: np.ndarray
+    y_model: np.ndarray
+    residual: np.ndarray
+    v: np.ndarray
+    z: np.ndarray
+    f: np.ndarray
+    h: np.ndarray
+    regimes: dict[str, np.ndarray]
+
+
+@dataclass
+class DiagnosisContext:
+    """A fit and its residuals, trial by trial.
+
+    Attributes
+    ----------
+    match : MatchResult
+        The fit being diagnosed.
+    trials : list of TrialView
+    noise_floor : float
+        White acceleration noise (m/s^2), from the residual's sample-to-sample differences.
+    dt : float
+        Median sample interval (s).
+    """
+
+    match: MatchResult
+    trials: list[TrialView]
+    noise_floor: float
+    dt: float
+
+    @property
+    def residual(self) -> np.ndarray:
+        """All residuals, trial after trial."""
+        return np.concatenate([tv.residual for tv in self.trials])
+
+    def excess_rmse(self, rmse: float | None = None) -> float:
+        """Error above the noise floor: ``sqrt(max(rmse^2 - noise^2, 0))``."""
+        rmse = self.match.metrics["rmse"] if rmse is None else rmse
+        return float(np.sqrt(max(rmse**2 - self.noise_floor**2, 0.0)))
+
+
+def regime_masks(
+    t: np.ndarray, v: np.ndarray, lag: float, moving_eps: float = 1e-4
+) -> dict[str, np.ndarray]:
+    """Split a trial into rest (before the onset), rise (first 3 lags), steady motion, stuck.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time since the onset (s).
+    v : numpy.ndarray
+        Simulated velocity (m/s).
+    lag : float
+        The drive lag (s).
+    moving_eps : float
+        Speed below which the simulated load counts as stuck (m/s).
+    """
+    rest = t < 0
+    rise = (t >= 0) & (t < 3 * lag)
+    stuck = (t >= 0) & (np.abs(v) < moving_eps) & ~rise
+    steady = (t >= 3 * lag) & ~stuck
+    return {"rest": rest, "rise": rise, "steady": steady, "stuck": stuck}
+
+
+def build_context(match: MatchResult) -> DiagnosisContext:
+    """Simulate the fitted model once more with every state and cut it into trials."""
+    model = match.model
+    values = match.values()
+    pvec = np.array([values[n] for n in model.param_names])
+    out = match.data.packed.run(model, pvec)
+    lag = values.get("T_a", values.get("T_up", 0.3))
+    views = []
+    diffs = []
+    dts = []
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        t = td.time - td.t_step
+        y = td.accel
+        ym = out[sl, 0]
+        views.append(
+            TrialView(
+                data=td,
+                t=t,
+                y=y,
+                y_model=ym,
+                residual=y - ym,
+                v=out[sl, 1],
+                z=out[sl, 2],
+                f=out[sl, 3],
+                h=out[sl, 4],
+                regimes=regime_masks(t, out[sl, 1], lag),
+            )
+        )
+        diffs.append(np.diff(y - ym))
+        dts.append(np.median(np.diff(td.time)))
+    # White sensor noise from the sample-to-sample differences of the residual: a model
+    # error is smooth and cancels there, while white noise doubles its variance.
+    d = np.concatenate(diffs)
+    noise = float(np.std(d) / np.sqrt(2.0))
+    return DiagnosisContext(match, views, noise, float(np.median(dts)))

@@ -1,0 +1,268 @@
+"""``diagnose``: residual tests and ranked suggestions of missing effects."""
+
+from __future__ import annotations
+
+import shlex
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.diagnose.candidates import Refit, candidates, quick_refit
+from balancer_id.diagnose.context import DiagnosisContext, build_context
+from balancer_id.diagnose.residual_tests import (
+    input_correlation,
+    regime_table,
+    spectrum_peaks,
+    state_correlations,
+    whiteness,
+    worst_windows,
+)
+from balancer_id.diagnose.signatures import Signature, signature_of
+from balancer_id.fit.classic import paper_method
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import MatchResult
+
+#: BIC improvement a candidate needs before an effect is called missing. Calibrated on
+#: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
+BIC_THRESHOLD = 30.0
+#: ... and the share of the error above the noise floor it must remove.
+MIN_EXCESS_DROP = 0.2
+
+
+@dataclass
+class Suggestion:
+    """One candidate effect, scored by the improvement its quick refit brings."""
+
+    effect: str
+    label: str
+    score: float
+    delta_bic: float
+    rmse: float
+    excess_drop: float
+    signature: Signature
+    command: str
+    model: str
+    refit: MatchResult | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, object]:
+        """CONTRACT.md suggestion record."""
+        return {
+            "effect": self.effect,
+            "change": self.label,
+            "model": self.model,
+            "score": self.score,
+            "delta_bic": self.delta_bic,
+            "rmse_after": self.rmse,
+            "excess_error_drop": self.excess_drop,
+            "signature_strength": self.signature.strength,
+            "evidence": self.signature.evidence,
+            "command": self.command,
+        }
+
+
+@dataclass
+class Diagnosis:
+    """Everything ``balancer-id diagnose`` reports."""
+
+    match: MatchResult
+    context: DiagnosisContext
+    tests: dict[str, object]
+    suggestions: list[Suggestion]
+    verdict: str
+    summary: str
+    failures: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, object]:
+        """The CONTRACT.md ``diagnose`` object."""
+        from balancer_id.fit.result import _clean
+
+        return _clean(
+            {
+                "model": self.match.model.spec,
+                "metrics": {
+                    **self.match.metrics,
+                    "noise_floor": self.context.noise_floor,
+                    "excess_rmse": self.context.excess_rmse(),
+                },
+                "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
+                "residual_tests": self.tests,
+                "verdict": self.verdict,
+                "summary": self.summary,
+                "suggestions": [s.to_dict() for s in self.suggestions],
+                "failed_candidates": self.failures,
+            }
+        )
+
+
+def _command(model_spec: str, paths: Sequence[str], effects_files: Sequence[str]) -> str:
+    parts = ["balancer-id", "fit", *paths, "--model", model_spec]
+    for f in effects_files:
+        parts += ["--effects-file", f]
+    return shlex.join(parts)
+
+
+def diagnose_match(
+    match: MatchResult,
+    *,
+    paths: Sequence[str] = (),
+    effects_files: Sequence[str] = (),
+    with_trajectory: bool = False,
+    fixed: dict[str, float] | None = None,
+) -> Diagnosis:
+    """Test the residual of a fit and rank the effects that could explain it.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A fit over all trials.
+    paths : sequence of str
+        The logs (for the suggested commands).
+    effects_files : sequence of str
+        User effect files (for the suggested commands).
+    with_trajectory : bool
+        Whether a robot reference is known (``servo`` is only tried then).
+    fixed : dict, optional
+        Parameters held in the original fit (held in the refits too).
+
+    Returns
+    -------
+    Diagnosis
+    """
+    ctx = build_context(match)
+    trials: list[TrialData] = list(match.data.trials)
+    classic = paper_method(trials)
+    tests = {
+        "noise_floor": ctx.noise_floor,
+        "whiteness": whiteness(ctx),
+        "input_cross_correlation": _thin(input_correlation(ctx)),
+        "spectrum": {"peaks": spectrum_peaks(ctx)["peaks"]},
+        "regimes": regime_table(ctx),
+        "state_correlation": state_correlations(ctx),
+        "worst_windows": worst_windows(ctx),
+        "paper_line": {
+            "m_a": classic.m_a,
+            "intercept_N": classic.intercept_N,
+            "free_slope": classic.free_slope,
+        },
+        "parameter_drift": parameter_drift(match, trials, fixed),
+    }
+    suggestions: list[Suggestion] = []
+    failures: list[str] = []
+    base_excess = ctx.excess_rmse()
+    for cand in candidates(match.model, with_trajectory=with_trajectory):
+        try:
+            sig = signature_of(cand.effect, ctx)
+        except Exception as exc:  # a user's check must not stop the others
+            failures.append(f"signature check of '{cand.effect.name}' failed: {exc!r}")
+            sig = Signature(0.0, "signature check failed")
+        refit: Refit = quick_refit(cand, trials, match, sig.start, fixed)
+        if refit.match is None:
+            failures.append(refit.error or cand.effect.name)
+            continue
+        new = refit.match.metrics
+        d_bic = float(match.metrics["bic"] - new["bic"])
+        excess_after = ctx.excess_rmse(new["rmse"])
+        drop = (base_excess - excess_after) / base_excess if base_excess > 0 else 0.0
+        suggestions.append(
+            Suggestion(
+                effect=cand.effect.name,
+                label=cand.label,
+                score=round(d_bic, 2),
+                delta_bic=d_bic,
+                rmse=new["rmse"],
+                excess_drop=float(drop),
+                signature=sig,
+                command=_command(cand.model.spec, paths, effects_files),
+                model=cand.model.spec,
+                refit=refit.match,
+            )
+        )
+    suggestions.sort(key=lambda s: -s.score)
+    verdict, summary = _verdict(ctx, tests, suggestions)
+    return Diagnosis(match, ctx, tests, suggestions, verdict, summary, failures)
+
+
+def _thin(xc: dict[str, object]) -> dict[str, object]:
+    keep = dict(xc)
+    keep.pop("lag_s", None)
+    keep.pop("mean_residual", None)
+    return keep
+
+
+def is_missing(s: Suggestion) -> bool:
+    """Whether a suggestion's improvement is large enough to call its effect missing."""
+    return s.delta_bic > BIC_THRESHOLD and s.excess_drop > MIN_EXCESS_DROP
+
+
+def _verdict(
+    ctx: DiagnosisContext, tests: dict[str, object], suggestions: list[Suggestion]
+) -> tuple[str, str]:
+    white = tests["whiteness"]
+    excess = ctx.excess_rmse()
+    ratio = excess / ctx.noise_floor if ctx.noise_floor > 0 else np.inf
+    if suggestions and is_missing(suggestions[0]):
+        s = suggestions[0]
+        return "effect missing", (
+            f"adding {s.effect} lowers BIC by {s.delta_bic:.0f} and removes "
+            f"{s.excess_drop:.0%} of the error above the noise floor; "
+            f"evidence: {s.signature.evidence}"
+        )
+    p = white.get("ljung_box_p")
+    if p is not None and p < 1e-6 and ratio > 0.5:
+        where = tests["worst_windows"][0] if tests["worst_windows"] else None
+        corr = tests["state_correlation"]
+        name, r = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("-", 0.0)
+        peaks = tests["spectrum"]["peaks"]
+        return "effect missing", (
+            "no effect in the library explains the residual: it is not white (Ljung-Box "
+            f"p = {p:.1e}) and the error above the noise floor is {ratio:.1f}x the noise; "
+            + (
+                f"worst in trial {where['trial']} at "
+                f"{where['t_start']:.2f}-{where['t_end']:.2f} s; "
+                if where
+                else ""
+            )
+            + f"it follows the {name} (r = {r:+.2f})"
+            + (f"; spectrum peak at {peaks[0]['frequency_hz']:.2f} Hz" if peaks else "")
+            + ". Write a user effect for it (README: 'Writing your own effect')."
+        )
+    return "adequate", (
+        f"the residual is consistent with noise: error above the noise floor "
+        f"{excess:.4f} m/s^2 ({ratio:.2f}x the noise of {ctx.noise_floor:.4f} m/s^2); "
+        "no effect in the library improves BIC enough"
+    )
+
+
+def parameter_drift(
+    match: MatchResult, trials: Sequence[TrialData], fixed: dict[str, float] | None = None
+) -> list[dict[str, object]]:
+    """Per-trial refits of the current model: slope of each parameter against thrust
+    and the up/down difference, with their significance."""
+    from balancer_id.fit.api import fit_each_trial
+
+    if len(trials) < 3:
+        return []
+    per = fit_each_trial(match.model, trials, match.values(), fixed)
+    rows = []
+    for name in match.model.param_names:
+        vals = [(abs(p.thrust_N), p.direction, p.values[name], p.stderr.get(name)) for p in per]
+        vals = [v for v in vals if v[3] is not None and np.isfinite(v[3]) and v[3] > 0]
+        if len(vals) < 3:
+            continue
+        h, d, x, s = zip(*vals, strict=True)
+        h, x, s = np.array(h), np.array(x), np.array(s)
+        w = 1 / s**2
+        row: dict[str, object] = {"parameter": name, "values": [float(v) for v in x]}
+        if np.ptp(h) > 0:
+            A = np.column_stack([np.ones_like(h), h])
+            cov = np.linalg.pinv(A.T @ (A * w[:, None]))
+            coef = cov @ (A.T @ (w * x))
+            row["slope_per_N"] = float(coef[1])
+            row["slope_z"] = float(coef[1] / np.sqrt(cov[1, 1]))
+        up = [xi for xi, di in zip(x, d, strict=True) if di == "up"]
+        dn = [xi for xi, di in zip(x, d, strict=True) if di == "down"]
+        if up and dn:
+            row["up_minus_down"] = float(np.mean(up) - np.mean(dn))
+        rows.append(row)
+    return rows

@@ -1,0 +1,189 @@
+"""Statistical tests on the residual: whiteness, input correlation, spectrum, regimes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from balancer_id.diagnose.context import REGIMES, DiagnosisContext
+
+#: Lags of the whiteness tests (samples).
+ACF_LAGS = 25
+
+
+def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
+    """Sample autocorrelation of ``x`` at lags ``1..max_lag``."""
+    x = np.asarray(x, float) - np.mean(x)
+    denom = float(x @ x)
+    if denom == 0:
+        return np.zeros(max_lag)
+    return np.array([float(x[:-k] @ x[k:]) / denom for k in range(1, max_lag + 1)])
+
+
+def whiteness(ctx: DiagnosisContext, max_lag: int = ACF_LAGS) -> dict[str, object]:
+    """Autocorrelation of the residual with its 95 % band, and the Ljung-Box test.
+
+    The autocorrelation is averaged over trials (each trial's residual is its own series),
+    so trial boundaries do not count as correlation.
+    """
+    from scipy.stats import chi2
+
+    acfs, weights = [], []
+    for tv in ctx.trials:
+        if tv.residual.size > 3 * max_lag:
+            acfs.append(autocorrelation(tv.residual, max_lag))
+            weights.append(tv.residual.size)
+    n = int(sum(weights))
+    if not acfs:
+        return {
+            "n": n,
+            "acf": [],
+            "band": None,
+            "outside_band": None,
+            "ljung_box_q": None,
+            "ljung_box_p": None,
+        }
+    acf = np.average(np.array(acfs), axis=0, weights=weights)
+    band = 1.96 / np.sqrt(n)
+    k = np.arange(1, max_lag + 1)
+    q = float(n * (n + 2) * np.sum(acf**2 / (n - k)))
+    return {
+        "n": n,
+        "acf": [round(float(a), 4) for a in acf],
+        "band": float(band),
+        "outside_band": int(np.sum(np.abs(acf) > band)),
+        "ljung_box_q": q,
+        "ljung_box_p": float(chi2.sf(q, max_lag)),
+    }
+
+
+def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str, object]:
+    """Cross-correlation of the residual with the thrust step, as a function of lag.
+
+    For a step input this is the residual averaged over trials (sign-corrected by the
+    thrust) against the time since the onset: its peak says when after the step the model
+    is wrong, and a peak within the first lag with the model leading points to dead time.
+    """
+    dt = ctx.dt
+    n_lag = round(max_lag_s / dt)
+    lags = np.arange(-round(0.3 / dt), n_lag + 1)
+    acc = np.zeros(lags.size)
+    cnt = np.zeros(lags.size)
+    scale = []
+    for tv in ctx.trials:
+        k0 = int(np.searchsorted(tv.t, 0.0))
+        s = np.sign(tv.data.thrust_N) or 1.0
+        idx = k0 + lags
+        ok = (idx >= 0) & (idx < tv.residual.size)
+        acc[ok] += s * tv.residual[idx[ok]]
+        cnt[ok] += 1
+        scale.append(np.std(tv.residual))
+    mean = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 0)
+    sigma = float(np.mean(scale)) if scale else 1.0
+    band = 1.96 * sigma / np.sqrt(max(len(ctx.trials), 1))
+    peak = int(np.argmax(np.abs(mean)))
+    return {
+        "lag_s": [round(float(x), 4) for x in lags * dt],
+        "mean_residual": [round(float(x), 5) for x in mean],
+        "band": float(band),
+        "peak_lag_s": float(lags[peak] * dt),
+        "peak_value": float(mean[peak]),
+        "significant": bool(abs(mean[peak]) > band),
+    }
+
+
+def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, object]:
+    """Welch spectrum of the residual; narrow peaks above ``factor`` x the median level."""
+    from scipy.signal import find_peaks, welch
+
+    fs = 1.0 / ctx.dt
+    psds = []
+    for tv in ctx.trials:
+        if tv.residual.size >= 128:
+            f, p = welch(tv.residual, fs=fs, nperseg=min(256, tv.residual.size))
+            if psds and p.size != psds[0].size:
+                continue
+            psds.append(p)
+    if not psds:
+        return {"peaks": [], "frequency_hz": [], "psd": []}
+    psd = np.mean(psds, axis=0)
+    level = float(np.median(psd[1:]))
+    idx, _props = find_peaks(psd, height=factor * level, prominence=factor * level / 2)
+    peaks = [
+        {"frequency_hz": float(f[i]), "ratio_to_median": float(psd[i] / level)}
+        for i in idx
+        if f[i] > 0.5
+    ]
+    peaks.sort(key=lambda p: -p["ratio_to_median"])
+    return {"peaks": peaks[:5], "frequency_hz": f.tolist(), "psd": psd.tolist()}
+
+
+def regime_table(ctx: DiagnosisContext) -> list[dict[str, object]]:
+    """Residual mean and RMS per regime, per direction and per operating-force bin."""
+    rows: list[dict[str, object]] = []
+
+    def add(group: str, label: str, parts: list[np.ndarray]) -> None:
+        r = np.concatenate(parts) if parts else np.array([])
+        if r.size >= 5:
+            rows.append(
+                {
+                    "group": group,
+                    "label": label,
+                    "n": int(r.size),
+                    "mean": float(np.mean(r)),
+                    "rms": float(np.sqrt(np.mean(r**2))),
+                    "rms_over_noise": float(np.sqrt(np.mean(r**2)) / max(ctx.noise_floor, 1e-12)),
+                }
+            )
+
+    for name in REGIMES:
+        add("regime", name, [tv.residual[tv.regimes[name]] for tv in ctx.trials])
+    for d in ("up", "down"):
+        add("direction", d, [tv.residual for tv in ctx.trials if tv.data.direction == d])
+    levels = sorted({round(abs(tv.data.thrust_N), 1) for tv in ctx.trials})
+    for lv in levels:
+        add(
+            "|h| bin",
+            f"{lv:g} N",
+            [tv.residual for tv in ctx.trials if round(abs(tv.data.thrust_N), 1) == lv],
+        )
+    return rows
+
+
+def state_correlations(ctx: DiagnosisContext) -> dict[str, float]:
+    """Correlation of the residual with the simulated states during motion."""
+    res, states = [], {"velocity": [], "position": [], "drive force": [], "time": []}
+    for tv in ctx.trials:
+        m = tv.t >= 0
+        res.append(tv.residual[m])
+        states["velocity"].append(tv.v[m])
+        states["position"].append(tv.z[m])
+        states["drive force"].append(tv.f[m])
+        states["time"].append(tv.t[m] * np.sign(tv.data.thrust_N))
+    r = np.concatenate(res)
+    out = {}
+    for name, parts in states.items():
+        x = np.concatenate(parts)
+        if np.std(x) > 0 and np.std(r) > 0:
+            out[name] = float(np.corrcoef(r, x)[0, 1])
+    return out
+
+
+def worst_windows(ctx: DiagnosisContext, width_s: float = 0.5, count: int = 3) -> list[dict]:
+    """The time windows with the largest residual RMS (trial, start, end, rmse)."""
+    found = []
+    for tv in ctx.trials:
+        w = max(round(width_s / ctx.dt), 1)
+        if tv.residual.size < w:
+            continue
+        c = np.convolve(tv.residual**2, np.ones(w) / w, mode="valid")
+        k = int(np.argmax(c))
+        found.append(
+            {
+                "trial": tv.data.index,
+                "t_start": float(tv.data.time[k]),
+                "t_end": float(tv.data.time[min(k + w, tv.data.time.size - 1)]),
+                "rmse": float(np.sqrt(c[k])),
+            }
+        )
+    found.sort(key=lambda r: -r["rmse"])
+    return found[:count]
