@@ -75,3 +75,7 @@ class IdentificationError(BalancerIdError):
 
 class NoTrialError(IdentificationError):
     """A log reads fine but holds no step trial (exit 4)."""
+
+
+class OutputExistsError(UsageError):
+    """An output file exists already and overwriting was not asked for (exit 2)."""

@@ -1,0 +1,218 @@
+"""Column-name parsing: ``"Force (N) Run #1"`` -> quantity ``Force``, unit ``N``, run ``Run #1``.
+
+Every export names a column ``<quantity> (<unit>) <run>``: PASCO Capstone
+(``Time (s) Run #1``, ``Time (s) Auto``), PASCO SPARKvue (``Force (N) Run 1`` or a run
+name the user typed, ``Force (N) 9.9``), phyphox (``Acceleration x (m/s^2)``, no run).
+:func:`parse_column` splits a name into these parts and :func:`classify` says what the
+column holds (time, force, acceleration, gyro, other numbers, or something to ignore).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+#: Column kinds :func:`classify` returns.
+KINDS = ("time", "datetime", "force", "accel", "gyro", "ignore", "other")
+
+_PAREN = re.compile(r"\(([^()]*)\)")
+_UNIT_CHARS = re.compile(r"^[\w\s/^*·.\-%°²³⁻¹µμ]+$")
+_RUN_ONLY = re.compile(r"^(?P<q>.*?)\s+(?P<r>Run\s*#?\s*\d+)$", re.IGNORECASE)
+_DATETIME = re.compile(r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I)
+
+TIME_WORDS = frozenset(
+    {"time", "t", "zeit", "tiempo", "czas", "temps", "tempo", "tijd", "timestamp", "elapsed time"}
+)
+FORCE_WORDS = ("force", "kraft", "fuerza", "siła", "sila", "forza")
+ACCEL_WORDS = (
+    "accel",
+    "beschleunigung",
+    "aceleración",
+    "aceleracion",
+    "przyspieszenie",
+    "accélération",
+    "acceleration",
+    "accelerazione",
+)
+#: Words that mark a magnitude column (|a|), which the readers ignore.
+MAGNITUDE_WORDS = ("resultant", "absolute", "magnitude", "norm", "total", "betrag")
+GYRO_WORDS = ("gyro", "angular velocity", "rotation rate")
+
+_ACCEL_UNITS = {
+    "m/s^2": "m/s^2",
+    "m/s²": "m/s^2",
+    "m/s2": "m/s^2",
+    "m/s/s": "m/s^2",
+    "m s^-2": "m/s^2",
+    "m·s⁻²": "m/s^2",
+    "ms^-2": "m/s^2",
+    "m/sec^2": "m/s^2",
+    "g": "g",
+}
+_TIME_UNITS = {"s": 1.0, "sec": 1.0, "seconds": 1.0, "ms": 1e-3}
+_GYRO_UNITS = ("rad/s", "deg/s", "°/s", "dps")
+_AXIS = re.compile(r"(?:^|[\s\-_:,(])([xyz])(?:[\s\-_]?axis)?$")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One parsed and classified column header.
+
+    Attributes
+    ----------
+    index : int
+        Position of the column in the header (0-based).
+    raw : str
+        The header cell as written (BOM and surrounding blanks removed).
+    quantity : str
+        The name before the unit (``"Acceleration x"``, ``"Accel (Resultant)"``).
+    unit : str
+        The unit as written, without parentheses (``"m/s²"``), ``""`` when none.
+    run : str
+        What follows the unit: ``"Run #1"``, ``"Run 1"``, ``"9.9"``, ``"Auto"`` or ``""``.
+    kind : str
+        One of :data:`KINDS`.
+    axis : str
+        ``"x"``, ``"y"``, ``"z"`` or ``""`` when the column names no axis.
+    linear : bool
+        True for a "Linear Acceleration" column (phyphox "without g").
+    """
+
+    index: int
+    raw: str
+    quantity: str
+    unit: str
+    run: str
+    kind: str = "other"
+    axis: str = ""
+    linear: bool = False
+
+    @property
+    def label(self) -> str:
+        """The name without its run suffix, ``"Position (m)"``; used for ``extra`` keys."""
+        return f"{self.quantity} ({self.unit})" if self.unit else self.quantity
+
+    @property
+    def accel_unit(self) -> str:
+        """Normalised acceleration unit, ``"m/s^2"``, ``"g"`` or ``""`` when unknown."""
+        return normalize_accel_unit(self.unit)
+
+    @property
+    def time_scale(self) -> float:
+        """Factor that turns this column's time unit into seconds (1.0 when unknown)."""
+        return _TIME_UNITS.get(self.unit.strip().lower(), 1.0)
+
+
+def normalize_accel_unit(unit: str) -> str:
+    """Return ``"m/s^2"``, ``"g"`` or ``""`` for an acceleration unit as written.
+
+    Parameters
+    ----------
+    unit : str
+        The unit text, e.g. ``"m/s²"``, ``"m/s^2"``, ``"m/s2"``, ``"g"``.
+
+    Returns
+    -------
+    str
+        The normalised unit, ``""`` when it is not an acceleration unit.
+    """
+    key = unit.strip().replace(" ", " ")
+    if key in _ACCEL_UNITS:
+        return _ACCEL_UNITS[key]
+    return _ACCEL_UNITS.get(key.lower(), "")
+
+
+def split_name(raw: str) -> tuple[str, str, str]:
+    """Split a header cell into ``(quantity, unit, run)``.
+
+    The unit is the last parenthesised group that looks like a unit (it holds a
+    letter, ``%`` or ``°``); what precedes it is the quantity and what follows it is the
+    run. ``"Accel (Resultant) (m/s²) Run 1"`` -> ``("Accel (Resultant)", "m/s²", "Run 1")``;
+    ``"Date and Time Run 1"`` -> ``("Date and Time", "", "Run 1")``.
+
+    Parameters
+    ----------
+    raw : str
+        The header cell.
+
+    Returns
+    -------
+    tuple of str
+        Quantity, unit and run, each stripped; unit and run may be ``""``.
+    """
+    name = raw.strip()
+    for match in reversed(list(_PAREN.finditer(name))):
+        inner = match.group(1).strip()
+        if not inner or not _UNIT_CHARS.match(inner) or not re.search(r"[^\W\d_]|%|°", inner):
+            continue
+        quantity = name[: match.start()].strip()
+        if not quantity:
+            continue
+        return quantity, inner, name[match.end() :].strip()
+    only = _RUN_ONLY.match(name)
+    if only:
+        return only.group("q").strip(), "", only.group("r").strip()
+    if _DATETIME.match(name):
+        rest = _DATETIME.sub("", name).strip()
+        return name[: len(name) - len(rest)].strip(), "", rest
+    return name, "", ""
+
+
+def _has_word(text: str, words: tuple[str, ...] | frozenset[str]) -> bool:
+    return any(w in text for w in words)
+
+
+def classify(index: int, raw: str) -> Column:
+    """Parse and classify one header cell.
+
+    Parameters
+    ----------
+    index : int
+        Position of the column in the header.
+    raw : str
+        The header cell as written.
+
+    Returns
+    -------
+    Column
+        The parsed column with its kind, axis and "linear" flag.
+    """
+    raw = raw.replace("\ufeff", "").strip()
+    quantity, unit, run = split_name(raw)
+    q = quantity.lower().strip()
+    u = unit.strip().lower()
+    kind = "other"
+    axis = ""
+    linear = False
+    accel_unit = normalize_accel_unit(unit)
+    if _DATETIME.match(q):
+        kind = "datetime"
+    elif q in TIME_WORDS and (u in _TIME_UNITS or u == ""):
+        kind = "time"
+    elif _has_word(q, FORCE_WORDS) and u in ("n", ""):
+        kind = "force"
+    elif _has_word(q, GYRO_WORDS) or u in _GYRO_UNITS:
+        kind = "gyro"
+    elif _has_word(q, ACCEL_WORDS) or (q in ("x", "y", "z") and accel_unit == "m/s^2"):
+        kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) else "accel"
+        linear = "linear" in q
+    if kind in ("accel", "gyro"):
+        found = _AXIS.search(q)
+        axis = found.group(1) if found else ""
+    return Column(index, raw, quantity, unit, run, kind, axis, linear)
+
+
+def classify_header(names: list[str]) -> list[Column]:
+    """Classify every cell of a header row.
+
+    Parameters
+    ----------
+    names : list of str
+        The header cells in file order.
+
+    Returns
+    -------
+    list of Column
+        One per cell, same order.
+    """
+    return [classify(i, name) for i, name in enumerate(names)]

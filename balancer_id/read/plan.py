@@ -1,0 +1,154 @@
+"""What to read from which column: one :class:`RunPlan` per run of a log.
+
+The layout readers (:mod:`~balancer_id.read.pasco`, :mod:`~balancer_id.read.phyphox`,
+:mod:`~balancer_id.read.generic`) only decide the plans; :mod:`~balancer_id.read.assemble`
+turns plans plus the parsed numbers into :class:`~balancer_id.read.recording.Recording`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from balancer_id.read.header import Column
+
+_AXES = ("x", "y", "z")
+
+
+@dataclass
+class RunPlan:
+    """The columns of one run.
+
+    Attributes
+    ----------
+    name : str
+        Run name for the :class:`Recording`.
+    time : int
+        Column index of the time.
+    time_scale : float
+        Factor to seconds (1.0, or 1e-3 for ms).
+    force : int or None
+        Column index of the force, or None.
+    accel : tuple of int
+        Column indexes of the acceleration axes (empty when none).
+    accel_axes : tuple of str
+        Axis labels of ``accel``.
+    accel_unit : str
+        ``"m/s^2"``, ``"g"`` or ``""`` (not stated in the header).
+    includes_gravity : bool or None
+        True/False when the layout says so; None to decide from the data.
+    extra : dict
+        Label -> column index of other numeric channels (gyro, position, ...).
+    notes : list of str
+        Warnings found while planning (duplicate channels, ...).
+    """
+
+    name: str
+    time: int
+    time_scale: float = 1.0
+    force: int | None = None
+    accel: tuple[int, ...] = ()
+    accel_axes: tuple[str, ...] = ()
+    accel_unit: str = ""
+    includes_gravity: bool | None = None
+    extra: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def columns(self) -> list[int]:
+        """Every column index this plan reads."""
+        cols = [self.time, *self.accel, *self.extra.values()]
+        if self.force is not None:
+            cols.append(self.force)
+        return cols
+
+    @property
+    def has_signal(self) -> bool:
+        """True when the run has a force or an acceleration column."""
+        return self.force is not None or bool(self.accel)
+
+
+def plan_from_columns(
+    name: str,
+    time: Column,
+    members: list[Column],
+    *,
+    with_gravity_name: bool | None = None,
+) -> RunPlan:
+    """Build a run plan from its time column and its measurement columns.
+
+    Parameters
+    ----------
+    name : str
+        The run's name.
+    time : Column
+        Its time column.
+    members : list of Column
+        Its other columns (any kind; datetime and ignored columns are skipped).
+    with_gravity_name : bool, optional
+        What an ``"Acceleration x"`` name (not "Linear") says about gravity: True for
+        phyphox (it names the variant), None to decide from the data.
+
+    Returns
+    -------
+    RunPlan
+        The plan; ``accel`` holds three axes, one axis, or nothing.
+    """
+    plan = RunPlan(name=name, time=time.index, time_scale=time.time_scale)
+    axes: dict[str, Column] = {}
+    single: list[Column] = []
+    for col in members:
+        if col.kind == "force":
+            if plan.force is None:
+                plan.force = col.index
+            else:
+                plan.extra[_unique(plan.extra, col.label)] = col.index
+                plan.notes.append(f"second force column '{col.raw}' kept as an extra channel")
+        elif col.kind == "accel":
+            if col.axis and col.axis not in axes:
+                axes[col.axis] = col
+            elif not col.axis and not single:
+                single.append(col)
+            else:
+                plan.extra[_unique(plan.extra, col.label)] = col.index
+        elif col.kind in ("gyro", "other"):
+            plan.extra[_unique(plan.extra, col.label)] = col.index
+    chosen: list[Column]
+    if len(axes) == 3:
+        chosen = [axes[a] for a in _AXES]
+        for col in single:
+            plan.extra[_unique(plan.extra, col.label)] = col.index
+        plan.accel_axes = _AXES
+    elif single or len(axes) == 1:
+        if single:
+            chosen, plan.accel_axes = [single[0]], ("z",)
+        else:
+            (axis, col), *_ = axes.items()
+            chosen, plan.accel_axes = [col], (axis,)
+        for col in axes.values() if single else []:
+            plan.extra[_unique(plan.extra, col.label)] = col.index
+    else:
+        chosen = []
+        for col in axes.values():
+            plan.extra[_unique(plan.extra, col.label)] = col.index
+        if axes:
+            plan.notes.append(
+                "acceleration has only the axes "
+                + ", ".join(sorted(axes))
+                + "; kept as extra channels, not as the acceleration"
+            )
+    plan.accel = tuple(c.index for c in chosen)
+    if chosen:
+        units = {c.accel_unit for c in chosen}
+        plan.accel_unit = units.pop() if len(units) == 1 else ""
+        if any(c.linear for c in chosen):
+            plan.includes_gravity = False
+        elif with_gravity_name is not None and len(chosen) == 3:
+            plan.includes_gravity = with_gravity_name
+    return plan
+
+
+def _unique(existing: dict[str, int], label: str) -> str:
+    key, n = label, 2
+    while key in existing:
+        key, n = f"{label} #{n}", n + 1
+    return key

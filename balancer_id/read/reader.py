@@ -1,0 +1,116 @@
+"""``read_log``: one call that detects the layout of a log and reads it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from balancer_id.constants import G_DEFAULT
+from balancer_id.errors import LogReadError
+from balancer_id.read.assemble import build_recordings
+from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
+from balancer_id.read.header import Column, classify_header
+from balancer_id.read.pasco import looks_like_pasco, plan_runs
+from balancer_id.read.phyphox import looks_like_phyphox, plan_phyphox
+from balancer_id.read.plan import RunPlan
+from balancer_id.read.recording import Log
+from balancer_id.read.sniff import sniff
+from balancer_id.read.table import read_table
+from balancer_id.read.units import check_accel_unit
+
+
+def read_log(
+    path: str | os.PathLike[str],
+    *,
+    columns: dict[str, str] | None = None,
+    accel_unit: str = "auto",
+    max_bytes: int | None = None,
+    g: float = G_DEFAULT,
+) -> Log:
+    """Read a PASCO Capstone, PASCO SPARKvue, phyphox or generic CSV log.
+
+    The layout, delimiter (``,``, ``;``, tab), decimal mark, BOM and line endings are
+    detected from the file. Each run becomes one :class:`Recording` on its own time base;
+    dropped samples are reported as gaps and never interpolated.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file.
+    columns : dict, optional
+        Column map for a generic CSV: ``{"time": ..., "force": ..., "ax": ..., "ay": ...,
+        "az": ...}`` (or ``"a"`` for one vertical acceleration column); names match the
+        header case-insensitively. Given, it overrides the layout detection.
+    accel_unit : {"auto", "m/s^2", "g"}
+        Unit of the acceleration values. ``"auto"`` uses the header's unit and, for an
+        acceleration that includes gravity, converts values whose resting magnitude is
+        ~1 (g) instead of ~9.8 (m/s^2), with a warning.
+    max_bytes : int, optional
+        Refuse larger files (default: a quarter of the available memory, at most 2 GiB).
+    g : float
+        Gravity (m/s^2) used to convert accelerations given in g.
+
+    Returns
+    -------
+    Log
+        Format, recordings and warnings.
+
+    Raises
+    ------
+    LogReadError
+        The file cannot be read or is not valid; the message names the file, the line or
+        column, and what to do.
+    UsageError
+        ``accel_unit`` or ``columns`` do not make sense.
+    """
+    accel_unit = check_accel_unit(accel_unit)
+    sniffed = sniff(path, max_bytes)
+    header = classify_header(sniffed.header)
+    fmt, plans = _plan(sniffed.path, header, columns)
+    wanted = sorted({c for plan in plans for c in plan.columns})
+    optional = {c for plan in plans for c in plan.extra.values()}
+    table = read_table(sniffed, wanted, optional)
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
+        recordings, warnings = build_recordings(
+            sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
+        )
+    if not recordings:
+        raise LogReadError(
+            sniffed.path,
+            "no usable data rows: every run's time, force and acceleration cells are blank",
+            line=sniffed.header_line + 1,
+            hint="check that the export includes the measurements",
+        )
+    return Log(path=sniffed.path, format=fmt, recordings=recordings, warnings=warnings)
+
+
+def _plan(
+    path: Path, header: list[Column], columns: dict[str, str] | None
+) -> tuple[str, list[RunPlan]]:
+    """Choose the layout and plan its runs."""
+    if columns:
+        return "generic", plan_from_map(path, header, columns)
+    pasco = looks_like_pasco(header)
+    if pasco is not None:
+        fmt, plans = pasco, plan_runs(path, header)
+    elif looks_like_phyphox(header):
+        fmt, plans = "phyphox", plan_phyphox(path, header)
+    else:
+        fmt, plans = "generic", []
+    if not plans:
+        plans = guess_plan(header)
+        if fmt != "generic" and plans:
+            fmt = "generic"
+    if plans:
+        return fmt, plans
+    has_time = any(c.kind == "time" for c in header)
+    has_signal = any(c.kind in ("force", "accel") for c in header)
+    if has_time:
+        missing = "no force or acceleration column"
+    elif has_signal:
+        missing = "no time column"
+    else:
+        missing = "no time, force or acceleration column"
+    raise no_columns_error(path, header, missing)

@@ -1,0 +1,186 @@
+"""Parse the numeric columns of a sniffed log with pandas' C engine.
+
+The fast path reads the wanted columns straight to float64. Only when that fails (a
+non-numeric cell) the columns are read again as text to find the first bad cell, so
+the error can name its line and column. Empty cells and ``NaN`` become NaN.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from balancer_id.errors import LogReadError
+from balancer_id.read.sniff import Sniffed
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Missing-value spellings on top of pandas' defaults (``""``, ``NaN``, ``nan``, ``NA``, ...).
+_NA_EXTRA = ["NAN", "-NAN", "Nan", "nan(ind)", "-nan(ind)", "#NV", "#WERT!", "#VALUE!"]
+_LINE_IN_MESSAGE = re.compile(r"\b(line|row) (\d+)")
+
+
+@dataclass
+class Table:
+    """Numeric columns of a log, by header index.
+
+    Attributes
+    ----------
+    columns : dict
+        Header index -> float64 array (NaN for empty cells); every array has ``n_rows``.
+    n_rows : int
+        Number of data rows (blank lines included, so row ``i`` is file line
+        ``first_line + i``).
+    first_line : int
+        File line number of row 0.
+    dropped : dict
+        Header index -> (line, cell) of the first non-numeric cell, for columns that were
+        allowed to fail (extra channels) and were left out.
+    """
+
+    columns: dict[int, np.ndarray]
+    n_rows: int
+    first_line: int
+    dropped: dict[int, tuple[int, str]] = field(default_factory=dict)
+
+    def line_of(self, row: int | np.integer) -> int:
+        """Return the file line number of data row ``row``."""
+        return self.first_line + int(row)
+
+
+def _read(sniffed: Sniffed, usecols: list[int], dtype: object) -> pd.DataFrame:
+    import pandas as pd  # lazy: importing balancer_id.read stays cheap
+
+    kwargs: dict[str, object] = {
+        "header": None,
+        "names": list(range(len(sniffed.header))),
+        "usecols": usecols,
+        "dtype": dtype,
+        "decimal": sniffed.decimal,
+        "skip_blank_lines": False,
+        "engine": "c",
+        "encoding": "utf-8",
+        "quotechar": '"',
+        "na_values": _NA_EXTRA,
+    }
+    if sniffed.delimiter == " ":
+        kwargs["sep"] = r"\s+"
+    else:
+        kwargs["sep"] = sniffed.delimiter
+    buffer = io.BytesIO(sniffed.data)
+    buffer.seek(sniffed.data_start)
+    return pd.read_csv(buffer, **kwargs)
+
+
+def read_table(sniffed: Sniffed, wanted: list[int], optional: set[int] | None = None) -> Table:
+    """Parse the columns ``wanted`` as float64.
+
+    Parameters
+    ----------
+    sniffed : Sniffed
+        The sniffed file.
+    wanted : list of int
+        Header indexes to parse.
+    optional : set of int, optional
+        Columns that may be dropped (reported in ``Table.dropped``) instead of failing
+        when they hold text.
+
+    Returns
+    -------
+    Table
+        The parsed columns.
+
+    Raises
+    ------
+    LogReadError
+        A non-numeric cell in a required column (names its line and column), or a
+        malformed file.
+    """
+    optional = optional or set()
+    usecols = sorted(set(wanted))
+    first_line = sniffed.header_line + 1
+    try:
+        frame = _read(sniffed, usecols, np.float64)
+    except ValueError:  # a cell that is not a number (or a malformed row): slow path, text
+        return _read_slow(sniffed, usecols, optional, first_line)
+    except Exception as exc:  # never a traceback: pandas' other errors become LogReadError
+        raise _parser_error(sniffed, exc, first_line) from None
+    columns = {c: frame[c].to_numpy(dtype=np.float64) for c in usecols}
+    return Table(columns, len(frame), first_line)
+
+
+def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_line: int) -> Table:
+    """Read as text, convert column by column, and name the first bad cell."""
+    import pandas as pd
+
+    try:
+        frame = _read(sniffed, usecols, str)
+    except Exception as exc:  # ParserError, UnicodeDecodeError, MemoryError, ...
+        raise _parser_error(sniffed, exc, first_line) from None
+    columns: dict[int, np.ndarray] = {}
+    dropped: dict[int, tuple[int, str]] = {}
+    bad_required: tuple[int, int, str] | None = None
+    for col in usecols:
+        text = frame[col]
+        present = text.notna().to_numpy()
+        clean = text.str.strip()
+        if sniffed.decimal == ",":
+            clean = clean.str.replace(",", ".", regex=False)
+        values = pd.to_numeric(clean, errors="coerce").to_numpy(dtype=np.float64)
+        blank = (clean == "").to_numpy(dtype=bool, na_value=True) | clean.str.lower().isin(
+            ("nan", "-nan", "+nan")
+        ).to_numpy(dtype=bool)
+        bad = np.flatnonzero(present & ~blank & np.isnan(values))
+        if bad.size:
+            row = int(bad[0])
+            where = (first_line + row, str(text.iloc[row]))
+            if col in optional:
+                dropped[col] = where
+                continue
+            if bad_required is None or row < bad_required[0]:
+                bad_required = (row, col, where[1])
+        columns[col] = values
+    if bad_required is not None:
+        row, col, cell = bad_required
+        raise LogReadError(
+            sniffed.path,
+            f"non-numeric value {cell.strip()[:40]!r} in a numeric column",
+            line=first_line + row,
+            column=sniffed.header[col],
+            hint="fix or delete that cell, or export the data again with numbers only",
+        )
+    return Table(columns, len(frame), first_line, dropped)
+
+
+def _parser_error(sniffed: Sniffed, exc: BaseException, first_line: int) -> LogReadError:
+    message = " ".join(str(exc).split()) or type(exc).__name__
+    found = _LINE_IN_MESSAGE.search(message)
+    # pandas counts "line N" from 1 and "row N" from 0 over the data it was given.
+    line = None
+    if found:
+        line = first_line + int(found.group(2)) - (1 if found.group(1) == "line" else 0)
+    if isinstance(exc, MemoryError):
+        return LogReadError(
+            sniffed.path,
+            "not enough memory to read the file",
+            line=line or first_line,
+            hint="split the file into smaller files",
+        )
+    if isinstance(exc, UnicodeDecodeError):
+        return LogReadError(
+            sniffed.path,
+            "contains bytes that are not text",
+            line=line or first_line,
+            hint="export the data as CSV text again",
+        )
+    return LogReadError(
+        sniffed.path,
+        f"cannot be parsed as CSV ({message[:160]})",
+        line=line or first_line,
+        hint="check that every row has the same delimiter as the header",
+    )

@@ -1,0 +1,144 @@
+"""Checks on one run's samples: time order, rate, gaps, saturation. All vectorized."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from balancer_id.constants import (
+    ACCEL_RANGE_G,
+    ACCEL_RESOLUTION,
+    FORCE_RANGE_N,
+    FORCE_RESOLUTION_N,
+    G_DEFAULT,
+)
+from balancer_id.errors import LogReadError
+from balancer_id.read.recording import Gap
+
+#: A step longer than this many median steps is a gap (dropped samples).
+GAP_FACTOR = 1.5
+
+
+def check_time(path: object, time: np.ndarray, line_of: Callable[[int], int], column: str) -> None:
+    """Raise when the time does not strictly increase.
+
+    Parameters
+    ----------
+    path : path-like
+        The file (for the message).
+    time : numpy.ndarray
+        Sample times of one run, in file order.
+    line_of : callable
+        Sample index -> file line number.
+    column : str
+        Name of the time column.
+
+    Raises
+    ------
+    LogReadError
+        Time goes backwards, or a timestamp repeats; names the line.
+    """
+    if time.size < 2:
+        return
+    dt = np.diff(time)
+    bad = np.flatnonzero(~(dt > 0))
+    if bad.size == 0:
+        return
+    i = int(bad[0])
+    line, previous = line_of(i + 1), line_of(i)
+    if dt[i] == 0:
+        raise LogReadError(
+            path,
+            f"duplicate timestamp {time[i + 1]:g} s (same as line {previous})",
+            line=line,
+            column=column,
+            hint="remove the repeated row, or export again with more decimal places for time",
+        )
+    raise LogReadError(
+        path,
+        f"time goes backwards ({time[i + 1]:g} s after {time[i]:g} s on line {previous})",
+        line=line,
+        column=column,
+        hint="sort the rows by time, or split the file where the clock restarts",
+    )
+
+
+def sample_rate(time: np.ndarray) -> float:
+    """Return the rate (Hz) from the median time step; NaN with fewer than 2 samples.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Strictly increasing sample times (s).
+
+    Returns
+    -------
+    float
+        ``1 / median(diff(time))``.
+    """
+    if time.size < 2:
+        return float("nan")
+    return float(1.0 / np.median(np.diff(time)))
+
+
+def find_gaps(time: np.ndarray, factor: float = GAP_FACTOR) -> list[Gap]:
+    """Find steps longer than ``factor`` median steps (dropped wireless samples).
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Strictly increasing sample times (s).
+    factor : float
+        Threshold in median steps.
+
+    Returns
+    -------
+    list of Gap
+        One per long step, in time order; nothing is interpolated.
+    """
+    if time.size < 3:
+        return []
+    dt = np.diff(time)
+    step = float(np.median(dt))
+    where = np.flatnonzero(dt > factor * step)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio = np.nan_to_num(dt[where] / step, nan=2.0, posinf=2.0**62)
+    missing = np.maximum(np.rint(np.minimum(ratio, 2.0**62)).astype(np.int64) - 1, 1)
+    return [
+        Gap(float(time[i]), float(time[i + 1]), int(n))
+        for i, n in zip(where.tolist(), missing.tolist(), strict=True)
+    ]
+
+
+def count_saturated(
+    force: np.ndarray | None, accel: np.ndarray | None, g: float = G_DEFAULT
+) -> dict[str, int]:
+    """Count samples at the sensor's limits (MODEL.md, paper Table IV).
+
+    Parameters
+    ----------
+    force : numpy.ndarray or None
+        Force (N).
+    accel : numpy.ndarray or None
+        Acceleration (m/s^2), shape ``(n, k)``.
+    g : float
+        Gravity (m/s^2) for the ±16 g range.
+
+    Returns
+    -------
+    dict
+        ``"force"`` and/or ``"accel"`` -> number of samples with ``|value|`` at least the
+        range minus one resolution step; channels without saturation are left out.
+    """
+    out: dict[str, int] = {}
+    if force is not None:
+        n = int(np.count_nonzero(np.abs(force) >= FORCE_RANGE_N - FORCE_RESOLUTION_N))
+        if n:
+            out["force"] = n
+    if accel is not None and accel.size:
+        limit = ACCEL_RANGE_G * g - ACCEL_RESOLUTION
+        n = int(np.count_nonzero((np.abs(accel) >= limit).any(axis=1)))
+        if n:
+            out["accel"] = n
+    return out
