@@ -348,6 +348,213 @@ def simulate(
 
 @app.command()
 @guarded
+def compare(
+    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    model: Annotated[
+        str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
+    ] = "viscous,variable_viscosity",
+    plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    thrust: ThrustOpt = None,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Measured vs simulated for several models: errors per trial and where each fails."""
+    from balancer_id.diagnose import compare as run_compare
+
+    specs = [m.strip() for m in model.split(",") if m.strip()]
+    results = run_compare(
+        logs,
+        specs,
+        fixed=_assignments(fix, "--fix"),
+        options=_read_options(thrust, force_sign, vertical, columns, g),
+        effects_files=effects_file or (),
+        trajectory=_trajectory(trajectory),
+    )
+    out = {"models": [r.to_dict() for r in results]}
+    if plot is not None:
+        from balancer_id.report.sections import plot_comparison
+
+        plot_comparison(results, plot)
+    if json_out:
+        from balancer_id.fit.result import _clean
+
+        _emit_json(_clean(out))
+    else:
+        from balancer_id.report.terminal import print_compare
+
+        print_compare(_console(), out)
+
+
+@app.command()
+@guarded
+def diagnose(
+    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    model: ModelOpt = None,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    thrust: ThrustOpt = None,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Residual tests and ranked suggestions of missing effects."""
+    from balancer_id.diagnose import diagnose as run_diagnose
+
+    result = run_diagnose(
+        logs,
+        model=model,
+        fixed=_assignments(fix, "--fix"),
+        options=_read_options(thrust, force_sign, vertical, columns, g),
+        effects_files=effects_file or (),
+        trajectory=_trajectory(trajectory),
+    )
+    out = result.to_dict()
+    if json_out:
+        _emit_json(out)
+    else:
+        from balancer_id.report.terminal import print_diagnosis
+
+        print_diagnosis(_console(), out)
+
+
+@app.command()
+@guarded
+def improve(
+    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    start: Annotated[
+        str | None,
+        typer.Option("--start", help="Model to start from (default variable_viscosity)."),
+    ] = None,
+    max_steps: Annotated[int, typer.Option("--max-steps", help="Effects to add at most.")] = 4,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    report: Annotated[Path | None, typer.Option("--report", help="FILE.html or FILE.pdf.")] = None,
+    plot: Annotated[Path | None, typer.Option("--plot", help="The error ladder as PNG.")] = None,
+    thrust: ThrustOpt = None,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Add effects one by one while the error falls and BIC and held-out trials improve."""
+    from balancer_id.diagnose import improve as run_improve
+
+    result = run_improve(
+        logs,
+        start=start,
+        fixed=_assignments(fix, "--fix"),
+        options=_read_options(thrust, force_sign, vertical, columns, g),
+        effects_files=effects_file or (),
+        trajectory=_trajectory(trajectory),
+        max_steps=max_steps,
+    )
+    out = result.to_dict()
+    if plot is not None:
+        from balancer_id.report.plots import plot_error_ladder
+
+        plot_error_ladder(out["steps"], plot)
+    if report is not None:
+        from balancer_id.report.sections import write_improve_report
+
+        write_improve_report(result, report, inputs=logs)
+    if json_out:
+        _emit_json(out)
+    else:
+        from balancer_id.report.terminal import print_improve
+
+        print_improve(_console(), out)
+
+
+@app.command()
+@guarded
+def report(
+    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    out: Annotated[Path, typer.Option("--out", help="FILE.html or FILE.pdf.")],
+    model: ModelOpt = None,
+    fix: FixOpt = None,
+    thrust: ThrustOpt = None,
+    effects_file: EffectsFileOpt = None,
+    trajectory: TrajectoryOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """The full report: identification, paper's method, diagnosis and per-trial plots."""
+    from balancer_id.report.sections import write_full_report
+
+    write_full_report(
+        logs,
+        out,
+        model=model,
+        fixed=_assignments(fix, "--fix"),
+        options=_read_options(thrust, force_sign, vertical, columns, g),
+        effects_files=effects_file or (),
+        trajectory=_trajectory(trajectory),
+    )
+    typer.echo(f"wrote {out}", err=True)
+
+
+@app.command()
+@guarded
+def batch(
+    paths: Annotated[list[Path], typer.Argument(help="Logs or folders of logs.")],
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for summary.csv and one JSON per log.")
+    ],
+    model: ModelOpt = None,
+    fix: FixOpt = None,
+    jobs: Annotated[
+        int | None, typer.Option("--jobs", help="Processes (default: all cores).")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", help="Dask scheduler address (or 'local').")
+    ] = None,
+    json_out: JsonOpt = False,
+    effects_file: EffectsFileOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = 9.8,
+) -> None:
+    """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
+    from balancer_id.batch import run_batch
+
+    result = run_batch(
+        paths,
+        out,
+        model=model,
+        fixed=_assignments(fix, "--fix"),
+        options=_read_options(None, force_sign, vertical, columns, g),
+        effects_files=effects_file or (),
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=lambda msg: typer.echo(msg, err=True),
+    )
+    if json_out:
+        _emit_json(result.to_dict())
+    else:
+        typer.echo(
+            f"{result.n_ok} identified, {result.n_failed} failed; summary in {result.summary_path}",
+            err=True,
+        )
+    if result.exit_code:
+        raise typer.Exit(result.exit_code)
+
+
+@app.command()
+@guarded
 def effects(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,

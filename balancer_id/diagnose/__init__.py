@@ -1,5 +1,19 @@
 """Diagnosis: where the model fails, which effect is missing, and adding it."""
 
+from balancer_id.diagnose.api import compare, diagnose, improve
+from balancer_id.diagnose.compare import ModelComparison, compare_models
 from balancer_id.diagnose.diagnosis import Diagnosis, Suggestion, diagnose_match
+from balancer_id.diagnose.improve import ImproveResult, improve_model
 
-__all__ = ["Diagnosis", "Suggestion", "diagnose_match"]
+__all__ = [
+    "Diagnosis",
+    "ImproveResult",
+    "ModelComparison",
+    "Suggestion",
+    "compare",
+    "compare_models",
+    "diagnose",
+    "diagnose_match",
+    "improve",
+    "improve_model",
+]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from balancer_id.diagnose.context import REGIMES, DiagnosisContext
+from balancer_id.fit.data import thrust_levels
 
 #: Lags of the whiteness tests (samples).
 ACF_LAGS = 25
@@ -78,8 +79,11 @@ def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str
         cnt[ok] += 1
         scale.append(np.std(tv.residual))
     mean = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 0)
+    from scipy.stats import norm
+
     sigma = float(np.mean(scale)) if scale else 1.0
-    band = 1.96 * sigma / np.sqrt(max(len(ctx.trials), 1))
+    # 95 % band for the largest of all lags (Bonferroni over the lags)
+    band = float(norm.isf(0.025 / lags.size)) * sigma / np.sqrt(max(len(ctx.trials), 1))
     peak = int(np.argmax(np.abs(mean)))
     return {
         "lag_s": [round(float(x), 4) for x in lags * dt],
@@ -99,7 +103,7 @@ def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, obje
     psds = []
     for tv in ctx.trials:
         if tv.residual.size >= 128:
-            f, p = welch(tv.residual, fs=fs, nperseg=min(256, tv.residual.size))
+            f, p = welch(tv.residual, fs=fs, nperseg=min(256, tv.residual.size), detrend="linear")
             if psds and p.size != psds[0].size:
                 continue
             psds.append(p)
@@ -111,7 +115,7 @@ def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, obje
     peaks = [
         {"frequency_hz": float(f[i]), "ratio_to_median": float(psd[i] / level)}
         for i in idx
-        if f[i] > 0.5
+        if i >= 3  # leave out what a trend leaks into the lowest bins
     ]
     peaks.sort(key=lambda p: -p["ratio_to_median"])
     return {"peaks": peaks[:5], "frequency_hz": f.tolist(), "psd": psd.tolist()}
@@ -139,12 +143,12 @@ def regime_table(ctx: DiagnosisContext) -> list[dict[str, object]]:
         add("regime", name, [tv.residual[tv.regimes[name]] for tv in ctx.trials])
     for d in ("up", "down"):
         add("direction", d, [tv.residual for tv in ctx.trials if tv.data.direction == d])
-    levels = sorted({round(abs(tv.data.thrust_N), 1) for tv in ctx.trials})
-    for lv in levels:
+    levels = thrust_levels([tv.data for tv in ctx.trials])
+    for lo, hi in zip(levels, [*levels[1:], np.inf], strict=True):
         add(
             "|h| bin",
-            f"{lv:g} N",
-            [tv.residual for tv in ctx.trials if round(abs(tv.data.thrust_N), 1) == lv],
+            f"~{lo:.2f} N",
+            [tv.residual for tv in ctx.trials if lo <= abs(tv.data.thrust_N) < hi],
         )
     return rows
 

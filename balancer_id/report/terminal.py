@@ -115,3 +115,112 @@ def print_effects(console: Console, effects: list[dict[str, Any]]) -> None:
         )
         table.add_row(e["name"], params, e["summary"], e.get("origin", ""))
     console.print(table)
+
+
+def print_compare(console: Console, result: dict[str, Any]) -> None:
+    """Print the models side by side, overall and per trial, with their worst windows."""
+    models = result["models"]
+    table = Table(title="models compared on the same trials")
+    for col in ("model", "RMSE (m/s^2)", "fit %", "AIC", "BIC", "worst window"):
+        table.add_column(col)
+    for m in models:
+        w = m["worst"][0] if m["worst"] else None
+        table.add_row(
+            m["model"],
+            _fmt(m["metrics"]["rmse"]),
+            _fmt(m["metrics"]["nrmse_fit_percent"], 4),
+            f"{m['metrics']['aic']:.1f}",
+            f"{m['metrics']['bic']:.1f}",
+            f"trial {w['trial']} {w['t_start']:.2f}-{w['t_end']:.2f} s" if w else "-",
+        )
+    console.print(table)
+    per = Table(title="RMSE per trial (m/s^2)")
+    per.add_column("#")
+    per.add_column("thrust (N)")
+    for m in models:
+        per.add_column(m["model"])
+    for k, row in enumerate(models[0]["trials"]):
+        per.add_row(
+            str(row["index"]),
+            f"{row['thrust_N']:+.3f}",
+            *[_fmt(m["trials"][k]["rmse"]) for m in models],
+        )
+    console.print(per)
+
+
+def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
+    """Print the verdict, the residual tests and the ranked suggestions."""
+    colour = "green" if result["verdict"] == "adequate" else "red"
+    m = result["metrics"]
+    console.print(
+        f"model [bold]{result['model']}[/bold]: [{colour}]{result['verdict']}[/{colour}]  "
+        f"(RMSE {_fmt(m['rmse'])}, noise floor {_fmt(m['noise_floor'])}, "
+        f"above the floor {_fmt(m['excess_rmse'])} m/s^2)"
+    )
+    console.print(result["summary"])
+    tests = result["residual_tests"]
+    w = tests["whiteness"]
+    if w.get("ljung_box_p") is not None:
+        console.print(
+            f"whiteness: {w['outside_band']} of {len(w['acf'])} autocorrelation lags outside "
+            f"±{w['band']:.4f}; Ljung-Box Q = {w['ljung_box_q']:.1f}, p = {w['ljung_box_p']:.2g}"
+        )
+    xc = tests["input_cross_correlation"]
+    console.print(
+        f"residual against the thrust: peak {xc['peak_value']:+.4f} m/s^2 at "
+        f"{xc['peak_lag_s']:.2f} s after the onset "
+        f"({'significant' if xc['significant'] else 'within noise'})"
+    )
+    peaks = tests["spectrum"]["peaks"]
+    if peaks:
+        console.print(
+            "spectrum peaks: "
+            + ", ".join(f"{p['frequency_hz']:.2f} Hz ({p['ratio_to_median']:.0f}x)" for p in peaks)
+        )
+    reg = Table(title="residual by regime")
+    for col in ("group", "label", "samples", "mean", "RMS", "RMS / noise"):
+        reg.add_column(col)
+    for r in tests["regimes"]:
+        reg.add_row(
+            r["group"],
+            r["label"],
+            str(r["n"]),
+            f"{r['mean']:+.4f}",
+            _fmt(r["rms"]),
+            f"{r['rms_over_noise']:.2f}",
+        )
+    console.print(reg)
+    sug = Table(title="suggestions (best first; score = BIC improvement of a quick refit)")
+    for col in ("change", "score", "error drop", "evidence", "command"):
+        sug.add_column(col, overflow="fold")
+    for s in result["suggestions"]:
+        sug.add_row(
+            s["change"],
+            f"{s['score']:.1f}",
+            f"{s['excess_error_drop']:.0%}",
+            s["evidence"],
+            s["command"],
+        )
+    console.print(sug)
+    for f in result.get("failed_candidates", []):
+        console.print(f"[yellow]candidate failed:[/yellow] {f}")
+
+
+def print_improve(console: Console, result: dict[str, Any]) -> None:
+    """Print the ladder of models and the final verdict."""
+    table = Table(title="improve: effects added while BIC and held-out trials improve")
+    for col in ("step", "model", "added", "RMSE", "held-out RMSE", "BIC"):
+        table.add_column(col)
+    for k, s in enumerate(result["steps"]):
+        table.add_row(
+            str(k),
+            s["model"],
+            s["added"] or "-",
+            _fmt(s["rmse"]),
+            _fmt(s["cv_rmse"]),
+            f"{s['bic']:.1f}",
+        )
+    console.print(table)
+    for r in result.get("rejected", []):
+        console.print(f"[yellow]not taken:[/yellow] {r}")
+    console.print(f"final model: [bold]{result['final_model']}[/bold] — {result['final_summary']}")

@@ -1,0 +1,86 @@
+"""``compare``: several models against the same measurements, overall and per trial."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.diagnose.context import build_context
+from balancer_id.diagnose.residual_tests import worst_windows
+from balancer_id.fit.classic import paper_method
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import MatchResult, match_trials
+from balancer_id.fit.metrics import error_metrics
+from balancer_id.model.spec import Model
+
+
+@dataclass
+class ModelComparison:
+    """One model's fit and errors."""
+
+    match: MatchResult
+    worst: list[dict[str, object]]
+
+    def trial_rows(self) -> list[dict[str, object]]:
+        """RMSE and NRMSE fit % per trial."""
+        rows = []
+        for td, sl in zip(self.match.data.trials, self.match.data.slices(), strict=True):
+            m = error_metrics(self.match.y[sl], self.match.y_model[sl], 0)
+            rows.append(
+                {
+                    "index": td.index,
+                    "thrust_N": td.thrust_N,
+                    "direction": td.direction,
+                    "rmse": m["rmse"],
+                    "nrmse_fit_percent": m["nrmse_fit_percent"],
+                }
+            )
+        return rows
+
+    def to_dict(self) -> dict[str, object]:
+        """CONTRACT.md ``compare`` model record."""
+        return {
+            "model": self.match.model.spec,
+            "metrics": self.match.metrics,
+            "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
+            "trials": self.trial_rows(),
+            "worst": self.worst,
+        }
+
+
+def compare_models(
+    models: Sequence[Model],
+    trials: Sequence[TrialData],
+    fixed: Mapping[str, float] | None = None,
+) -> list[ModelComparison]:
+    """Fit each model to the same trials (started from the paper's method).
+
+    Parameters
+    ----------
+    models : sequence of Model
+        The models to compare.
+    trials : sequence of TrialData
+        The trials.
+    fixed : mapping, optional
+        Parameters held in every model that has them.
+
+    Returns
+    -------
+    list of ModelComparison
+        In the order given.
+    """
+    classic = paper_method(trials)
+    start = {
+        k: float(v)
+        for k, v in (("m_a", classic.m_a), ("T_a", classic.T_a))
+        if np.isfinite(v) and v > 0
+    }
+    out = []
+    for model in models:
+        s = {k: v for k, v in start.items() if k in model.param_names}
+        fx = {k: v for k, v in (fixed or {}).items() if k in model.param_names}
+        match = match_trials(model, trials, start=s, fixed=fx)
+        out.append(ModelComparison(match, worst_windows(build_context(match))))
+    return out

@@ -1,0 +1,164 @@
+"""``improve``: add the best-supported effect, refit, and repeat while the model gets better.
+
+A step is taken when the diagnosis calls an effect missing (BIC improvement and a real
+drop of the error above the noise floor, :func:`~balancer_id.diagnose.diagnosis.is_missing`)
+*and* the error on held-out trials falls (K-fold cross-validation across trials).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.diagnose.diagnosis import Diagnosis, diagnose_match, is_missing
+from balancer_id.errors import BalancerIdError
+from balancer_id.fit.data import FitData, TrialData
+from balancer_id.fit.matching import MatchResult, match_trials
+from balancer_id.model.spec import Model
+
+#: Folds of the cross-validation across trials.
+CV_FOLDS = 3
+
+
+@dataclass
+class ImproveStep:
+    """One rung of the ladder."""
+
+    model: str
+    added: str | None
+    match: MatchResult
+    cv_rmse: float | None
+    evidence: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        """CONTRACT.md ``improve`` step."""
+        m = self.match.metrics
+        return {
+            "model": self.model,
+            "added": self.added,
+            "rmse": m["rmse"],
+            "aic": m["aic"],
+            "bic": m["bic"],
+            "nrmse_fit_percent": m["nrmse_fit_percent"],
+            "cv_rmse": self.cv_rmse,
+            "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
+            "evidence": self.evidence,
+        }
+
+
+@dataclass
+class ImproveResult:
+    """The ladder of models and the final diagnosis."""
+
+    steps: list[ImproveStep]
+    final: Diagnosis
+    rejected: list[str] = field(default_factory=list)
+
+    @property
+    def final_model(self) -> str:
+        """Spec of the last accepted model."""
+        return self.steps[-1].model
+
+    def to_dict(self) -> dict[str, object]:
+        """The CONTRACT.md ``improve`` object."""
+        from balancer_id.fit.result import _clean
+
+        return _clean(
+            {
+                "steps": [s.to_dict() for s in self.steps],
+                "final_model": self.final_model,
+                "final_verdict": self.final.verdict,
+                "final_summary": self.final.summary,
+                "rejected": self.rejected,
+            }
+        )
+
+
+def cross_validated_rmse(
+    model: Model,
+    trials: Sequence[TrialData],
+    start: Mapping[str, float],
+    fixed: Mapping[str, float] | None = None,
+    folds: int = CV_FOLDS,
+) -> float | None:
+    """RMSE on held-out trials: fit on the others, predict the fold, over K folds."""
+    n = len(trials)
+    if n < 3:
+        return None
+    k = min(folds, n)
+    sq, count = 0.0, 0
+    for j in range(k):
+        test = [t for i, t in enumerate(trials) if i % k == j]
+        train = [t for i, t in enumerate(trials) if i % k != j]
+        try:
+            m = match_trials(model, train, start=start, fixed=fixed, max_nfev=300)
+        except BalancerIdError:
+            return None
+        values = m.values()
+        data = FitData.build(test)
+        out = data.packed.run(model, np.array([values[p] for p in model.param_names]))
+        r = data.y - out[:, 0]
+        sq += float(r @ r)
+        count += r.size
+    return float(np.sqrt(sq / count))
+
+
+def improve_model(
+    start: MatchResult,
+    *,
+    max_steps: int = 4,
+    paths: Sequence[str] = (),
+    effects_files: Sequence[str] = (),
+    with_trajectory: bool = False,
+    fixed: Mapping[str, float] | None = None,
+) -> ImproveResult:
+    """Climb the ladder from a fitted model.
+
+    Parameters
+    ----------
+    start : MatchResult
+        The fit of the starting model.
+    max_steps : int
+        Effects to add at most.
+    paths, effects_files : sequence of str
+        For the commands in the diagnosis.
+    with_trajectory : bool
+        Whether a robot reference is known.
+    fixed : mapping, optional
+        Parameters held throughout.
+
+    Returns
+    -------
+    ImproveResult
+    """
+    trials = list(start.data.trials)
+    fixed = dict(fixed or {})
+    current = start
+    cv = cross_validated_rmse(current.model, trials, current.values(), fixed)
+    steps = [ImproveStep(current.model.spec, None, current, cv)]
+    rejected: list[str] = []
+    kw = {"paths": paths, "effects_files": effects_files, "with_trajectory": with_trajectory}
+    diagnosis = diagnose_match(current, fixed=fixed, **kw)
+    for _ in range(max_steps):
+        chosen = None
+        for s in diagnosis.suggestions:
+            if not is_missing(s) or s.refit is None:
+                break
+            cv_new = cross_validated_rmse(s.refit.model, trials, s.refit.values(), fixed)
+            if cv is not None and cv_new is not None and cv_new >= cv:
+                rejected.append(
+                    f"{s.label}: BIC falls by {s.delta_bic:.0f} but the held-out error does not "
+                    f"({cv_new:.4f} vs {cv:.4f} m/s^2)"
+                )
+                continue
+            chosen = (s, cv_new)
+            break
+        if chosen is None:
+            break
+        s, cv = chosen
+        current = s.refit
+        steps.append(ImproveStep(current.model.spec, s.effect, current, cv, s.signature.evidence))
+        diagnosis = diagnose_match(current, fixed=fixed, **kw)
+    return ImproveResult(steps, diagnosis, rejected)
