@@ -149,6 +149,12 @@ def match_trials(
     data = FitData.build(trials)
     residual = _residual_function(model, data)
 
+    start_vec = np.array([params[n].value for n in model.param_names], dtype=float)
+    if not np.all(np.isfinite(data.packed.run(model, start_vec)[:, 0])):
+        raise IdentificationError(
+            f"model '{model.spec}' gives a non-finite acceleration at its start values; "
+            "check the effects' terms (a user effect returning NaN or inf?)"
+        )
     starts = [params]
     rng = np.random.default_rng(seed)
     for _ in range(max(n_starts, 1) - 1):

@@ -19,11 +19,13 @@ import hashlib
 import importlib.util
 import inspect
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from balancer_id.errors import EffectError
 from balancer_id.model.effect import HOOKS, Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulate.jit import HAVE_NUMBA
@@ -336,8 +338,41 @@ def get_kernel(model: Model) -> Kernel:
     kernel = _KERNELS.get(key)
     if kernel is None:
         kernel = _build(model)
+        _compile_now(model, kernel)
         _KERNELS[key] = kernel
     return kernel
+
+
+def _compile_now(model: Model, kernel: Kernel) -> None:
+    """Run the kernel once on a tiny input, so compile errors name the model's effects."""
+    import numpy as np
+
+    t = np.array([0.0, 0.005])
+    z = np.zeros(2)
+    out = np.empty((2, len(OUT_COLUMNS)))
+    pvec = np.array([p.value for p in model.params])
+    try:
+        kernel.simulate_batch(
+            t,
+            np.array([0, 2]),
+            np.array([0.0]),
+            np.array([0.0]),
+            np.array([0, 1]),
+            z,
+            z,
+            pvec,
+            1,
+            out,
+        )
+    except Exception as exc:
+        names = ", ".join(e.name for e in model.effects) or "base"
+        first = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip().splitlines()
+        detail = next((line for line in first if line.strip()), type(exc).__name__)
+        raise EffectError(
+            f"model '{model.spec}' (effects {names}) cannot be simulated: "
+            f"{type(exc).__name__}: {detail.strip()}; hooks must be plain scalar Python "
+            "(arithmetic, math, if) returning a float"
+        ) from None
 
 
 def _build(model: Model) -> Kernel:

@@ -1,0 +1,124 @@
+"""Diagnosis on simulated logs with hidden effects, user effects that fail, and improve."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import EXAMPLES, PAPER, PAPER_THRUSTS, SAMPLE_LOGS
+
+from balancer_id import Effect, Param
+from balancer_id.diagnose import diagnose_match, improve_model
+from balancer_id.fit.data import TrialData
+from balancer_id.fit.matching import match_trials
+from balancer_id.model import Registry, parse_model
+from balancer_id.read.recording import Log
+from balancer_id.segment import find_trials
+from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
+
+
+def trials_with(spec: str, extra: dict[str, float], seed: int, registry=None) -> list[TrialData]:
+    """Six paper trials of a balancer with ``spec`` hidden, read back through segmentation."""
+    model = parse_model(spec, registry) if registry else parse_model(spec)
+    truth = {k: v for k, v in {**PAPER, **extra}.items() if k in model.param_names}
+    sensor = SensorSettings(tilt_deg=15.0, accel_noise=0.03, force_noise=0.03)
+    recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
+    found = find_trials(Log(Path(f"{spec}.csv"), "pasco-capstone", recs))
+    return [TrialData.from_trial(t) for t in found]
+
+
+def fit_paper_model(trials, registry=None):
+    model = parse_model("variable_viscosity", registry) if registry else parse_model()
+    return match_trials(model, trials, start={"m_a": 15.0, "T_a": 0.3})
+
+
+@pytest.mark.parametrize(
+    ("hidden", "extra"),
+    [("karnopp", {"f_s": 0.98}), ("bias", {"b": 0.06}), ("dead_time", {"tau_d": 0.06})],
+)
+def test_hidden_effect_is_found_first(hidden, extra):
+    trials = trials_with(f"variable_viscosity+{hidden}", extra, seed=11)
+    diagnosis = diagnose_match(fit_paper_model(trials), paths=["log.csv"])
+    assert diagnosis.verdict == "effect missing"
+    best = diagnosis.suggestions[0]
+    assert best.effect == hidden
+    assert best.command == (
+        f"balancer-id fit log.csv --model variable_viscosity+{hidden}"
+    )
+    assert best.excess_drop > 0.5  # adding it removes most of the error above the noise
+    out = diagnosis.to_dict()
+    assert out["suggestions"][0]["effect"] == hidden
+    json.dumps(out, allow_nan=False)
+
+
+def test_nothing_hidden_is_adequate():
+    trials = trials_with("variable_viscosity", {}, seed=12)
+    diagnosis = diagnose_match(fit_paper_model(trials))
+    assert diagnosis.verdict == "adequate"
+    assert diagnosis.context.excess_rmse() < 0.3 * diagnosis.context.noise_floor
+    # the noise floor is estimated within 5 % of the simulated 0.03 m/s^2
+    assert diagnosis.context.noise_floor == pytest.approx(0.03, rel=0.05)
+    tests = diagnosis.tests
+    assert tests["whiteness"]["ljung_box_p"] > 1e-3
+    assert {r["label"] for r in tests["regimes"] if r["group"] == "regime"} >= {"rest", "rise"}
+
+
+class Explodes(Effect):
+    """A broken user effect: its force term raises."""
+
+    name = "explodes"
+    summary = "raises"
+    parameters = (Param("k_x", 1.0, 0.0, 2.0, "N", "nothing"),)
+
+    @staticmethod
+    def force(f, v, z, h, k_x):
+        raise RuntimeError("boom")
+
+
+class MakesNaN(Effect):
+    """A broken user effect: its force term is NaN."""
+
+    name = "makes_nan"
+    summary = "NaN"
+    parameters = (Param("k_n", 1.0, 0.0, 2.0, "N", "nothing"),)
+
+    @staticmethod
+    def force(f, v, z, h, k_n):
+        return math.nan * k_n
+
+
+def test_failing_user_effects_are_reported_by_name_and_the_rest_go_on():
+    registry = Registry()
+    registry.add(Explodes)
+    registry.add(MakesNaN)
+    trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=13)
+    diagnosis = diagnose_match(fit_paper_model(trials, registry))
+    failed = " ".join(diagnosis.failures)
+    assert "explodes" in failed and "makes_nan" in failed
+    assert diagnosis.suggestions[0].effect == "karnopp"
+
+
+def test_improve_walks_the_hose_example_to_the_noise_floor():
+    registry = Registry()
+    registry.load_file(EXAMPLES / "effects" / "hose_spring.py")
+    trials = trials_with("variable_viscosity+hose_spring", {"k_h": 4.0}, seed=14, registry=registry)
+    start = fit_paper_model(trials, registry)
+    result = improve_model(start, max_steps=2)
+    models = [s.model for s in result.steps]
+    assert models[0] == "variable_viscosity"
+    assert models[1] == "variable_viscosity+hose_spring"
+    assert result.steps[1].match.metrics["rmse"] < 0.5 * result.steps[0].match.metrics["rmse"]
+    assert result.steps[1].match.values()["k_h"] == pytest.approx(4.0, rel=0.05)
+    assert result.final.verdict == "adequate"
+
+
+@pytest.mark.parametrize("log", sorted(p.name for p in SAMPLE_LOGS.glob("*.csv")))
+def test_diagnose_never_fails_on_a_sample_log(cli, log):
+    code, out, err = cli("diagnose", SAMPLE_LOGS / log, "--json")
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["verdict"] in ("adequate", "effect missing")
+    assert np.isfinite(result["metrics"]["rmse"])
