@@ -1,0 +1,110 @@
+"""Identification: the paper's method and simulation matching recover the truth."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import PAPER, PAPER_THRUSTS, SAMPLE_LOGS
+
+from balancer_id.errors import IdentificationError
+from balancer_id.fit import fit, match_trials, paper_method
+from balancer_id.fit.coupling import coupling
+from balancer_id.fit.data import TrialData
+from balancer_id.model import parse_model
+from balancer_id.simulate import Thrust, TrialInput, simulate_many
+
+
+def step_trials(spec, truth, thrusts, noise, rng, seconds=8.0):
+    model = parse_model(spec)
+    t = np.arange(0.0, seconds, 0.005)
+    inputs = [TrialInput(t, Thrust.step(1.0, f)) for f in thrusts]
+    sims = simulate_many(model, truth, inputs)
+    return [
+        TrialData(k, f, "up" if f > 0 else "down", 1.0, inp, s.accel + rng.normal(0, noise, t.size))
+        for k, (f, inp, s) in enumerate(zip(thrusts, inputs, sims, strict=True))
+    ]
+
+
+def test_paper_method_on_first_order_steps(rng):
+    # no viscosity: the steady acceleration is f_in/m_a and 95 % is reached at 3 T_a
+    trials = step_trials("base", {"m_a": 15.1, "T_a": 0.33}, PAPER_THRUSTS, 0.03, rng)
+    classic = paper_method(trials)
+    assert classic.m_a == pytest.approx(15.1, rel=0.02)
+    assert classic.T_a == pytest.approx(0.33, rel=0.05)
+    assert abs(classic.intercept_N) < 0.1
+    table = classic.T_a_table()
+    assert {(row["direction"]) for row in table} == {"up", "down"}
+    assert len(table) == 6
+
+
+def test_paper_method_sees_friction_as_an_intercept(rng):
+    truth = {"m_a": 15.1, "T_a": 0.33, "f_s": 1.0}
+    trials = step_trials("karnopp", truth, [2.45, 4.9, 7.35], 0.01, rng)
+    classic = paper_method(trials)
+    # the first-order fit ignores the break-away delay, which biases a_zc up a little:
+    # the intercept shows the friction, somewhat low
+    assert 0.7 < classic.intercept_N < 1.1
+
+
+def test_simulation_matching_recovers_the_papers_balancer(rng):
+    # noise 0.03 m/s^2 over 6 x 1600 samples: standard errors ~0.3 % (m_a) .. 2 % (D0)
+    trials = step_trials("variable_viscosity", PAPER, PAPER_THRUSTS, 0.03, rng)
+    result = match_trials(parse_model(), trials, start={"m_a": 14.0, "T_a": 0.25})
+    for name, value in PAPER.items():
+        est = result.parameters[name]
+        assert est.value == pytest.approx(value, rel=0.06), name
+        assert abs(est.value - value) < 4 * est.stderr, name
+    assert result.metrics["rmse"] == pytest.approx(0.03, rel=0.05)
+    assert "A" in result.correlations
+
+
+def test_one_thrust_level_holds_A_and_says_so(rng):
+    trials = step_trials("variable_viscosity", PAPER, [2.45, -2.45], 0.03, rng)
+    result = match_trials(parse_model(), trials, start={"m_a": 15.0, "T_a": 0.3})
+    assert result.parameters["A"].vary is False
+    assert any("two or more thrust levels" in w for w in result.warnings)
+
+
+def test_fix_holds_a_nameplate_value(rng):
+    trials = step_trials("variable_viscosity", PAPER, PAPER_THRUSTS, 0.03, rng)
+    result = match_trials(parse_model(), trials, fixed={"m_a": 15.1})
+    assert result.parameters["m_a"].value == 15.1
+    assert result.parameters["m_a"].stderr is None
+    assert result.parameters["D0"].value == pytest.approx(6.0, rel=0.06)
+
+
+def test_no_trial_is_an_identification_error():
+    with pytest.raises(IdentificationError, match="no trial"):
+        match_trials(parse_model(), [])
+
+
+@pytest.mark.parametrize("name", ["paper_balancer.csv", "quantized_sensor.csv"])
+def test_sample_logs_give_the_truth_back(name):
+    truth = next(
+        s for s in json.loads((SAMPLE_LOGS / "TRUTH.json").read_text()) if s["file"] == name
+    )
+    result = fit([SAMPLE_LOGS / name], per_trial=True)
+    values = result.values
+    # tolerances: ~4 standard errors at the sample logs' noise
+    assert values["m_a"] == pytest.approx(truth["params"]["m_a"], rel=0.03)
+    assert values["T_a"] == pytest.approx(truth["params"]["T_a"], rel=0.08)
+    assert values["D0"] == pytest.approx(truth["params"]["D0"], rel=0.12)
+    assert values["A"] == pytest.approx(truth["params"]["A"], rel=0.15)
+    out = result.to_dict()
+    assert set(out) >= {"model", "parameters", "classic", "trials", "metrics"}
+    assert set(out["metrics"]) >= {"rmse", "nrmse_fit_percent", "aic", "bic", "n_samples"}
+    assert len(out["per_trial"]) == len(out["trials"])
+    json.dumps(out, allow_nan=False)
+
+
+def test_coupling_matches_routh_hurwitz():
+    m, T, D = 15.1, 0.33, 3.0
+    for k_r, c_r in [(300.0, 150.0), (3000.0, 20.0)]:
+        c = coupling(m, T, D, k_r, c_r)
+        routh = (T * D + m) * (D + c_r) > T * m * k_r
+        assert (c.stability_margin > 0) == routh
+        assert (max(p.real for p in c.poles) < 0) == routh
+    stiff = coupling(m, T, D, 3000.0, 20.0)
+    assert stiff.oscillation_hz > 0 and stiff.damping_ratio < 0
