@@ -108,3 +108,10 @@ def test_coupling_matches_routh_hurwitz():
         assert (max(p.real for p in c.poles) < 0) == routh
     stiff = coupling(m, T, D, 3000.0, 20.0)
     assert stiff.oscillation_hz > 0 and stiff.damping_ratio < 0
+
+
+def test_a_fit_that_does_not_converge_says_why(rng):
+    trials = step_trials("variable_viscosity", PAPER, PAPER_THRUSTS, 0.03, rng, seconds=4.0)
+    with pytest.raises(IdentificationError, match="did not converge") as err:
+        fit(trials, max_nfev=3)
+    assert "--fix" in str(err.value)

@@ -65,6 +65,7 @@ def fit(
     per_trial: bool = False,
     n_starts: int = 1,
     seed: int = 0,
+    max_nfev: int = 2000,
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -90,6 +91,8 @@ def fit(
         Optimizer starts (see :func:`~balancer_id.fit.matching.match_trials`).
     seed : int
         Seed of the extra starts.
+    max_nfev : int
+        Budget of model evaluations per start.
 
     Returns
     -------
@@ -98,7 +101,7 @@ def fit(
     Raises
     ------
     IdentificationError
-        No trial, or no convergence.
+        No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
     if mdl.has("servo") and trajectory is None:
@@ -116,10 +119,16 @@ def fit(
         spec_param = mdl.param(name) if name in mdl.param_names else None
         if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
             start[name] = float(value)
-    match = match_trials(mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed)
-    result = FitResult(match=match, classic=classic, sources=names)
+    match = match_trials(
+        mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed, max_nfev=max_nfev
+    )
     if not match.success:
-        result.warnings.append(f"the optimizer stopped early: {match.message}")
+        raise IdentificationError(
+            f"the fit of '{mdl.spec}' did not converge: {match.message} "
+            f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
+            "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
+        )
+    result = FitResult(match=match, classic=classic, sources=names)
     if mdl.has("servo"):
         v = match.values()
         result.coupling = coupling(
