@@ -1,0 +1,178 @@
+"""Report sections of ``compare``, ``diagnose`` and ``improve``, and the full report."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from balancer_id.report.document import Cell, Paragraph, Plot, Section, Table, format_value
+
+if TYPE_CHECKING:
+    from balancer_id.diagnose import Diagnosis, ImproveResult, ModelComparison
+    from balancer_id.pipeline import ReadOptions
+    from balancer_id.simulate.inputs import Trapezoid
+
+
+def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
+    """Measured vs simulated per trial with every compared model overlaid, residuals beneath."""
+    from balancer_id.report.plots import model_curves, plot_trials
+
+    trials = results[0].match.data.trials
+    curves = [model_curves(r.match) for r in results]
+    return plot_trials(trials, curves, path, title="models compared")
+
+
+def diagnosis_section(diagnosis: Diagnosis) -> Section:
+    """The verdict, the residual tests and the ranked suggestions."""
+    d = diagnosis.to_dict()
+    m = d["metrics"]
+    tests = d["residual_tests"]
+    style = "good" if d["verdict"] == "adequate" else "bad"
+    blocks: list[Any] = [
+        Table(
+            ["verdict", "RMSE (m/s²)", "noise floor (m/s²)", "above the floor (m/s²)"],
+            [
+                [
+                    Cell(d["verdict"], style),
+                    format_value(m["rmse"]),
+                    format_value(m["noise_floor"]),
+                    format_value(m["excess_rmse"]),
+                ]
+            ],
+        ),
+        Paragraph(d["summary"]),
+    ]
+    w = tests["whiteness"]
+    if w.get("ljung_box_p") is not None:
+        blocks.append(
+            Paragraph(
+                f"Whiteness: {w['outside_band']} of {len(w['acf'])} autocorrelation lags "
+                f"outside ±{w['band']:.4f}; Ljung-Box Q = {w['ljung_box_q']:.1f}, "
+                f"p = {w['ljung_box_p']:.2g}."
+            )
+        )
+    xc = tests["input_cross_correlation"]
+    blocks.append(
+        Paragraph(
+            f"Residual against the thrust: peak {xc['peak_value']:+.4f} m/s² at "
+            f"{xc['peak_lag_s']:.2f} s after the onset "
+            f"({'significant' if xc['significant'] else 'within noise'})."
+        )
+    )
+    blocks.append(
+        Table(
+            ["group", "label", "samples", "mean (m/s²)", "RMS (m/s²)", "RMS / noise"],
+            [
+                [
+                    r["group"],
+                    r["label"],
+                    str(r["n"]),
+                    f"{r['mean']:+.4f}",
+                    format_value(r["rms"]),
+                    Cell(
+                        f"{r['rms_over_noise']:.2f}",
+                        "warn" if r["rms_over_noise"] > 1.2 else "",
+                    ),
+                ]
+                for r in tests["regimes"]
+            ],
+            caption="Residual by regime, direction and thrust level",
+        )
+    )
+    blocks.append(
+        Table(
+            ["change", "score (ΔBIC)", "error drop", "evidence", "command"],
+            [
+                [
+                    Cell(s["change"], "strong" if k == 0 else ""),
+                    f"{s['score']:.1f}",
+                    f"{s['excess_error_drop']:.0%}",
+                    s["evidence"],
+                    s["command"],
+                ]
+                for k, s in enumerate(d["suggestions"])
+            ],
+            caption="Candidate effects, best first (quick refit of each)",
+        )
+    )
+    for f in d.get("failed_candidates", []):
+        blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
+    return Section("Diagnosis", blocks=blocks)
+
+
+def improve_section(result: ImproveResult) -> Section:
+    """The ladder of models and the error falling step by step."""
+    from balancer_id.report.plots import plot_error_ladder
+
+    d = result.to_dict()
+    rows = [
+        [
+            str(k),
+            s["model"],
+            s["added"] or "-",
+            format_value(s["rmse"]),
+            format_value(s["cv_rmse"]),
+            f"{s['bic']:.1f}",
+        ]
+        for k, s in enumerate(d["steps"])
+    ]
+    blocks: list[Any] = [
+        Table(["step", "model", "added", "RMSE", "held-out RMSE", "BIC"], rows),
+        Plot(plot_error_ladder(d["steps"]), caption="The error falling as effects are added"),
+        Paragraph(f"Final model: {d['final_model']}. {d['final_summary']}"),
+    ]
+    blocks += [Paragraph(f"Not taken: {r}") for r in d["rejected"]]
+    return Section("Improving the model", blocks=blocks)
+
+
+def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequence[Path]) -> Path:
+    """The fit of the final model, the ladder and the final diagnosis."""
+    from balancer_id.fit.classic import paper_method
+    from balancer_id.fit.result import FitResult
+    from balancer_id.report.document import write_fit_report
+
+    final = result.steps[-1].match
+    fit_result = FitResult(
+        match=final, classic=paper_method(final.data.trials), sources=[str(p) for p in inputs]
+    )
+    return write_fit_report(
+        fit_result, path, extra_sections=[improve_section(result), diagnosis_section(result.final)]
+    )
+
+
+def write_full_report(
+    logs: Sequence[Path],
+    out: str | Path,
+    *,
+    model: str | None = None,
+    fixed: Mapping[str, float] | None = None,
+    options: ReadOptions | None = None,
+    effects_files: Sequence[str | Path] = (),
+    trajectory: Trapezoid | None = None,
+) -> Path:
+    """Identify, diagnose and write everything in one report (``balancer-id report``)."""
+    from balancer_id.diagnose.diagnosis import diagnose_match
+    from balancer_id.fit.api import fit
+    from balancer_id.model.registry import default_registry
+    from balancer_id.report.document import check_report_path, write_fit_report
+
+    check_report_path(out, logs)
+    registry = default_registry(effects_files)
+    result = fit(
+        logs,
+        model=model,
+        fixed=fixed,
+        options=options,
+        registry=registry,
+        trajectory=trajectory,
+        per_trial=True,
+    )
+    diagnosis = diagnose_match(
+        result.match,
+        paths=[str(p) for p in logs],
+        effects_files=[str(f) for f in effects_files],
+        with_trajectory=trajectory is not None,
+        fixed=dict(fixed or {}),
+    )
+    return write_fit_report(result, out, extra_sections=[diagnosis_section(diagnosis)])
