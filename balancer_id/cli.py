@@ -382,9 +382,9 @@ def compare(
 
         plot_comparison(results, plot)
     if json_out:
-        from balancer_id.fit.result import _clean
+        from balancer_id.jsonsafe import json_ready
 
-        _emit_json(_clean(out))
+        _emit_json(json_ready(out))
     else:
         from balancer_id.report.terminal import print_compare
 

@@ -75,9 +75,9 @@ class Diagnosis:
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object."""
-        from balancer_id.fit.result import _clean
+        from balancer_id.jsonsafe import json_ready
 
-        return _clean(
+        return json_ready(
             {
                 "model": self.match.model.spec,
                 "metrics": {

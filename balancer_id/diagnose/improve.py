@@ -63,9 +63,9 @@ class ImproveResult:
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``improve`` object."""
-        from balancer_id.fit.result import _clean
+        from balancer_id.jsonsafe import json_ready
 
-        return _clean(
+        return json_ready(
             {
                 "steps": [s.to_dict() for s in self.steps],
                 "final_model": self.final_model,

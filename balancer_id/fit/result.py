@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from balancer_id.fit.classic import ClassicResult
 from balancer_id.fit.coupling import Coupling
 from balancer_id.fit.matching import MatchResult
+from balancer_id.jsonsafe import json_ready
 
 
 @dataclass
@@ -106,17 +105,4 @@ class FitResult:
             out["coupling"] = self.coupling.to_dict()
         if self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
-        return _clean(out)
-
-
-def _clean(obj: object) -> object:
-    """Replace NaN/inf by None and numpy scalars by Python ones, for strict JSON."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    return obj
+        return json_ready(out)

@@ -21,7 +21,7 @@ try:  # pragma: no cover - exercised through both branches by environment
 
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover
-    numba = None
+    numba = None  # type: ignore[assignment]
     HAVE_NUMBA = False
 
 

@@ -32,14 +32,16 @@ def python_rhs(model: Model):
 def _delay(model: Model, values: dict[str, float]) -> float:
     for e in model.effects:
         if "input_delay" in e.hooks():
-            return float(e.input_delay(*[values[p.name] for p in e.parameters]))
+            hook = e.input_delay  # type: ignore[attr-defined]
+            return float(hook(*[values[p.name] for p in e.parameters]))
     return 0.0
 
 
 def _output(model: Model, values: dict[str, float], a: float, v: float, z: float) -> float:
     for e in model.effects:
         if "output" in e.hooks():
-            a = e.output(a, v, z, *[values[p.name] for p in e.parameters])
+            hook = e.output  # type: ignore[attr-defined]
+            a = hook(a, v, z, *[values[p.name] for p in e.parameters])
     return a
 
 

@@ -1,0 +1,22 @@
+"""Make result dictionaries strict-JSON safe (no NaN, no numpy scalars)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def json_ready(obj: Any) -> Any:
+    """Replace NaN/inf by None and numpy scalars and tuples by plain Python, recursively."""
+    if isinstance(obj, dict):
+        return {k: json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_ready(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
