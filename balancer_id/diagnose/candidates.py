@@ -71,29 +71,50 @@ def quick_refit(
     current: MatchResult,
     start: dict[str, float],
     fixed: dict[str, float] | None = None,
+    fresh: dict[str, float] | None = None,
 ) -> Refit:
-    """Fit a candidate model starting from the current fit and the signature's start values.
+    """Fit a candidate model from the current fit and from a fresh start; keep the better.
 
-    A user effect that raises or produces NaN gives a Refit with ``error`` set, naming
-    the effect, instead of stopping the others.
+    The first start is the current fit plus the signature's start values; the second
+    (when ``fresh`` is given: the paper's method's ``m_a`` and ``T_a``) uses the effects'
+    default start values, because a fit without the effect may have bent its parameters
+    into a corner the effect's fit cannot leave. A user effect that raises or produces
+    NaN gives a Refit with ``error`` set, naming the effect, instead of stopping the others.
     """
-    values = {k: v for k, v in current.values().items() if k in candidate.model.param_names}
-    for name, value in start.items():
-        if name in candidate.model.param_names:
-            p = candidate.model.param(name)
-            values[name] = min(max(value, p.min), p.max)
-    if "T_up" in candidate.model.param_names and "T_a" in current.values():
-        values.setdefault("T_up", current.values()["T_a"])
-        values.setdefault("T_down", current.values()["T_a"])
-    fixed = {k: v for k, v in (fixed or {}).items() if k in candidate.model.param_names}
-    try:
-        match = match_trials(candidate.model, trials, start=values, fixed=fixed, max_nfev=400)
-    except BalancerIdError as exc:
-        return Refit(candidate, None, f"{candidate.effect.name}: {exc}")
-    except Exception as exc:  # a user's effect must not stop the diagnosis
-        return Refit(candidate, None, f"effect '{candidate.effect.name}' failed: {exc!r}")
-    if not all(abs(v) < float("inf") for v in match.values().values()) or not (
-        match.metrics["rmse"] == match.metrics["rmse"]
-    ):
-        return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
-    return Refit(candidate, match)
+    names = candidate.model.param_names
+
+    def clipped(values: dict[str, float]) -> dict[str, float]:
+        out = {}
+        for name, value in values.items():
+            if name in names:
+                p = candidate.model.param(name)
+                out[name] = min(max(value, p.min), p.max)
+        return out
+
+    first = clipped({**current.values(), **start})
+    if "T_up" in names and "T_a" in current.values():
+        first.setdefault("T_up", current.values()["T_a"])
+        first.setdefault("T_down", current.values()["T_a"])
+    starts = [first]
+    if fresh:
+        second = clipped({**fresh, **start})
+        if "T_up" in names and "T_a" in fresh:
+            second.setdefault("T_up", fresh["T_a"])
+            second.setdefault("T_down", fresh["T_a"])
+        starts.append(second)
+    fixed = {k: v for k, v in (fixed or {}).items() if k in names}
+    best: MatchResult | None = None
+    for values in starts:
+        try:
+            match = match_trials(candidate.model, trials, start=values, fixed=fixed, max_nfev=400)
+        except BalancerIdError as exc:
+            return Refit(candidate, None, f"{candidate.effect.name}: {exc}")
+        except Exception as exc:  # a user's effect must not stop the diagnosis
+            return Refit(candidate, None, f"effect '{candidate.effect.name}' failed: {exc!r}")
+        if not all(abs(v) < float("inf") for v in match.values().values()) or not (
+            match.metrics["rmse"] == match.metrics["rmse"]
+        ):
+            return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
+        if best is None or match.metrics["rmse"] < best.metrics["rmse"]:
+            best = match
+    return Refit(candidate, best)

@@ -97,6 +97,27 @@ def regime_masks(
     return {"rest": rest, "rise": rise, "steady": steady, "stuck": stuck}
 
 
+def white_noise_level(diffs: np.ndarray, clip: float = 4.0) -> float:
+    """White noise level from sample-to-sample differences of a residual.
+
+    A model error is smooth and cancels in the differences, while white noise doubles its
+    variance there. Differences beyond ``clip`` standard deviations (steps of the
+    residual where the model switches abruptly) are left out, iterating three times;
+    at 4 sigma this biases a Gaussian estimate by less than 0.1 %.
+    """
+    d = np.asarray(diffs, float)
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return float("nan")
+    sigma = float(np.std(d))
+    for _ in range(3):
+        kept = d[np.abs(d - np.mean(d)) <= clip * sigma]
+        if kept.size < 2:
+            break
+        sigma = float(np.std(kept))
+    return sigma / float(np.sqrt(2.0))
+
+
 def build_context(match: MatchResult) -> DiagnosisContext:
     """Simulate the fitted model once more with every state and cut it into trials."""
     model = match.model
@@ -127,8 +148,5 @@ def build_context(match: MatchResult) -> DiagnosisContext:
         )
         diffs.append(np.diff(y - ym))
         dts.append(np.median(np.diff(td.time)))
-    # White sensor noise from the sample-to-sample differences of the residual: a model
-    # error is smooth and cancels there, while white noise doubles its variance.
-    d = np.concatenate(diffs)
-    noise = float(np.std(d) / np.sqrt(2.0))
+    noise = white_noise_level(np.concatenate(diffs))
     return DiagnosisContext(match, views, noise, float(np.median(dts)))

@@ -147,23 +147,26 @@ def diagnose_match(
         },
         "parameter_drift": parameter_drift(match, trials, fixed),
     }
+    fresh = {
+        k: float(v)
+        for k, v in (("m_a", classic.m_a), ("T_a", classic.T_a))
+        if np.isfinite(v) and v > 0
+    }
     suggestions: list[Suggestion] = []
     failures: list[str] = []
-    base_excess = ctx.excess_rmse()
     for cand in candidates(match.model, with_trajectory=with_trajectory):
         try:
             sig = signature_of(cand.effect, ctx)
         except Exception as exc:  # a user's check must not stop the others
             failures.append(f"signature check of '{cand.effect.name}' failed: {exc!r}")
             sig = Signature(0.0, "signature check failed")
-        refit: Refit = quick_refit(cand, trials, match, sig.start, fixed)
+        refit: Refit = quick_refit(cand, trials, match, sig.start, fixed, fresh)
         if refit.match is None:
             failures.append(refit.error or cand.effect.name)
             continue
         new = refit.match.metrics
         d_bic = float(match.metrics["bic"] - new["bic"])
-        excess_after = ctx.excess_rmse(new["rmse"])
-        drop = (base_excess - excess_after) / base_excess if base_excess > 0 else 0.0
+        drop = excess_drop(match.metrics["rmse"], new["rmse"], ctx.noise_floor)
         suggestions.append(
             Suggestion(
                 effect=cand.effect.name,
@@ -181,6 +184,20 @@ def diagnose_match(
     suggestions.sort(key=lambda s: -s.score)
     verdict, summary = _verdict(ctx, tests, suggestions)
     return Diagnosis(match, ctx, tests, suggestions, verdict, summary, failures)
+
+
+def excess_drop(rmse_before: float, rmse_after: float, noise_floor: float) -> float:
+    """Share of the error above the noise floor that a change removes.
+
+    ``(rmse_before^2 - rmse_after^2) / (rmse_before^2 - min(floor, rmse_after)^2)``: the
+    floor is capped at the new RMSE, so a floor estimated a little too high (it is itself
+    noisy) cannot hide a real improvement.
+    """
+    floor = min(noise_floor, rmse_after)
+    denom = rmse_before**2 - floor**2
+    if denom <= 0:
+        return 0.0
+    return float(max(min((rmse_before**2 - rmse_after**2) / denom, 1.0), -10.0))
 
 
 def _thin(xc: dict[str, object]) -> dict[str, object]:

@@ -57,7 +57,7 @@ def check_bias(ctx: DiagnosisContext) -> Signature:
 
 def check_karnopp(ctx: DiagnosisContext) -> Signature:
     """A residual opposing the motion in steady motion, and a thrust that moves nothing."""
-    parts, thrust, accel = [], [], []
+    parts, thrust, accel, accel_model = [], [], [], []
     for tv in ctx.trials:
         m = tv.regimes["steady"]
         if m.sum() >= 10:
@@ -66,14 +66,18 @@ def check_karnopp(ctx: DiagnosisContext) -> Signature:
         if late.sum() >= 10:
             thrust.append(abs(tv.data.thrust_N))
             accel.append(abs(np.mean(tv.y[late])))
+            accel_model.append(abs(np.mean(tv.y_model[late])))
     if not parts:
         return Signature(0.0, "no steady motion to test friction")
     r = np.concatenate(parts)
     t = _t_stat(r, ctx.noise_floor)
+    # The free line |f_in| = m |a| + c of the measurement, against the same line of the
+    # model's own response (viscosity bends it too): friction adds c = f_s.
     intercept, z_c = 0.0, 0.0
-    if len(thrust) >= 3 and np.ptp(accel) > 0:
+    if len(thrust) >= 3 and np.ptp(accel) > 0 and np.ptp(accel_model) > 0:
         coef, cov = np.polyfit(accel, thrust, 1, cov=True)
-        intercept = float(coef[1])
+        model_coef = np.polyfit(accel_model, thrust, 1)
+        intercept = float(coef[1] - model_coef[1])
         z_c = intercept / np.sqrt(cov[1, 1]) if cov[1, 1] > 0 else 0.0
     m_a = ctx.match.values().get("m_a", 15.0)
     f_s = max(-np.mean(r) * m_a, intercept, 0.05)
@@ -85,7 +89,7 @@ def check_karnopp(ctx: DiagnosisContext) -> Signature:
     return Signature(
         max(_clip01((-t - 3) / 10), _clip01((z_c - 3) / 10)),
         f"steady-motion residual {np.mean(r):+.4f} m/s^2 along the motion (t = {t:+.1f}); "
-        f"a free line |f_in| = m|a_zc| + c has c = {intercept:+.2f} N"
+        f"a free line |f_in| = m|a| + c has c = {intercept:+.2f} N more than the model's"
         + (f"; {len(still)} trial(s) show no motion after the step" if still else ""),
         {"f_s": float(min(f_s, 20.0))},
     )

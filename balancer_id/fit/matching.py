@@ -98,6 +98,7 @@ def match_trials(
     n_starts: int = 1,
     seed: int = 0,
     max_nfev: int = 2000,
+    diff_step: float | None = None,
 ) -> MatchResult:
     """Fit every free parameter of ``model`` to all ``trials`` at once.
 
@@ -176,7 +177,12 @@ def match_trials(
             warnings.simplefilter("ignore")
             try:
                 out = lmfit.minimize(
-                    residual, p0, method="least_squares", max_nfev=max_nfev, x_scale="jac"
+                    residual,
+                    p0,
+                    method="least_squares",
+                    max_nfev=max_nfev,
+                    x_scale="jac",
+                    diff_step=diff_step,
                 )
             except (ValueError, FloatingPointError) as exc:
                 notes.append(f"a start failed: {exc}")
