@@ -1,0 +1,233 @@
+"""Give the detected steps their direction and thrust, and cut them out as trials."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.read.recording import Recording
+from balancer_id.segment.gravity import VerticalMotion
+from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
+from balancer_id.segment.steps import Step, StepSettings
+from balancer_id.segment.trial import Trial
+from balancer_id.segment.window import Window
+
+
+@dataclass
+class Run:
+    """What detection found in one recording.
+
+    Attributes
+    ----------
+    rec : Recording
+        The run.
+    motion : VerticalMotion or None
+        Its vertical acceleration.
+    breaks : numpy.ndarray
+        First sample after each gap.
+    steps : list of Step
+        Steps kept, in time order.
+    windows : list of Window
+        One per step.
+    why : str
+        What the detector saw (for "no step trial found").
+    notes : list of str
+        Notes for every trial of the run.
+    """
+
+    rec: Recording
+    motion: VerticalMotion | None
+    breaks: np.ndarray
+    steps: list[Step]
+    windows: list[Window]
+    why: str
+    notes: list[str] = field(default_factory=list)
+
+
+def mounting_sign(
+    steps: list[Step], k_sigma: float, chained: list[bool] | None = None
+) -> int | None:
+    """How the force sensor is mounted: +1 when force steps and motion share their sign.
+
+    Steps taken from rest vote (a step taken while moving has the previous step's rise
+    in its response); steps taken while moving vote only when no step from rest does.
+
+    Parameters
+    ----------
+    steps : list of Step
+        Steps with force sizes and acceleration responses.
+    k_sigma : float
+        Responses below this many noise standard deviations do not vote.
+    chained : list of bool, optional
+        Per step, whether it was taken while moving (default: none was).
+
+    Returns
+    -------
+    int or None
+        The majority sign weighted by significance, None without a vote.
+    """
+    chained = chained if chained is not None else [False] * len(steps)
+    for allowed in ({False}, {False, True}):
+        votes = [
+            np.sign(st.size * st.response) * st.response_z
+            for st, ch in zip(steps, chained, strict=True)
+            if ch in allowed
+            and np.isfinite(st.size)
+            and np.isfinite(st.response)
+            and st.response_z >= k_sigma
+        ]
+        total = float(np.sum(votes)) if votes else 0.0
+        if total:
+            return int(np.sign(total))
+    return None
+
+
+def orient(run: Run, given: list[float] | None, force_sign: int | None) -> None:
+    """Fix the sign of an automatic linear-acceleration vertical (in place).
+
+    The vertical is flipped when most steps move against ``force_sign`` (or, without
+    it, against the signs of the given thrusts when any is negative).
+
+    Parameters
+    ----------
+    run : Run
+        One run's detection; ``motion`` and the step responses may be negated.
+    given : list of float or None
+        The run's given thrusts.
+    force_sign : int or None
+        The user's force sign.
+    """
+    m = run.motion
+    if m is None or m.sign_known:
+        return
+    expected: list[float] = []
+    source = ""
+    if force_sign is not None and all(np.isfinite(st.size) for st in run.steps):
+        expected = [float(np.sign(st.size * force_sign)) for st in run.steps]
+        source = "force_sign"
+    elif given is not None and any(v < 0 for v in given):
+        expected = [float(np.sign(v)) for v in given]
+        source = "the signed thrusts"
+    pairs = [
+        (e, np.sign(st.response))
+        for e, st in zip(expected, run.steps, strict=False)
+        if np.isfinite(st.response)
+    ]
+    if not pairs:
+        run.notes.append(f"vertical sign is a convention: {m.method}")
+        return
+    if 2 * sum(1 for e, r in pairs if e == r) < len(pairs):
+        run.motion = m.flipped(f"sign reversed to agree with {source}")
+        run.steps = [
+            Step(st.onset, st.size, -st.response, st.response_z, st.source) for st in run.steps
+        ]
+    else:
+        run.motion = VerticalMotion(m.accel, m.up, m.rest, f"{m.method}; sign agrees with {source}")
+
+
+def _direction(
+    st: Step, force_sign: int | None, mounting: int | None, k_sigma: float, notes: list[str]
+) -> int:
+    """+1 (up) or -1 (down) for one step, noting how it was decided when not by motion.
+
+    Order: the user's ``force_sign``; the run's mounting (the force/motion sign relation
+    its steps from rest agree on), noting a step whose own motion disagrees; the step's
+    own motion; the force sign assumed +1.
+    """
+    moved = np.isfinite(st.response) and st.response_z >= k_sigma
+    if force_sign is not None and np.isfinite(st.size):
+        return int(np.sign(st.size * force_sign))
+    if np.isfinite(st.size) and mounting is not None:
+        sign = int(np.sign(st.size * mounting))
+        if moved and np.sign(st.response) != sign:
+            notes.append("the motion after this step disagrees with the force sign of the run")
+        elif not moved:
+            notes.append("motion unclear: direction from the force sign of the run")
+        return sign
+    if moved or not np.isfinite(st.size):
+        return int(np.sign(st.response)) or 1
+    notes.append("direction from the force step, force sign +1 assumed")
+    return int(np.sign(st.size)) or 1
+
+
+def build_trials(
+    run: Run,
+    first_index: int,
+    given: list[float] | None,
+    force_sign: int | None,
+    settings: StepSettings,
+    source: str,
+) -> list[Trial]:
+    """Cut the trials of one run.
+
+    Parameters
+    ----------
+    run : Run
+        The run's steps and windows.
+    first_index : int
+        Index of its first trial in the log.
+    given : list of float or None
+        The run's given thrusts (magnitudes used, signs checked against the motion).
+    force_sign : int or None
+        The user's force sign.
+    settings : StepSettings
+        Detector constants.
+    source : str
+        The file, for ``Trial.source``.
+
+    Returns
+    -------
+    list of Trial
+    """
+    rec = run.rec
+    chained = [
+        i > 0 and run.windows[i - 1].end_reason == "next step" for i in range(len(run.steps))
+    ]
+    mounting = mounting_sign(run.steps, settings.response_k_sigma, chained)
+    accel = run.motion.accel if run.motion is not None else None
+    force = fill_nan(rec.force) if rec.force is not None else None
+    gb = n_samples(settings.guard_before_s, rate_of(rec.time))
+    trials = []
+    for j, (st, win) in enumerate(zip(run.steps, run.windows, strict=True)):
+        notes = list(run.notes)
+        sign = _direction(st, force_sign, mounting, settings.response_k_sigma, notes)
+        thrust = abs(st.size) * sign
+        if given is not None:
+            thrust = abs(given[j]) * sign
+            notes.append(f"thrust {given[j]:g} N given by the user")
+            if given[j] < 0 < sign:
+                notes.append(f"given thrust {given[j]:g} N is down but the motion is up")
+        if accel is None:
+            notes.append("no acceleration channel")
+        bridged = [
+            gp for gp in rec.gaps if win.start <= np.searchsorted(rec.time, gp.t_after) < win.stop
+        ]
+        if bridged:
+            missing = sum(gp.n_missing for gp in bridged)
+            notes.append(f"{len(bridged)} short gap(s) inside ({missing} samples missing)")
+        sl = slice(win.start, win.stop)
+        trial_force = None
+        if force is not None and np.isfinite(st.size):
+            ref = level(force[win.start : max(win.start + 1, st.onset - gb)])
+            trial_force = sign * np.sign(st.size) * (force[sl] - ref)
+        trials.append(
+            Trial(
+                index=first_index + j,
+                recording=rec.name,
+                t_step=float(rec.time[st.onset]),
+                t_start=float(rec.time[win.start]),
+                t_end=float(rec.time[win.stop - 1]),
+                thrust_N=float(thrust),
+                direction="up" if sign > 0 else "down",
+                time=rec.time[sl].copy(),
+                accel=accel[sl].copy()
+                if accel is not None
+                else np.full(sl.stop - sl.start, np.nan),
+                force=trial_force,
+                end_reason=win.end_reason,
+                source=source,
+                notes=notes,
+            )
+        )
+    return trials

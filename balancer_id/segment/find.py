@@ -1,0 +1,227 @@
+"""Find the step trials of a log: detect and window the steps of every run, then assign."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import numpy as np
+
+from balancer_id.constants import G_DEFAULT
+from balancer_id.errors import LogReadError, NoTrialError, UsageError
+from balancer_id.read.recording import Log, Recording
+from balancer_id.segment.accel_steps import detect_accel_steps
+from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
+from balancer_id.segment.gravity import check_vertical, vertical_motion
+from balancer_id.segment.robust import fill_nan, rate_of
+from balancer_id.segment.steps import (
+    Detection,
+    Step,
+    StepSettings,
+    detect_force_steps,
+    gap_breaks,
+    measure_responses,
+)
+from balancer_id.segment.trial import Trial
+from balancer_id.segment.window import Channel, Window, channel, end_at_releases, trial_windows
+
+
+def find_trials(
+    log: Log,
+    *,
+    thrusts: Sequence[float] | None = None,
+    force_sign: int | None = None,
+    vertical: str = "auto",
+    g: float = G_DEFAULT,
+    min_step_N: float = 1.0,
+) -> list[Trial]:
+    """Find every step trial in every run of a log.
+
+    Steps come from the force channel when there is one (confirmed by the motion that
+    follows), else from the vertical acceleration. A trial's direction is the sign of
+    the acceleration change after its onset, or ``sign(force step * force_sign)`` when
+    ``force_sign`` is given. Its thrust is the force step, or the given ``thrusts``.
+
+    Parameters
+    ----------
+    log : Log
+        What a reader returned.
+    thrusts : sequence of float, optional
+        One thrust (N) per trial found, in order over all runs. Their magnitudes
+        replace the measured force steps (and are required without a force channel);
+        the sign is the motion's, a negative value is checked against it.
+    force_sign : {+1, -1}, optional
+        Fixes the direction from the force step: up when ``force step * force_sign > 0``.
+    vertical : {"auto", "x", "y", "z"}, optional
+        Vertical axis of a linear-acceleration log (see
+        :func:`~balancer_id.segment.gravity.vertical_motion`).
+    g : float, optional
+        Gravity (m/s^2) removed from with-g acceleration.
+    min_step_N : float, optional
+        Smallest force step reported (N).
+
+    Returns
+    -------
+    list of Trial
+        In time order, run by run; ``index`` counts over all runs.
+
+    Raises
+    ------
+    NoTrialError
+        When no step trial is found (the message says what the detector saw), or a log
+        without a force channel comes without thrusts (the message lists the onsets).
+    LogReadError
+        When ``thrusts`` does not hold one value per trial found.
+    UsageError
+        For an invalid ``force_sign``, ``vertical``, ``thrusts`` or ``min_step_N``.
+    """
+    given = _check_arguments(thrusts, force_sign, vertical, min_step_N)
+    settings = StepSettings(min_step_N=float(min_step_N))
+    runs = [_detect(rec, vertical, g, settings) for rec in log.recordings]
+    total = sum(len(r.steps) for r in runs)
+    if total == 0:
+        why = "; ".join(f"{r.rec.name}: {r.why}" for r in runs) or "the log holds no run"
+        raise NoTrialError(f"{log.path}: no step trial found ({why})")
+    if given is not None and len(given) != total:
+        raise LogReadError(
+            log.path,
+            f"found {total} step trials but {len(given)} thrusts were given",
+            hint=f"onsets at {_onsets(runs)}; give one thrust per trial, in order",
+        )
+    if given is None and any(st.source == "accel" for r in runs for st in r.steps):
+        # without force and without thrusts the onsets are no usable step trials
+        raise NoTrialError(
+            f"{log.path}: no step trial found (no force channel and no thrusts given: the "
+            f"acceleration shows {total} onset(s) at {_onsets(runs)}; give one thrust per "
+            "onset, in order, with --thrust F1,F2,...)"
+        )
+    first = np.cumsum([0] + [len(r.steps) for r in runs])
+    run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
+    for run, gv in zip(runs, run_given, strict=True):
+        orient(run, gv, force_sign)
+    trials: list[Trial] = []
+    for run, i0, gv in zip(runs, first, run_given, strict=False):
+        trials.extend(build_trials(run, int(i0), gv, force_sign, settings, str(log.path)))
+    return trials
+
+
+def _check_arguments(
+    thrusts: Sequence[float] | None, force_sign: int | None, vertical: str, min_step_N: float
+) -> list[float] | None:
+    check_vertical(vertical)
+    if force_sign is not None and force_sign not in (1, -1):
+        raise UsageError(f"force_sign must be +1 or -1, not {force_sign!r}")
+    if not (np.isfinite(min_step_N) and min_step_N > 0):
+        raise UsageError(f"min_step_N must be a positive number of newtons, not {min_step_N!r}")
+    if thrusts is None:
+        return None
+    values = [float(v) for v in thrusts]
+    if not all(np.isfinite(v) and v != 0 for v in values):
+        raise UsageError(f"thrusts must be finite and non-zero (N), got {values}")
+    return values
+
+
+def _onsets(runs: list[Run]) -> str:
+    times = [f"{r.rec.time[st.onset]:.2f} s" for r in runs for st in r.steps]
+    return ", ".join(times) if times else "none"
+
+
+def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> Run:
+    """Detect the steps of one run (force first, else acceleration) and window them.
+
+    Force steps are measured against the motion twice: up to the next step, then inside
+    their windows (a catch left out). A step from rest that no motion follows is
+    dropped (see :func:`_moved`), and so is a step found inside the previous trial's
+    catch; the windows are then redone.
+    """
+    motion = vertical_motion(rec, vertical=vertical, g=g)
+    breaks = gap_breaks(rec, settings.bridge_gap_s)
+    usable = rec.force is not None and np.isfinite(rec.force).sum() >= 2
+    force = fill_nan(rec.force) if usable and rec.force is not None else None
+    accel = motion.accel if motion is not None else None
+    if rec.n_samples < 4 or (force is None and accel is None):
+        return Run(rec, motion, breaks, [], [], "no usable force or acceleration channel")
+    if force is not None:
+        det = detect_force_steps(rec.time, force, breaks, settings)
+        what = "force change"
+    else:
+        assert accel is not None
+        det = detect_accel_steps(rec.time, accel, breaks, settings)
+        what = "acceleration departure"
+    rate = rate_of(rec.time)
+    chans = (channel(force, rate, settings), channel(accel, rate, settings))
+    steps = det.steps
+    while True:
+        if force is not None and accel is not None:
+            steps = measure_responses(rec.time, accel, steps, breaks, settings)
+        windows = _windows(rec.time, chans, steps, breaks, settings)
+        if force is not None and accel is not None:
+            limits = [
+                (w.rest_from if w.rest_from is not None else w.start, w.stop) for w in windows
+            ]
+            steps = measure_responses(rec.time, accel, steps, breaks, settings, limits)
+            windows = _windows(rec.time, chans, steps, breaks, settings)
+            mounting = mounting_sign(steps, settings.response_k_sigma)
+            still = [
+                i
+                for i, st in enumerate(steps)
+                if not _moved(st, mounting, settings)
+                and not (i and windows[i - 1].end_reason == "next step")
+            ]
+            if still:
+                det.reject("no motion followed the force step")
+                steps = steps[: still[0]] + steps[still[0] + 1 :]
+                continue
+        caught = [
+            i
+            for i in range(1, len(steps))
+            if (settled := windows[i - 1].settled) is not None and steps[i].onset < settled
+        ]
+        if not caught:
+            if accel is None and force is not None:
+                steps, windows, dropped = end_at_releases(rec.time, force, steps, windows, settings)
+                for _ in range(dropped):
+                    det.reject("the thrust released (a catch)")
+            return Run(rec, motion, breaks, steps, windows, _why(det, what))
+        det.reject("inside a catch")
+        steps = steps[: caught[0]] + steps[caught[0] + 1 :]
+
+
+def _moved(st: Step, mounting: int | None, settings: StepSettings) -> bool:
+    """Whether motion followed a force step: a response over ``response_k_sigma``, or
+    over ``response_weak_k_sigma`` in the direction the run's other steps predict."""
+    if st.response_z >= settings.response_k_sigma:
+        return True
+    return (
+        mounting is not None
+        and st.response_z >= settings.response_weak_k_sigma
+        and np.sign(st.response) == np.sign(st.size * mounting)
+    )
+
+
+def _windows(
+    time: np.ndarray,
+    chans: tuple[Channel | None, Channel | None],
+    steps: list[Step],
+    breaks: np.ndarray,
+    settings: StepSettings,
+) -> list[Window]:
+    """Windows, with each step's motion sign (from the run's mounting when unclear)."""
+    k = settings.response_k_sigma
+    mounting = mounting_sign(steps, k) or 1
+    signs = []
+    for st in steps:
+        if np.isfinite(st.response) and st.response_z >= k:
+            signs.append(int(np.sign(st.response)))
+        else:
+            signs.append(int(np.sign(st.size * mounting)) if np.isfinite(st.size) else 1)
+    return trial_windows(time, *chans, steps, signs, breaks, settings)
+
+
+def _why(det: Detection, what: str) -> str:
+    text = f"largest {what} {det.largest:.3g} {det.unit} (threshold {det.threshold:.3g} {det.unit})"
+    if det.rejected:
+        text += "; candidates dropped: " + ", ".join(
+            f"{n} {reason}" for reason, n in det.rejected.items()
+        )
+    return text

@@ -1,0 +1,203 @@
+"""Vertical motion from a recording: gravity direction, projection, gravity removal."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from balancer_id.constants import G_DEFAULT
+from balancer_id.errors import UsageError
+from balancer_id.read.recording import Recording
+from balancer_id.segment.robust import fill_nan, local_std, n_samples, rate_of, smooth
+
+#: Accepted values of the ``vertical`` setting.
+VERTICAL_CHOICES = ("auto", "x", "y", "z")
+
+#: Short window (s) of the resting test, and how far |a| may sit from g at rest (fraction).
+REST_WINDOW_S = 0.25
+REST_G_TOLERANCE = 0.05
+
+
+@dataclass(frozen=True)
+class VerticalMotion:
+    """The vertical acceleration of one recording.
+
+    Attributes
+    ----------
+    accel : numpy.ndarray
+        Vertical acceleration (m/s^2), gravity removed, up positive, shape ``(n,)``.
+    up : numpy.ndarray
+        Unit vector of "up" in the sensor frame, one entry per accel column.
+    rest : numpy.ndarray
+        Boolean mask of quiet samples (low short-window variance; with g, |a| near g).
+    method : str
+        How the vertical was found, for notes and reports.
+    sign_known : bool
+        False when the sign of ``up`` is a convention (linear acceleration, automatic
+        axis); the force step or signed thrusts may flip it later.
+    """
+
+    accel: np.ndarray
+    up: np.ndarray
+    rest: np.ndarray
+    method: str
+    sign_known: bool = True
+
+    def flipped(self, why: str) -> VerticalMotion:
+        """Return the same motion with the up direction reversed, noting ``why``."""
+        return VerticalMotion(-self.accel, -self.up, self.rest, f"{self.method}; {why}", True)
+
+
+def vertical_motion(
+    rec: Recording, *, vertical: str = "auto", g: float = G_DEFAULT
+) -> VerticalMotion | None:
+    """Find the vertical acceleration of a recording.
+
+    With-g logs (specific force, +g up at rest): the up direction is the mean unit
+    acceleration vector over the resting samples, the vertical motion is the projection
+    on it minus ``g``; no axis is assumed vertical. Linear-acceleration ("without g")
+    logs: ``vertical`` names the axis, or ``"auto"`` takes the principal direction of
+    the smoothed motion (SVD); its sign is then a convention (``sign_known=False``).
+    A single accel column is used as is (its resting mean removed when it holds g).
+
+    Parameters
+    ----------
+    rec : Recording
+        One run of a log.
+    vertical : {"auto", "x", "y", "z"}, optional
+        The vertical axis, or ``"auto"``.
+    g : float, optional
+        Gravity (m/s^2) subtracted from the projection of a with-g log.
+
+    Returns
+    -------
+    VerticalMotion or None
+        None when the recording has no acceleration channel.
+
+    Raises
+    ------
+    UsageError
+        When ``vertical`` is not one of :data:`VERTICAL_CHOICES` or names a missing axis.
+    """
+    check_vertical(vertical)
+    if rec.accel is None:
+        return None
+    acc = np.asarray(rec.accel, dtype=float)
+    if acc.ndim == 1:
+        acc = acc[:, None]
+    finite = [bool(np.isfinite(acc[:, j]).any()) for j in range(acc.shape[1])]
+    if not any(finite) or acc.shape[0] < 2:
+        return None
+    # an empty column reads nothing: zeros, so that "up" keeps one entry per column
+    acc = np.column_stack(
+        [fill_nan(acc[:, j]) if ok else np.zeros(acc.shape[0]) for j, ok in enumerate(finite)]
+    )
+    axes = tuple(rec.accel_axes) if len(rec.accel_axes) == acc.shape[1] else ("x", "y", "z")
+    rate = rec.sample_rate_hz if np.isfinite(rec.sample_rate_hz) else rate_of(rec.time)
+    w = n_samples(REST_WINDOW_S, rate if np.isfinite(rate) else 200.0, minimum=3)
+
+    if vertical != "auto":
+        if vertical not in axes:
+            raise UsageError(
+                f"vertical axis {vertical!r} is not in the accel columns {', '.join(axes)}"
+            )
+        col = axes.index(vertical)
+        return _single_axis(acc, col, w, rec.accel_includes_gravity, f"axis {vertical} as given")
+    if acc.shape[1] == 1:
+        return _single_axis(acc, 0, w, rec.accel_includes_gravity, f"single axis {axes[0]}")
+    if rec.accel_includes_gravity:
+        return _project_on_gravity(acc, w, g)
+    return _principal_axis(acc, axes, w)
+
+
+def check_vertical(vertical: str) -> None:
+    """Raise :class:`UsageError` unless ``vertical`` is one of :data:`VERTICAL_CHOICES`."""
+    if vertical not in VERTICAL_CHOICES:
+        raise UsageError(f"vertical must be one of {', '.join(VERTICAL_CHOICES)}, not {vertical!r}")
+
+
+def _quiet(x: np.ndarray, w: int) -> np.ndarray:
+    """Samples whose short-window std is low compared with the log's typical value."""
+    s = local_std(x, w)
+    return s <= max(4.0 * float(np.median(s)), 0.05)
+
+
+def _single_axis(acc: np.ndarray, col: int, w: int, with_g: bool, what: str) -> VerticalMotion:
+    """One column as the vertical; with g, its sign and resting mean come from rest."""
+    x = acc[:, col]
+    rest = _quiet(x, w)
+    up = np.zeros(acc.shape[1])
+    if not with_g:
+        up[col] = 1.0
+        return VerticalMotion(x.copy(), up, rest, f"{what} (linear acceleration)")
+    base = float(np.median(x[rest])) if rest.any() else float(np.median(x))
+    sign = 1.0 if base >= 0 else -1.0
+    up[col] = sign
+    method = f"{what}; resting mean {base:+.3f} m/s^2 removed"
+    return VerticalMotion(sign * (x - base), up, rest, method)
+
+
+def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
+    """Up = mean unit vector over resting samples; vertical = projection minus g."""
+    mag = np.linalg.norm(acc, axis=1)
+    quiet = _quiet(mag, w)
+    near_g = np.abs(smooth(mag, w) - g) <= REST_G_TOLERANCE * g
+    rest = quiet & near_g
+    if rest.sum() >= w:
+        how = "resting samples"
+    elif quiet.sum() >= w:
+        rest = quiet
+        how = f"quiet samples (none reads |a| near g={g:g}; median |a| {np.median(mag):.3f})"
+    else:
+        rest = np.ones(mag.size, dtype=bool)
+        how = "all samples (no resting part found)"
+    safe = np.where(mag > 0, mag, 1.0)
+    u = (acc[rest] / safe[rest, None]).mean(axis=0)
+    up = u / np.linalg.norm(u)
+    tilt = float(np.degrees(np.arccos(np.clip(np.max(np.abs(up)), -1.0, 1.0))))
+    proj = acc @ up
+    offset = float(np.median(proj[rest])) - g
+    method = (
+        f"gravity direction from {how} ({int(rest.sum())} samples), "
+        f"{tilt:.1f} deg from the nearest axis; resting level {offset:+.3f} m/s^2 after "
+        f"removing g={g:g}"
+    )
+    return VerticalMotion(proj - g, up, rest, method)
+
+
+def _principal_axis(acc: np.ndarray, axes: tuple[str, ...], w: int) -> VerticalMotion:
+    """Linear acceleration: the principal direction of the sustained motion (SVD).
+
+    Transients (catches, knocks: high short-window variance, in any direction) are
+    left out, the rest averaged over ``4 w`` samples so that quantization averages out.
+    """
+    keep = _quiet(np.linalg.norm(acc, axis=1), w)
+    idx = np.arange(acc.shape[0])
+    sm = np.column_stack(
+        [
+            ndimage.uniform_filter1d(np.interp(idx, idx[keep], acc[keep, j]), 4 * w)
+            if keep.sum() >= 2
+            else acc[:, j]
+            for j in range(acc.shape[1])
+        ]
+    )
+    sm -= np.median(sm, axis=0)
+    mag = np.linalg.norm(sm, axis=1)
+    moving = mag > 4.0 * float(np.median(mag)) + 1e-12
+    use = sm[moving] if moving.sum() >= w else sm
+    _, sv, vt = np.linalg.svd(use, full_matrices=False)
+    up = vt[0] / np.linalg.norm(vt[0])
+    j = int(np.argmax(np.abs(up)))
+    if up[j] < 0:
+        up = -up
+    share = float(sv[0] ** 2 / max(np.sum(sv**2), 1e-300))
+    angle = float(np.degrees(np.arccos(np.clip(abs(up[j]), -1.0, 1.0))))
+    x = acc @ up
+    method = (
+        f"linear acceleration: principal direction of the motion (SVD of {use.shape[0]} "
+        f"smoothed samples, {100 * share:.0f}% of the variance), {angle:.1f} deg from "
+        f"+{axes[j]}; sign taken along +{axes[j]} until the force step or signed thrusts fix it"
+    )
+    return VerticalMotion(x, up, _quiet(x, w), method, sign_known=False)

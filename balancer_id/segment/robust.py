@@ -1,0 +1,219 @@
+"""Robust statistics and windowed filters shared by the segmentation modules."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage, stats
+
+
+def n_samples(seconds: float, rate_hz: float, minimum: int = 1) -> int:
+    """Return the number of samples that spans ``seconds`` at ``rate_hz`` (at least ``minimum``).
+
+    Parameters
+    ----------
+    seconds : float
+        Duration (s).
+    rate_hz : float
+        Sample rate (Hz).
+    minimum : int, optional
+        Smallest count returned.
+
+    Returns
+    -------
+    int
+        ``max(minimum, round(seconds * rate_hz))``.
+    """
+    return max(minimum, round(seconds * rate_hz))
+
+
+def odd(n: int) -> int:
+    """Return ``n`` if odd, else ``n + 1`` (filter kernels need a centre sample)."""
+    return n if n % 2 else n + 1
+
+
+def rate_of(time: np.ndarray) -> float:
+    """Return the sample rate (Hz) from the median time step of ``time``."""
+    dt = np.diff(time)
+    dt = dt[np.isfinite(dt) & (dt > 0)]
+    if dt.size == 0:
+        return float("nan")
+    return float(1.0 / np.median(dt))
+
+
+def fill_nan(x: np.ndarray) -> np.ndarray:
+    """Return ``x`` with NaN samples linearly interpolated (edges held).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal with at least one finite sample.
+
+    Returns
+    -------
+    numpy.ndarray
+        A float copy without NaN.
+    """
+    x = np.asarray(x, dtype=float).copy()
+    bad = ~np.isfinite(x)
+    if bad.any():
+        idx = np.arange(x.size)
+        x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+    return x
+
+
+def smooth(x: np.ndarray, size: int) -> np.ndarray:
+    """Median filter then moving average, both of ``size`` samples (spikes, then noise).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal.
+    size : int
+        Kernel length in samples (made odd).
+
+    Returns
+    -------
+    numpy.ndarray
+        The smoothed signal, same length.
+    """
+    size = odd(size)
+    if size <= 1:
+        return np.asarray(x, dtype=float)
+    med = ndimage.median_filter(np.asarray(x, dtype=float), size=size, mode="nearest")
+    return ndimage.uniform_filter1d(med, size=size, mode="nearest")
+
+
+def local_std(x: np.ndarray, size: int) -> np.ndarray:
+    """Centred moving standard deviation over ``size`` samples."""
+    x = np.asarray(x, dtype=float)
+    m = ndimage.uniform_filter1d(x, size=size, mode="nearest")
+    m2 = ndimage.uniform_filter1d(x * x, size=size, mode="nearest")
+    return np.sqrt(np.clip(m2 - m * m, 0.0, None))
+
+
+def before_after_means(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Means of the ``w`` samples before and from each index.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal.
+    w : int
+        Window length (samples).
+
+    Returns
+    -------
+    before, after : numpy.ndarray
+        ``before[i] = mean(x[i-w:i])`` and ``after[i] = mean(x[i:i+w])``; NaN where the
+        window leaves the signal.
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    c = np.concatenate([[0.0], np.cumsum(x - x.mean())])
+    before = np.full(n, np.nan)
+    after = np.full(n, np.nan)
+    if n >= w:
+        i = np.arange(w, n + 1)
+        before[i[:-1]] = (c[i[:-1]] - c[i[:-1] - w]) / w
+        j = np.arange(0, n - w + 1)
+        after[j] = (c[j + w] - c[j]) / w
+    return before, after
+
+
+def _detrended_blocks(x: np.ndarray, block: int) -> np.ndarray:
+    """``x`` cut into blocks of ``block`` samples, each minus its least-squares line."""
+    nb = x.size // block
+    blocks = np.asarray(x[: nb * block], dtype=float).reshape(nb, block)
+    t = np.arange(block) - (block - 1) / 2.0
+    centred = blocks - blocks.mean(axis=1, keepdims=True)
+    slope = centred @ t / (t @ t)
+    return centred - slope[:, None] * t
+
+
+def block_noise(x: np.ndarray, block: int, floor: float) -> float:
+    """Typical noise standard deviation: the median over blocks of the detrended block std.
+
+    Blocks with motion or transients are a minority in a log, so the median sees rest.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal.
+    block : int
+        Block length (samples).
+    floor : float
+        Smallest value returned (clean or coarsely quantized data can give 0).
+
+    Returns
+    -------
+    float
+        Noise standard deviation estimate.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size < block or block < 3:
+        return float(max(floor, np.std(x) if x.size > 1 else 0.0))
+    return float(max(floor, np.median(np.std(_detrended_blocks(x, block), axis=1))))
+
+
+def block_range(x: np.ndarray, block: int) -> float:
+    """Typical peak-to-peak range of a detrended block (covers noise and quantization)."""
+    x = np.asarray(x, dtype=float)
+    if x.size < block or block < 3:
+        return float(np.ptp(x)) if x.size else 0.0
+    return float(np.median(np.ptp(_detrended_blocks(x, block), axis=1)))
+
+
+def clipped_mean(x: np.ndarray, half_width: float) -> float:
+    """Mean of ``x`` clipped to its median +- ``half_width`` (NaN when empty).
+
+    Unlike a median or a trimmed mean it keeps the sub-quantum information that noise
+    dithers into a coarsely quantized signal, while spikes weigh at most ``half_width``.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return float("nan")
+    m = float(np.median(x))
+    return float(np.mean(np.clip(x, m - half_width, m + half_width)))
+
+
+def level(x: np.ndarray) -> float:
+    """Robust level of a stretch: the 20 %-trimmed mean (NaN when empty)."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return float("nan")
+    return float(stats.trim_mean(x, 0.2))
+
+
+def spread(x: np.ndarray) -> float:
+    """Robust standard deviation of a stretch (IQR / 1.349; 0 when shorter than 2)."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 2:
+        return 0.0
+    q75, q25 = np.percentile(x, [75, 25])
+    return float((q75 - q25) / 1.349)
+
+
+def changepoint(x: np.ndarray) -> int:
+    """Least-squares single change in mean: the index ``k`` splitting ``x[:k]`` / ``x[k:]``.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional stretch of at least 2 samples.
+
+    Returns
+    -------
+    int
+        ``k`` in ``1 .. len(x) - 1`` minimising the two-segment squared error.
+    """
+    x = np.asarray(x, dtype=float)
+    x = x - x.mean()
+    n = x.size
+    if n < 2:
+        return 0
+    c1 = np.cumsum(x)
+    c2 = np.cumsum(x * x)
+    k = np.arange(1, n)
+    left = c2[k - 1] - c1[k - 1] ** 2 / k
+    right = (c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)
+    return int(k[np.argmin(left + right)])
