@@ -45,9 +45,7 @@ def test_hidden_effect_is_found_first(hidden, extra):
     assert diagnosis.verdict == "effect missing"
     best = diagnosis.suggestions[0]
     assert best.effect == hidden
-    assert best.command == (
-        f"balancer-id fit log.csv --model variable_viscosity+{hidden}"
-    )
+    assert best.command == (f"balancer-id fit log.csv --model variable_viscosity+{hidden}")
     assert best.excess_drop > 0.5  # adding it removes most of the error above the noise
     out = diagnosis.to_dict()
     assert out["suggestions"][0]["effect"] == hidden
