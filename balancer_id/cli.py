@@ -183,20 +183,12 @@ def inspect(
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
-    from balancer_id.pipeline import describe_log
-    from balancer_id.read import read_log
-    from balancer_id.segment import find_trials
+    from balancer_id.pipeline import describe_log, read, segment
 
     options = _read_options(thrust, force_sign, vertical, columns, g)
-    data = read_log(log, columns=options.columns)
+    data = read(log, options)
     try:
-        trials = find_trials(
-            data,
-            thrusts=options.thrusts,
-            force_sign=options.force_sign,
-            vertical=options.vertical,
-            g=options.g,
-        )
+        trials = segment(data, options)
         problem = None
     except NoTrialError as exc:
         trials, problem = [], exc
@@ -204,7 +196,7 @@ def inspect(
     if plot is not None:
         from balancer_id.report.inspect_plot import plot_inspection
 
-        plot_inspection(data, trials, plot)
+        plot_inspection(data, trials, plot, g=options.g, vertical=options.vertical)
     if json_out:
         _emit_json(info)
     else:

@@ -45,21 +45,32 @@ class LoadedLog:
     trials: list[Trial] = field(default_factory=list)
 
 
-def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
-    """Read one log and find its trials (raises NoTrialError when there is none)."""
+def read(path: str | Path, options: ReadOptions | None = None) -> Log:
+    """Read one log with the options' column map and gravity."""
     from balancer_id.read import read_log
+
+    options = options or ReadOptions()
+    return read_log(path, columns=options.columns, g=options.g)
+
+
+def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
+    """Find the trials of a log (raises NoTrialError when there is none)."""
     from balancer_id.segment import find_trials
 
     options = options or ReadOptions()
-    log = read_log(path, columns=options.columns)
-    trials = find_trials(
+    return find_trials(
         log,
         thrusts=options.thrusts,
         force_sign=options.force_sign,
         vertical=options.vertical,
         g=options.g,
     )
-    return LoadedLog(log, trials)
+
+
+def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
+    """Read one log and find its trials (raises NoTrialError when there is none)."""
+    log = read(path, options)
+    return LoadedLog(log, segment(log, options))
 
 
 def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None) -> list[LoadedLog]:
