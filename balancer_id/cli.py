@@ -223,6 +223,9 @@ def fit(
         bool, typer.Option("--per-trial", help="Also fit each trial alone.")
     ] = False,
     starts: Annotated[int, typer.Option("--starts", help="Optimizer starts.")] = 1,
+    no_cache: Annotated[
+        bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
+    ] = False,
     effects_file: EffectsFileOpt = None,
     trajectory: TrajectoryOpt = None,
     force_sign: ForceSignOpt = None,
@@ -231,24 +234,45 @@ def fit(
     g: GOpt = 9.8,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
-    from balancer_id.fit import fit as run_fit
+    from balancer_id import cache
 
-    options = _read_options(thrust, force_sign, vertical, columns, g)
-    result = run_fit(
-        logs,
-        model=model,
-        fixed=_assignments(fix, "--fix"),
-        options=options,
-        effects_files=effects_file or (),
-        trajectory=_trajectory(trajectory),
-        per_trial=per_trial,
-        n_starts=starts,
-    )
-    out = result.to_dict()
-    if report is not None:
-        from balancer_id.report.document import write_fit_report
+    fixed = _assignments(fix, "--fix")
+    key_options = {
+        "model": model,
+        "thrust": thrust,
+        "fix": fixed,
+        "per_trial": per_trial,
+        "starts": starts,
+        "trajectory": trajectory,
+        "force_sign": force_sign,
+        "vertical": vertical,
+        "columns": columns,
+        "g": g,
+        "logs": [str(p) for p in logs],
+        "effects": [str(p) for p in effects_file or ()],
+    }
+    key = None if no_cache else cache.result_key("fit", [*logs, *(effects_file or ())], key_options)
+    out = cache.load(key) if report is None else None
+    if out is None:
+        from balancer_id.fit import fit as run_fit
 
-        write_fit_report(result, report)
+        options = _read_options(thrust, force_sign, vertical, columns, g)
+        result = run_fit(
+            logs,
+            model=model,
+            fixed=fixed,
+            options=options,
+            effects_files=effects_file or (),
+            trajectory=_trajectory(trajectory),
+            per_trial=per_trial,
+            n_starts=starts,
+        )
+        out = result.to_dict()
+        cache.store(key, out)
+        if report is not None:
+            from balancer_id.report.document import write_fit_report
+
+            write_fit_report(result, report)
     if json_out:
         _emit_json(out)
     else:

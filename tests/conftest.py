@@ -18,6 +18,12 @@ PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 PAPER_THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
 
 
+@pytest.fixture(autouse=True)
+def _no_result_cache(monkeypatch):
+    """Commands compute their results in tests (the result cache has its own test)."""
+    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "1")
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A seeded generator, fresh for each test."""

@@ -158,3 +158,27 @@ def test_sample_logs_are_fitted_by_the_readme_command(cli):
     code, out, err = cli("fit", SAMPLE_LOGS / "paper_balancer.csv", "--json")
     assert code == 0, err
     assert json.loads(out)["metrics"]["nrmse_fit_percent"] > 50
+
+
+def test_a_second_identical_fit_comes_from_the_cache(cli, simulated, tmp_path, monkeypatch):
+    from balancer_id import cache
+
+    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "0")
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    first = cli("fit", simulated, "--json")
+    assert first[0] == 0
+    entries = list((tmp_path / "results").glob("*.json"))
+    assert len(entries) == 1
+    # a cached entry is what the second run prints: prove it by planting a marker in it
+    planted = json.loads(entries[0].read_text())
+    planted["model"] = "from-the-cache"
+    entries[0].write_text(json.dumps(planted))
+    assert json.loads(cli("fit", simulated, "--json")[1])["model"] == "from-the-cache"
+    # other options, or --no-cache, compute anew
+    assert json.loads(cli("fit", simulated, "--json", "--no-cache")[1])["model"] == (
+        "variable_viscosity"
+    )
+    assert json.loads(cli("fit", simulated, "--json", "--fix", "m_a=15")[1])["model"] == (
+        "variable_viscosity"
+    )
+    assert cache.result_key("fit", [tmp_path / "missing.csv"], {}) is None
