@@ -133,7 +133,22 @@ def main() -> None:
         t0 = time.perf_counter()
         subprocess.run(cmd, capture_output=True, check=True)
         whole = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        subprocess.run([*cmd, "--no-cache"], capture_output=True, check=True)
+        recompute = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "import numpy, pandas, scipy.optimize, scipy.signal, lmfit, numba",
+            ],
+            check=True,
+        )
+        imports = time.perf_counter() - t0
     print(f"whole 'balancer-id fit' command, second run: {whole:.2f} s  (target <= 1.5 s)")
+    print(f"  the same with --no-cache (kernel cached, fit recomputed): {recompute:.2f} s,")
+    print(f"  of which importing numpy, pandas, scipy, lmfit and numba alone: {imports:.2f} s")
     if not args.no_baseline:
         trials = make_trials(model, 0)
         base = baseline_fit(model, trials, {"m_a": 15.0, "T_a": 0.3})
