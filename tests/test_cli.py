@@ -182,3 +182,17 @@ def test_a_second_identical_fit_comes_from_the_cache(cli, simulated, tmp_path, m
         "variable_viscosity"
     )
     assert cache.result_key("fit", [tmp_path / "missing.csv"], {}) is None
+
+
+def test_a_force_only_log_cannot_be_identified(cli, tmp_path):
+    rows = ["Time (s),Force (N)"]
+    for k in range(1600):
+        t = k * 0.005
+        rows.append(f"{t:.3f},{(-2.45 if t > 2 else 0.0) + 0.01 * ((k * 7) % 5 - 2):.3f}")
+    log = tmp_path / "force_only.csv"
+    log.write_text("\n".join(rows) + "\n")
+    code, out, _ = cli("inspect", log, "--json")
+    assert code == 0 and len(json.loads(out)["trials"]) == 1
+    code, _, err = cli("fit", log)
+    assert code == 4
+    assert "force_only.csv" in err and "acceleration" in err and err.count("\n") == 1

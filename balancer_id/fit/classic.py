@@ -110,6 +110,8 @@ def first_order_step(trial: TrialData, window_s: float = CLASSIC_WINDOW_S) -> Cl
         return ClassicTrial(trial.index, trial.thrust_N, trial.direction, np.nan, np.nan, np.nan)
     tail = aa[tt > 0.6 * tt[-1]]
     a0 = float(np.mean(tail)) if tail.size else float(np.mean(aa))
+    if not np.isfinite(a0) or not np.all(np.isfinite(aa)):
+        return ClassicTrial(trial.index, trial.thrust_N, trial.direction, np.nan, np.nan, np.nan)
 
     def resid(x: np.ndarray) -> np.ndarray:
         return x[0] * (1.0 - np.exp(-tt / x[1])) - aa

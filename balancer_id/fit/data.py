@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from balancer_id.errors import IdentificationError
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.engine import PackedTrials, TrialInput
 from balancer_id.simulate.inputs import Thrust, Trapezoid
@@ -51,22 +52,35 @@ class TrialData:
     def from_trial(
         cls, trial: Trial, index: int | None = None, trajectory: Trapezoid | None = None
     ) -> TrialData:
-        """Build from a segmented :class:`~balancer_id.segment.trial.Trial` (step thrust)."""
+        """Build from a segmented :class:`~balancer_id.segment.trial.Trial` (step thrust).
+
+        Samples without an acceleration value (blank cells of a multi-rate export) are
+        left out; the simulation runs at the sample times that remain.
+
+        Raises
+        ------
+        IdentificationError
+            When the trial has (almost) no acceleration samples.
+        """
+        time = np.asarray(trial.time, float)
+        accel = np.asarray(trial.accel, float)
+        keep = np.isfinite(accel) & np.isfinite(time)
+        if keep.sum() < 10:
+            raise IdentificationError(
+                f"{trial.source} [{trial.recording}], trial at {trial.t_step:.2f} s: no "
+                "acceleration samples; identification needs the acceleration channel"
+            )
+        time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
         if trajectory is not None:
-            z_ref, v_ref = trajectory.evaluate(trial.time)
+            z_ref, v_ref = trajectory.evaluate(time)
         return cls(
             index=trial.index if index is None else index,
             thrust_N=float(trial.thrust_N),
             direction=trial.direction,
             t_step=float(trial.t_step),
-            input=TrialInput(
-                np.asarray(trial.time, float),
-                Thrust.step(trial.t_step, trial.thrust_N),
-                z_ref,
-                v_ref,
-            ),
-            accel=np.asarray(trial.accel, float),
+            input=TrialInput(time, Thrust.step(trial.t_step, trial.thrust_N), z_ref, v_ref),
+            accel=accel,
             source=f"{trial.source} [{trial.recording}]",
         )
 
