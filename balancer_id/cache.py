@@ -43,7 +43,26 @@ def _package_fingerprint() -> str:
 
 
 def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any]) -> str | None:
-    """The cache key of a command's result, or None when an input cannot be read."""
+    """The cache key of a command's result, or None when an input cannot be read.
+
+    Parameters
+    ----------
+    command : str
+        Name of the command (``fit``, ``diagnose`` ...); results of different commands
+        never share a key.
+    files : iterable of str or Path
+        Every file the result depends on (logs, effects files); their bytes are hashed,
+        so an edited file gives a new key.
+    options : dict
+        The command's options; hashed as sorted JSON, values that are not JSON hashed
+        through ``str``.
+
+    Returns
+    -------
+    str or None
+        The hex SHA-256 key, or None when one of ``files`` cannot be read (the result is
+        then not cached).
+    """
     h = hashlib.sha256()
     h.update(command.encode())
     h.update(_package_fingerprint().encode())
@@ -57,7 +76,19 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
 
 
 def load(key: str | None) -> dict[str, Any] | None:
-    """A cached result, or None."""
+    """A cached result, or None.
+
+    Parameters
+    ----------
+    key : str or None
+        A key from :func:`result_key`; None (an unreadable input) never hits.
+
+    Returns
+    -------
+    dict or None
+        The stored result, or None when the cache is off, holds no entry for ``key``, or
+        the entry cannot be read.
+    """
     if key is None or not enabled():
         return None
     path = cache_root() / "results" / f"{key}.json"
@@ -68,7 +99,16 @@ def load(key: str | None) -> dict[str, Any] | None:
 
 
 def store(key: str | None, result: dict[str, Any]) -> None:
-    """Keep a result (silently does nothing when the cache cannot be written)."""
+    """Keep a result (silently does nothing when the cache cannot be written).
+
+    Parameters
+    ----------
+    key : str or None
+        A key from :func:`result_key`; None stores nothing.
+    result : dict
+        The command's JSON-ready result. It is written to a temporary file and moved into
+        place, so a concurrent reader never sees half an entry.
+    """
     if key is None or not enabled():
         return
     folder = cache_root() / "results"

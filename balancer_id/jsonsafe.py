@@ -8,7 +8,20 @@ import numpy as np
 
 
 def json_ready(obj: Any) -> Any:
-    """Replace NaN/inf by None and numpy scalars and tuples by plain Python, recursively."""
+    """Replace NaN/inf by None and numpy scalars and tuples by plain Python, recursively.
+
+    Parameters
+    ----------
+    obj : object
+        A result: dicts, lists, tuples and numpy arrays are walked into; anything else is
+        returned as is (after a numpy scalar is turned into its Python value).
+
+    Returns
+    -------
+    object
+        The same structure with lists for tuples and arrays, Python scalars for numpy
+        scalars and None for non-finite floats.
+    """
     if isinstance(obj, dict):
         return {k: json_ready(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):

@@ -46,7 +46,24 @@ class LoadedLog:
 
 
 def read(path: str | Path, options: ReadOptions | None = None) -> Log:
-    """Read one log with the options' column map and gravity."""
+    """Read one log with the options' column map and gravity.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV log.
+    options : ReadOptions, optional
+        Only ``columns`` and ``g`` are used here; None uses the defaults.
+
+    Returns
+    -------
+    Log
+
+    Raises
+    ------
+    LogReadError
+        When the file cannot be read or is not a valid log.
+    """
     from balancer_id.read import read_log
 
     options = options or ReadOptions()
@@ -54,7 +71,26 @@ def read(path: str | Path, options: ReadOptions | None = None) -> Log:
 
 
 def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
-    """Find the trials of a log (raises NoTrialError when there is none)."""
+    """Find the trials of a log (raises NoTrialError when there is none).
+
+    Parameters
+    ----------
+    log : Log
+        A log from :func:`read`.
+    options : ReadOptions, optional
+        Column map, thrusts, force sign, vertical axis and gravity; None uses the
+        defaults.
+
+    Returns
+    -------
+    list of Trial
+        In time order, run by run.
+
+    Raises
+    ------
+    NoTrialError
+        When no step trial is found.
+    """
     from balancer_id.segment import find_trials
 
     options = options or ReadOptions()
@@ -68,13 +104,49 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
 
 
 def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
-    """Read one log and find its trials (raises NoTrialError when there is none)."""
+    """Read one log and find its trials (raises NoTrialError when there is none).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV log.
+    options : ReadOptions, optional
+        Column map, thrusts, force sign, vertical axis and gravity; None uses the
+        defaults.
+
+    Returns
+    -------
+    LoadedLog
+
+    Raises
+    ------
+    LogReadError
+        When the file cannot be read or is not a valid log.
+    NoTrialError
+        When no step trial is found.
+    """
     log = read(path, options)
     return LoadedLog(log, segment(log, options))
 
 
 def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None) -> list[LoadedLog]:
     """Read several logs; trials are renumbered across logs.
+
+    A log without trials is skipped as long as another log has some.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        The CSV logs, in order.
+    options : ReadOptions, optional
+        Column map, thrusts, force sign, vertical axis and gravity; None uses the
+        defaults.
+        ``thrusts`` may only be given with a single log.
+
+    Returns
+    -------
+    list of LoadedLog
+        One per log with trials; ``Trial.index`` counts over all of them.
 
     Raises
     ------
@@ -106,7 +178,21 @@ def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None)
 
 
 def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
-    """The CONTRACT.md ``inspect`` object: what was read and the trials found."""
+    """The CONTRACT.md ``inspect`` object: what was read and the trials found.
+
+    Parameters
+    ----------
+    log : Log
+        The log as read.
+    trials : sequence of Trial
+        The trials found in it (may be empty).
+
+    Returns
+    -------
+    dict
+        File, format, sample rate, sample count, gaps, one entry per run (channels,
+        time span, saturation), the reader's warnings and the trials.
+    """
     runs = []
     gaps = []
     for rec in log.recordings:

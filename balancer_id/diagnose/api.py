@@ -30,7 +30,38 @@ def diagnose(
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
 ) -> Diagnosis:
-    """Fit ``model`` and diagnose its residual (see :func:`diagnose_match`)."""
+    """Fit ``model`` and diagnose its residual (see :func:`diagnose_match`).
+
+    Parameters
+    ----------
+    sources : sequence of str or Path
+        The logs to fit; their trials are fitted together.
+    model : str, optional
+        Model spec such as ``"viscous+karnopp"``; None uses the default
+        (``variable_viscosity``).
+    fixed : mapping of str to float, optional
+        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    effects_files : sequence of str or Path
+        Python files with user effects to register next to the built-in ones.
+    registry : Registry, optional
+        The effect registry to resolve model specs in; None builds the default registry
+        plus ``effects_files``.
+    trajectory : Trapezoid, optional
+        The robot's reference motion, when a robot held the load; it makes effects with
+        an ``operating_force`` hook (``servo``) available.
+
+    Returns
+    -------
+    Diagnosis
+        The fit, its residual tests and the ranked suggestions of missing effects.
+
+    Raises
+    ------
+    IdentificationError
+        When the logs hold no step trial or the fit does not converge.
+    """
     registry = registry or default_registry(effects_files)
     result = fit(
         sources, model=model, fixed=fixed, options=options, registry=registry, trajectory=trajectory
@@ -55,7 +86,39 @@ def improve(
     trajectory: Trapezoid | None = None,
     max_steps: int = 4,
 ) -> ImproveResult:
-    """Fit the start model and add effects while they help (see :func:`improve_model`)."""
+    """Fit the start model and add effects while they help (see :func:`improve_model`).
+
+    Parameters
+    ----------
+    sources : sequence of str or Path
+        The logs to fit; their trials are fitted together.
+    start : str, optional
+        Spec of the model to start from; None uses the default (``variable_viscosity``).
+    fixed : mapping of str to float, optional
+        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    effects_files : sequence of str or Path
+        Python files with user effects to register next to the built-in ones.
+    registry : Registry, optional
+        The effect registry to resolve model specs in; None builds the default registry
+        plus ``effects_files``.
+    trajectory : Trapezoid, optional
+        The robot's reference motion, when a robot held the load; it makes effects with
+        an ``operating_force`` hook (``servo``) available.
+    max_steps : int
+        Effects to add at most.
+
+    Returns
+    -------
+    ImproveResult
+        The ladder of accepted models and the diagnosis of the last one.
+
+    Raises
+    ------
+    IdentificationError
+        When the logs hold no step trial or the fit of the start model does not converge.
+    """
     registry = registry or default_registry(effects_files)
     result = fit(
         sources, model=start, fixed=fixed, options=options, registry=registry, trajectory=trajectory
@@ -80,7 +143,37 @@ def compare(
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
 ) -> list[ModelComparison]:
-    """Fit every model in ``models`` to the same trials and compare their errors."""
+    """Fit every model in ``models`` to the same trials and compare their errors.
+
+    Parameters
+    ----------
+    sources : sequence of str or Path
+        The logs to fit; every model sees the same trials.
+    models : sequence of str
+        Model specs to compare (``"viscous"``, ``"viscous+karnopp"`` ...).
+    fixed : mapping of str to float, optional
+        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    effects_files : sequence of str or Path
+        Python files with user effects to register next to the built-in ones.
+    registry : Registry, optional
+        The effect registry to resolve model specs in; None builds the default registry
+        plus ``effects_files``.
+    trajectory : Trapezoid, optional
+        The robot's reference motion, when a robot held the load; it makes effects with
+        an ``operating_force`` hook (``servo``) available.
+
+    Returns
+    -------
+    list of ModelComparison
+        One row per model (see :func:`~balancer_id.diagnose.compare.compare_models`).
+
+    Raises
+    ------
+    ModelSpecError
+        When a spec names an unknown effect or an invalid combination.
+    """
     registry = registry or default_registry(effects_files)
     parsed = [resolve_model(spec, registry=registry) for spec in models]
     trials, _ = trial_data(sources, options, trajectory)

@@ -33,6 +33,20 @@ def candidates(model: Model, *, with_trajectory: bool = False) -> list[Candidate
 
     Effects that need a robot reference (an ``operating_force`` hook) are only tried when
     a trajectory is known.
+
+    Parameters
+    ----------
+    model : Model
+        The current model; the candidates come from its registry.
+    with_trajectory : bool
+        Whether a robot reference is known. False leaves out effects with an
+        ``operating_force`` hook (``servo``).
+
+    Returns
+    -------
+    list of Candidate
+        One per effect that can be added, in registry order. A swap (the new effect
+        excludes one already present) is kept only when it adds parameters.
     """
     out = []
     present = {e.name for e in model.effects}
@@ -80,6 +94,28 @@ def quick_refit(
     default start values, because a fit without the effect may have bent its parameters
     into a corner the effect's fit cannot leave. A user effect that raises or produces
     NaN gives a Refit with ``error`` set, naming the effect, instead of stopping the others.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The model to refit.
+    trials : sequence of TrialData
+        The trials of the current fit.
+    current : MatchResult
+        The fit of the current model; its values start the first refit.
+    start : dict of str to float
+        Start values of the new effect's parameters (from its signature check); they
+        override the current values. Values are clipped into the parameters' bounds.
+    fixed : dict of str to float, optional
+        Parameters held in the original fit; those the candidate has are held here too.
+    fresh : dict of str to float, optional
+        A second start independent of the current fit (the paper's method's ``m_a`` in
+        kg and ``T_a`` in s); None or empty refits from the current fit only.
+
+    Returns
+    -------
+    Refit
+        The refit with the lower RMSE, or one with ``match=None`` and ``error`` set.
     """
     names = candidate.model.param_names
 

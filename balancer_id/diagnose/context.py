@@ -69,7 +69,18 @@ class DiagnosisContext:
         return np.concatenate([tv.residual for tv in self.trials])
 
     def excess_rmse(self, rmse: float | None = None) -> float:
-        """Error above the noise floor: ``sqrt(max(rmse^2 - noise^2, 0))``."""
+        """Error above the noise floor: ``sqrt(max(rmse^2 - noise^2, 0))``.
+
+        Parameters
+        ----------
+        rmse : float, optional
+            An RMSE of the acceleration (m/s^2); None uses the RMSE of :attr:`match`.
+
+        Returns
+        -------
+        float
+            The part of ``rmse`` the white noise does not explain (m/s^2).
+        """
         rmse = self.match.metrics["rmse"] if rmse is None else rmse
         return float(np.sqrt(max(rmse**2 - self.noise_floor**2, 0.0)))
 
@@ -104,6 +115,21 @@ def white_noise_level(diffs: np.ndarray, clip: float = 4.0) -> float:
     variance there. Differences beyond ``clip`` standard deviations (steps of the
     residual where the model switches abruptly) are left out, iterating three times;
     at 4 sigma this biases a Gaussian estimate by less than 0.1 %.
+
+    Parameters
+    ----------
+    diffs : numpy.ndarray
+        Sample-to-sample differences of the residual (m/s^2); non-finite values are
+        ignored.
+    clip : float
+        Differences farther than ``clip`` standard deviations from their mean are left
+        out of the estimate.
+
+    Returns
+    -------
+    float
+        Standard deviation of the white noise (m/s^2), NaN with fewer than two finite
+        differences.
     """
     d = np.asarray(diffs, float)
     d = d[np.isfinite(d)]
@@ -119,7 +145,19 @@ def white_noise_level(diffs: np.ndarray, clip: float = 4.0) -> float:
 
 
 def build_context(match: MatchResult) -> DiagnosisContext:
-    """Simulate the fitted model once more with every state and cut it into trials."""
+    """Simulate the fitted model once more with every state and cut it into trials.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit to diagnose; its model is simulated at the fitted values.
+
+    Returns
+    -------
+    DiagnosisContext
+        One :class:`TrialView` per trial, the noise floor from the residual's
+        differences and the median sample interval.
+    """
     model = match.model
     values = match.values()
     pvec = np.array([values[n] for n in model.param_names])

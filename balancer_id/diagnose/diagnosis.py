@@ -192,6 +192,21 @@ def excess_drop(rmse_before: float, rmse_after: float, noise_floor: float) -> fl
     ``(rmse_before^2 - rmse_after^2) / (rmse_before^2 - min(floor, rmse_after)^2)``: the
     floor is capped at the new RMSE, so a floor estimated a little too high (it is itself
     noisy) cannot hide a real improvement.
+
+    Parameters
+    ----------
+    rmse_before : float
+        RMSE of the acceleration before the change (m/s^2).
+    rmse_after : float
+        RMSE after the change (m/s^2).
+    noise_floor : float
+        White noise level of the acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        The share removed, at most 1 and at least -10 (a change for the worse); 0 when
+        there is no error above the floor.
     """
     floor = min(noise_floor, rmse_after)
     denom = rmse_before**2 - floor**2
@@ -208,7 +223,19 @@ def _thin(xc: dict[str, object]) -> dict[str, object]:
 
 
 def is_missing(s: Suggestion) -> bool:
-    """Whether a suggestion's improvement is large enough to call its effect missing."""
+    """Whether a suggestion's improvement is large enough to call its effect missing.
+
+    Parameters
+    ----------
+    s : Suggestion
+        A scored candidate.
+
+    Returns
+    -------
+    bool
+        True when its BIC improvement exceeds :data:`BIC_THRESHOLD` and it removes more
+        than :data:`MIN_EXCESS_DROP` of the error above the noise floor.
+    """
     return s.delta_bic > BIC_THRESHOLD and s.excess_drop > MIN_EXCESS_DROP
 
 
@@ -255,7 +282,25 @@ def parameter_drift(
     match: MatchResult, trials: Sequence[TrialData], fixed: dict[str, float] | None = None
 ) -> list[dict[str, object]]:
     """Per-trial refits of the current model: slope of each parameter against thrust
-    and the up/down difference, with their significance."""
+    and the up/down difference, with their significance.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The joint fit; each trial's refit starts from its values.
+    trials : sequence of TrialData
+        The trials to refit one by one; fewer than three give no rows.
+    fixed : dict of str to float, optional
+        Parameters held at these values in every refit.
+
+    Returns
+    -------
+    list of dict
+        One row per parameter with at least three finite standard errors:
+        ``parameter``, the per-trial ``values``, the weighted ``slope_per_N`` against
+        ``|thrust|`` and its ``slope_z`` (when the thrusts differ), and ``up_minus_down``
+        (when both directions occur).
+    """
     from balancer_id.fit.api import fit_each_trial
 
     if len(trials) < 3:

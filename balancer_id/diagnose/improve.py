@@ -83,7 +83,27 @@ def cross_validated_rmse(
     fixed: Mapping[str, float] | None = None,
     folds: int = CV_FOLDS,
 ) -> float | None:
-    """RMSE on held-out trials: fit on the others, predict the fold, over K folds."""
+    """RMSE on held-out trials: fit on the others, predict the fold, over K folds.
+
+    Parameters
+    ----------
+    model : Model
+        The model to cross-validate.
+    trials : sequence of TrialData
+        All trials; trial ``i`` is held out in fold ``i % folds``.
+    start : mapping of str to float
+        Start values of every fold's fit (usually the joint fit).
+    fixed : mapping of str to float, optional
+        Parameters held at these values.
+    folds : int
+        Number of folds K (at most the number of trials).
+
+    Returns
+    -------
+    float or None
+        RMSE of the predicted acceleration over all held-out samples (m/s^2), or None
+        with fewer than three trials or when a fold's fit fails.
+    """
     n = len(trials)
     if n < 3:
         return None

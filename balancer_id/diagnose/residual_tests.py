@@ -12,7 +12,20 @@ ACF_LAGS = 25
 
 
 def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
-    """Sample autocorrelation of ``x`` at lags ``1..max_lag``."""
+    """Sample autocorrelation of ``x`` at lags ``1..max_lag``.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One series (a trial's residual); its mean is removed first.
+    max_lag : int
+        Largest lag (samples).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``max_lag`` autocorrelations; zeros for a constant series.
+    """
     x = np.asarray(x, float) - np.mean(x)
     denom = float(x @ x)
     if denom == 0:
@@ -25,6 +38,20 @@ def whiteness(ctx: DiagnosisContext, max_lag: int = ACF_LAGS) -> dict[str, objec
 
     The autocorrelation is averaged over trials (each trial's residual is its own series),
     so trial boundaries do not count as correlation.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+    max_lag : int
+        Lags tested (samples); trials shorter than ``3 * max_lag`` are left out.
+
+    Returns
+    -------
+    dict
+        ``n`` (samples used), ``acf``, ``band`` (the 95 % band ``1.96 / sqrt(n)``),
+        ``outside_band`` (lags beyond it), ``ljung_box_q`` and ``ljung_box_p``; all but
+        ``n`` and ``acf`` are None when no trial is long enough.
     """
     from scipy.stats import chi2
 
@@ -63,6 +90,19 @@ def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str
     For a step input this is the residual averaged over trials (sign-corrected by the
     thrust) against the time since the onset: its peak says when after the step the model
     is wrong, and a peak within the first lag with the model leading points to dead time.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+    max_lag_s : float
+        Latest time after the onset to look at (s); the lags start 0.3 s before the onset.
+
+    Returns
+    -------
+    dict
+        ``lag_s`` and ``mean_residual`` (m/s^2) per lag, the Bonferroni-corrected 95 %
+        ``band``, ``peak_lag_s``, ``peak_value`` and whether the peak is ``significant``.
     """
     dt = ctx.dt
     n_lag = round(max_lag_s / dt)
@@ -96,7 +136,23 @@ def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str
 
 
 def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, object]:
-    """Welch spectrum of the residual; narrow peaks above ``factor`` x the median level."""
+    """Welch spectrum of the residual; narrow peaks above ``factor`` x the median level.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial; trials shorter than 128 samples are
+        left out.
+    factor : float
+        How far above the median spectral level a peak must rise to count.
+
+    Returns
+    -------
+    dict
+        ``peaks``: up to five ``{"frequency_hz", "ratio_to_median"}``, strongest first
+        (the three lowest bins are ignored); ``frequency_hz`` and ``psd``: the spectrum
+        averaged over trials.
+    """
     from scipy.signal import find_peaks, welch
 
     fs = 1.0 / ctx.dt
@@ -122,7 +178,19 @@ def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, obje
 
 
 def regime_table(ctx: DiagnosisContext) -> list[dict[str, object]]:
-    """Residual mean and RMS per regime, per direction and per operating-force bin."""
+    """Residual mean and RMS per regime, per direction and per operating-force bin.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    list of dict
+        Rows of ``group``, ``label``, ``n``, ``mean``, ``rms`` (m/s^2) and
+        ``rms_over_noise``; groups with fewer than five samples are left out.
+    """
     rows: list[dict[str, object]] = []
 
     def add(group: str, label: str, parts: list[np.ndarray]) -> None:
@@ -154,7 +222,20 @@ def regime_table(ctx: DiagnosisContext) -> list[dict[str, object]]:
 
 
 def state_correlations(ctx: DiagnosisContext) -> dict[str, float]:
-    """Correlation of the residual with the simulated states during motion."""
+    """Correlation of the residual with the simulated states during motion.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    dict of str to float
+        Pearson correlation with ``velocity``, ``position``, ``drive force`` and
+        ``time`` (signed by the thrust), over the samples after the onsets; a state
+        that does not vary is left out.
+    """
     res, states = [], {"velocity": [], "position": [], "drive force": [], "time": []}
     for tv in ctx.trials:
         m = tv.t >= 0
@@ -173,7 +254,23 @@ def state_correlations(ctx: DiagnosisContext) -> dict[str, float]:
 
 
 def worst_windows(ctx: DiagnosisContext, width_s: float = 0.5, count: int = 3) -> list[dict]:
-    """The time windows with the largest residual RMS (trial, start, end, rmse)."""
+    """The time windows with the largest residual RMS (trial, start, end, rmse).
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+    width_s : float
+        Length of a window (s).
+    count : int
+        Windows to return at most; each trial contributes its worst window only.
+
+    Returns
+    -------
+    list of dict
+        ``trial``, ``t_start`` and ``t_end`` (s, log time) and ``rmse`` (m/s^2), worst
+        first.
+    """
     found = []
     for tv in ctx.trials:
         w = max(round(width_s / ctx.dt), 1)

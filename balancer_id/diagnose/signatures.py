@@ -37,7 +37,19 @@ def _clip01(x: float) -> float:
 
 
 def check_bias(ctx: DiagnosisContext) -> Signature:
-    """Residual mean at rest differs from zero, with the same sign in every trial."""
+    """Residual mean at rest differs from zero, with the same sign in every trial.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start value of
+        ``b``: the mean residual at rest (m/s^2).
+    """
     rest = [tv.residual[tv.regimes["rest"]] for tv in ctx.trials]
     rest = [r for r in rest if r.size >= 5]
     if not rest:
@@ -56,7 +68,19 @@ def check_bias(ctx: DiagnosisContext) -> Signature:
 
 
 def check_karnopp(ctx: DiagnosisContext) -> Signature:
-    """A residual opposing the motion in steady motion, and a thrust that moves nothing."""
+    """A residual opposing the motion in steady motion, and a thrust that moves nothing.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start value of
+        ``f_s``: the friction force the residual implies (N, at most 20).
+    """
     parts, thrust, accel, accel_model = [], [], [], []
     for tv in ctx.trials:
         m = tv.regimes["steady"]
@@ -96,7 +120,20 @@ def check_karnopp(ctx: DiagnosisContext) -> Signature:
 
 
 def check_speed_limit(ctx: DiagnosisContext) -> Signature:
-    """The measured speed plateaus at one value across trials while the model speeds on."""
+    """The measured speed plateaus at one value across trials while the model speeds on.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start value of
+        ``v_max``: the measured plateau speed (m/s), or above the model's top speed
+        when there is no plateau.
+    """
     plateaus, gaps = [], []
     for tv in ctx.trials:
         m = tv.t >= 0
@@ -130,7 +167,19 @@ def check_speed_limit(ctx: DiagnosisContext) -> Signature:
 
 
 def check_dead_time(ctx: DiagnosisContext) -> Signature:
-    """The model leads the measurement just after the onset (input cross-correlation)."""
+    """The model leads the measurement just after the onset (input cross-correlation).
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start value of
+        ``tau_d``: the median lag of the measurement behind the model (s).
+    """
     shifts = []
     for tv in ctx.trials:
         m = (tv.t > -0.2) & (tv.t < 1.0)
@@ -156,7 +205,19 @@ def check_dead_time(ctx: DiagnosisContext) -> Signature:
 
 
 def check_asymmetric_lag(ctx: DiagnosisContext) -> Signature:
-    """The rise is too fast one way and too slow the other."""
+    """The rise is too fast one way and too slow the other.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start values of
+        ``T_up`` and ``T_down``: the current ``T_a`` (s).
+    """
     by_dir: dict[str, list[float]] = {"up": [], "down": []}
     for tv in ctx.trials:
         m = tv.regimes["rise"]
@@ -181,7 +242,19 @@ def check_asymmetric_lag(ctx: DiagnosisContext) -> Signature:
 
 
 def check_variable_viscosity(ctx: DiagnosisContext) -> Signature:
-    """The decay rate depends on the thrust: a constant viscosity over- or under-damps."""
+    """The decay rate depends on the thrust: a constant viscosity over- or under-damps.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers, and the start value
+        ``A = 0.2``.
+    """
     rows = []
     for tv in ctx.trials:
         m = tv.regimes["steady"]
@@ -200,7 +273,18 @@ def check_variable_viscosity(ctx: DiagnosisContext) -> Signature:
 
 
 def check_servo(ctx: DiagnosisContext) -> Signature:
-    """A narrow peak in the residual spectrum: an oscillation a person's log does not show."""
+    """A narrow peak in the residual spectrum: an oscillation a person's log does not show.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers; no start values.
+    """
     from balancer_id.diagnose.residual_tests import spectrum_peaks
 
     peaks = spectrum_peaks(ctx)["peaks"]
@@ -215,7 +299,19 @@ def check_servo(ctx: DiagnosisContext) -> Signature:
 
 
 def check_generic(ctx: DiagnosisContext) -> Signature:
-    """No specific signature: report where the residual lives (states it follows)."""
+    """No specific signature: report where the residual lives (states it follows).
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+        Strength in [0, 1], the evidence in words and numbers (the state the
+        residual follows best); no start values.
+    """
     corr = state_correlations(ctx)
     if not corr:
         return Signature(0.0, "no motion to correlate with")
@@ -240,7 +336,26 @@ SIGNATURES: dict[str, Callable[[DiagnosisContext], Signature]] = {
 
 
 def signature_of(effect: type, ctx: DiagnosisContext) -> Signature:
-    """Run the effect's own check (user ``signature`` classmethod, built-in, or generic)."""
+    """Run the effect's own check (user ``signature`` classmethod, built-in, or generic).
+
+    Parameters
+    ----------
+    effect : type
+        An :class:`~balancer_id.model.effect.Effect` subclass. Its ``signature(ctx)``
+        classmethod is used when it has one; otherwise the built-in check of its name in
+        :data:`SIGNATURES`, or :func:`check_generic`.
+    ctx : DiagnosisContext
+        The fit and its residuals, trial by trial.
+
+    Returns
+    -------
+    Signature
+
+    Raises
+    ------
+    TypeError
+        When an effect's own ``signature`` returns something other than a Signature.
+    """
     own = getattr(effect, "signature", None)
     if callable(own):
         sig = own(ctx)

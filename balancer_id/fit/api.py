@@ -23,7 +23,28 @@ def resolve_model(
     effects_files: Sequence[str | Path] = (),
     registry: Registry | None = None,
 ) -> Model:
-    """A Model from a spec string (loading user effect files) or a ready Model."""
+    """A Model from a spec string (loading user effect files) or a ready Model.
+
+    Parameters
+    ----------
+    model : str or Model or None
+        A spec such as ``"viscous+karnopp"``, a ready Model (returned as is), or None for
+        the default spec (``variable_viscosity``).
+    effects_files : sequence of str or Path
+        Python files with user effects; only read when ``registry`` is None.
+    registry : Registry, optional
+        The registry to resolve effect names in; None builds the default registry plus
+        ``effects_files``.
+
+    Returns
+    -------
+    Model
+
+    Raises
+    ------
+    ModelSpecError
+        When the spec names an unknown effect or an invalid combination.
+    """
     if isinstance(model, Model):
         return model
     registry = registry or default_registry(effects_files)
@@ -35,7 +56,25 @@ def trial_data(
     options: ReadOptions | None = None,
     trajectory: Trapezoid | None = None,
 ) -> tuple[list[TrialData], list[str]]:
-    """Turn log paths, segmented trials or ready TrialData into TrialData (renumbered)."""
+    """Turn log paths, segmented trials or ready TrialData into TrialData (renumbered).
+
+    Parameters
+    ----------
+    sources : sequence of str, Path, Trial or TrialData
+        Log paths (read and segmented, in order), segmented trials and ready TrialData,
+        mixed freely. The trials of the logs come first, then the others in order.
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    trajectory : Trapezoid, optional
+        The robot's reference move, evaluated at each trial's sample times (``servo``).
+
+    Returns
+    -------
+    trials : list of TrialData
+        All trials, their ``index`` renumbered from 0.
+    names : list of str
+        The paths of the logs read.
+    """
     paths = [s for s in sources if isinstance(s, str | Path)]
     data: list[TrialData] = []
     names: list[str] = []
@@ -145,7 +184,24 @@ def fit_each_trial(
     start: Mapping[str, float],
     fixed: Mapping[str, float] | None = None,
 ) -> list[PerTrialFit]:
-    """Fit ``model`` to each trial alone, starting from the joint fit."""
+    """Fit ``model`` to each trial alone, starting from the joint fit.
+
+    Parameters
+    ----------
+    model : Model
+        The model to fit.
+    trials : sequence of TrialData
+        The trials; each is fitted on its own.
+    start : mapping of str to float
+        Start values of every fit (the joint fit's values).
+    fixed : mapping of str to float, optional
+        Parameters held at these values.
+
+    Returns
+    -------
+    list of PerTrialFit
+        One per trial whose fit succeeded; a trial that cannot be fitted is left out.
+    """
     out = []
     for td in trials:
         try:

@@ -100,7 +100,25 @@ class ClassicResult:
 
 
 def first_order_step(trial: TrialData, window_s: float = CLASSIC_WINDOW_S) -> ClassicTrial:
-    """Fit ``a_zc (1 - exp(-(t - t0)/T))`` to the window after the onset of one trial."""
+    """Fit ``a_zc (1 - exp(-(t - t0)/T))`` to the window after the onset of one trial.
+
+    The median acceleration before the onset (at least five samples) is taken as the
+    sensor offset and removed first.
+
+    Parameters
+    ----------
+    trial : TrialData
+        One step trial.
+    window_s : float
+        Length of the window after the onset that is fitted (s).
+
+    Returns
+    -------
+    ClassicTrial
+        The steady acceleration ``a_zc`` (m/s^2), the time constant ``T_a`` (s) and the
+        settling time ``3 T_a`` (s); NaN when the window holds fewer than five samples
+        or non-finite values.
+    """
     t, a = trial.time, trial.accel
     rest = t < trial.t_step
     offset = float(np.median(a[rest])) if rest.sum() >= 5 else 0.0

@@ -57,6 +57,20 @@ class TrialData:
         Samples without an acceleration value (blank cells of a multi-rate export) are
         left out; the simulation runs at the sample times that remain.
 
+        Parameters
+        ----------
+        trial : Trial
+            A segmented trial.
+        index : int, optional
+            Index to give the trial; None keeps ``trial.index``.
+        trajectory : Trapezoid, optional
+            The robot's reference move, evaluated at the sample times (``servo``).
+
+        Returns
+        -------
+        TrialData
+            Driven by a step of ``trial.thrust_N`` (N) at ``trial.t_step`` (s).
+
         Raises
         ------
         IdentificationError
@@ -86,7 +100,21 @@ class TrialData:
 
 
 def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:
-    """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other."""
+    """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials; only ``|thrust_N|`` matters.
+    rel_tol : float
+        Relative tolerance: a magnitude within ``rel_tol`` above the last level found
+        belongs to that level.
+
+    Returns
+    -------
+    list of float
+        The lowest magnitude of each level (N), ascending.
+    """
     levels: list[float] = []
     for f in sorted(abs(t.thrust_N) for t in trials):
         if not levels or f > levels[-1] * (1 + rel_tol):
@@ -104,7 +132,19 @@ class FitData:
 
     @classmethod
     def build(cls, trials: Sequence[TrialData]) -> FitData:
-        """Pack ``trials`` (in order)."""
+        """Pack ``trials`` (in order).
+
+        Parameters
+        ----------
+        trials : sequence of TrialData
+            The trials to fit together.
+
+        Returns
+        -------
+        FitData
+            The trials, their inputs packed for :meth:`PackedTrials.run` and the
+            measured accelerations concatenated (m/s^2).
+        """
         trials = list(trials)
         return cls(
             trials=trials,

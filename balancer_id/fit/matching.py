@@ -119,6 +119,11 @@ def match_trials(
         Seed of the extra starts.
     max_nfev : int
         Budget of model evaluations per start.
+    diff_step : float, optional
+        Relative step of the finite-difference Jacobian, passed to
+        :func:`scipy.optimize.least_squares` (the actual step is ``x * diff_step``);
+        None uses its default, the square root of the machine epsilon for the two-point
+        differences used here.
 
     Returns
     -------

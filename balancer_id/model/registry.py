@@ -41,6 +41,17 @@ class Registry:
     def add(self, cls: type[Effect], *, origin: str = "user") -> None:
         """Register one effect class.
 
+        Registering the same class again is allowed; it only updates the recorded origin.
+
+        Parameters
+        ----------
+        cls : type
+            An :class:`~balancer_id.model.effect.Effect` subclass; its definition is
+            checked with :meth:`~balancer_id.model.effect.Effect.validate_definition`.
+        origin : str
+            Where it came from (``built-in``, ``entry point ...``, a file path); shown in
+            ``balancer-id effects`` and in error messages.
+
         Raises
         ------
         ModelSpecError
@@ -77,7 +88,22 @@ class Registry:
         return list(self._effects)
 
     def origin(self, name: str) -> str:
-        """Where an effect came from (``built-in``, ``entry point ...``, a file path)."""
+        """Where an effect came from (``built-in``, ``entry point ...``, a file path).
+
+        Parameters
+        ----------
+        name : str
+            Spec name of a registered effect.
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        KeyError
+            When no effect of that name is registered.
+        """
         return self._origin[name]
 
     def load_entry_points(self) -> None:
@@ -121,6 +147,21 @@ def load_effects_file(path: str | Path) -> list[type[Effect]]:
 
     The module is imported under a name derived from the file's absolute path, so the
     simulator's compiled kernels can import it again in another process.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.py`` file.
+
+    Returns
+    -------
+    list of Effect subclasses
+        The subclasses defined in the file itself (not those it imports).
+
+    Raises
+    ------
+    EffectError
+        When the file is missing, fails to import or defines no effect.
     """
     file = Path(path).resolve()
     if not file.is_file():
@@ -143,13 +184,40 @@ def load_effects_file(path: str | Path) -> list[type[Effect]]:
 
 
 def module_name_for(file: Path) -> str:
-    """The import name used for a user effects file (stable across processes)."""
+    """The import name used for a user effects file (stable across processes).
+
+    Parameters
+    ----------
+    file : Path
+        The file's absolute path.
+
+    Returns
+    -------
+    str
+        ``balancer_id_user_effects_<stem>_<hash>``, where the hash is taken from the path.
+    """
     digest = hashlib.sha1(str(file).encode()).hexdigest()[:12]
     return f"balancer_id_user_effects_{file.stem}_{digest}"
 
 
 def import_file_module(file: Path):
-    """Import a Python file by path once per process (cached in ``sys.modules``)."""
+    """Import a Python file by path once per process (cached in ``sys.modules``).
+
+    Parameters
+    ----------
+    file : Path
+        The file's absolute path; it is imported under :func:`module_name_for`.
+
+    Returns
+    -------
+    module
+        The imported module.
+
+    Raises
+    ------
+    EffectError
+        When the file cannot be imported; it is then not left in ``sys.modules``.
+    """
     name = module_name_for(file)
     if name in sys.modules:
         return sys.modules[name]
@@ -167,7 +235,24 @@ def import_file_module(file: Path):
 
 
 def default_registry(effects_files: Iterable[str | Path] = ()) -> Registry:
-    """The built-ins, the installed plug-ins and the given effect files."""
+    """The built-ins, the installed plug-ins and the given effect files.
+
+    Parameters
+    ----------
+    effects_files : iterable of str or Path
+        User effects files to load, in order.
+
+    Returns
+    -------
+    Registry
+
+    Raises
+    ------
+    EffectError
+        When a plug-in or an effects file fails to load.
+    ModelSpecError
+        When an effect is malformed or its name is already taken.
+    """
     registry = Registry()
     registry.load_entry_points()
     for path in effects_files:

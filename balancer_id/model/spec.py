@@ -57,7 +57,22 @@ class Model:
         return tuple(p.name for p in self.params)
 
     def param(self, name: str) -> Param:
-        """Look up one parameter by name."""
+        """Look up one parameter by name.
+
+        Parameters
+        ----------
+        name : str
+            A parameter name of the model (``m_a``, ``D0`` ...).
+
+        Returns
+        -------
+        Param
+
+        Raises
+        ------
+        ModelSpecError
+            When the model has no parameter of that name (the message lists those it has).
+        """
         for p in self.params:
             if p.name == name:
                 return p
@@ -66,7 +81,17 @@ class Model:
         )
 
     def has(self, name: str) -> bool:
-        """Whether the model includes the effect ``name``."""
+        """Whether the model includes the effect ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Spec name of an effect (``karnopp``); ``base`` is not counted as an effect.
+
+        Returns
+        -------
+        bool
+        """
         return any(e.name == name for e in self.effects)
 
     def defaults(self) -> dict[str, float]:
@@ -75,6 +100,17 @@ class Model:
 
     def resolve(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Complete ``values`` with defaults, refusing unknown names and bad settings.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter name -> value (SI units); parameters not given take their start
+            value.
+
+        Returns
+        -------
+        dict of str to float
+            Every parameter of the model, in :attr:`param_names` order.
 
         Raises
         ------
@@ -91,7 +127,22 @@ class Model:
         return full
 
     def vector(self, values: Mapping[str, float]) -> list[float]:
-        """Values in :attr:`param_names` order (missing names take their defaults)."""
+        """Values in :attr:`param_names` order (missing names take their defaults).
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            Parameter name -> value (SI units).
+
+        Returns
+        -------
+        list of float
+
+        Raises
+        ------
+        ModelSpecError
+            When a name is not a parameter of the model or a value is out of range.
+        """
         full = self.resolve(values)
         return [full[n] for n in self.param_names]
 
@@ -106,6 +157,17 @@ class Model:
             Start values (defaults elsewhere).
         fixed : sequence of str
             Names held constant (``vary=False``).
+
+        Returns
+        -------
+        lmfit.Parameters
+            One parameter per :attr:`params` entry, bounded by its ``min`` and ``max``.
+
+        Raises
+        ------
+        ModelSpecError
+            When a name in ``values`` is not a parameter of the model or a value is out
+            of range.
         """
         import lmfit
 
@@ -123,7 +185,19 @@ class Model:
         return parse_model("+".join([*names, extra]), self.registry)
 
     def without(self, name: str) -> Model:
-        """The same model without the effect ``name``."""
+        """The same model without the effect ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Spec name of the effect to drop; a name the model does not have changes
+            nothing.
+
+        Returns
+        -------
+        Model
+            A new model on the same registry.
+        """
         return Model(tuple(e for e in self.effects if e.name != name), self.registry)
 
 

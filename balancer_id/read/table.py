@@ -49,7 +49,19 @@ class Table:
     dropped: dict[int, tuple[int, str]] = field(default_factory=dict)
 
     def line_of(self, row: int | np.integer) -> int:
-        """Return the file line number of data row ``row``."""
+        """Return the file line number of data row ``row``.
+
+        Parameters
+        ----------
+        row : int
+            Index of a row of the table (0 for the first data row).
+
+        Returns
+        -------
+        int
+            ``first_line + row``: the line of the file the row was read from, as error
+            messages number it.
+        """
         return self.first_line + int(row)
 
 

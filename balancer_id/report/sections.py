@@ -15,7 +15,21 @@ if TYPE_CHECKING:
 
 
 def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
-    """Measured vs simulated per trial with every compared model overlaid, residuals beneath."""
+    """Measured vs simulated per trial with every compared model overlaid, residuals beneath.
+
+    Parameters
+    ----------
+    results : sequence of ModelComparison
+        The compared models, all fitted to the same trials (those of the first are
+        plotted).
+    path : str or Path, optional
+        Write a PNG here instead of returning the figure.
+
+    Returns
+    -------
+    Figure or Path
+        The matplotlib figure, or ``path`` once written.
+    """
     from balancer_id.report.plots import model_curves, plot_trials
 
     trials = results[0].match.data.trials
@@ -24,7 +38,18 @@ def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None 
 
 
 def diagnosis_section(diagnosis: Diagnosis) -> Section:
-    """The verdict, the residual tests and the ranked suggestions."""
+    """The verdict, the residual tests and the ranked suggestions.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        What :func:`~balancer_id.diagnose.diagnosis.diagnose_match` returned.
+
+    Returns
+    -------
+    Section
+        The "Diagnosis" section of a report.
+    """
     d = diagnosis.to_dict()
     m = d["metrics"]
     tests = d["residual_tests"]
@@ -102,7 +127,19 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
 
 
 def improve_section(result: ImproveResult) -> Section:
-    """The ladder of models and the error falling step by step."""
+    """The ladder of models and the error falling step by step.
+
+    Parameters
+    ----------
+    result : ImproveResult
+        What :func:`~balancer_id.diagnose.improve.improve_model` returned.
+
+    Returns
+    -------
+    Section
+        The "Improving the model" section: the ladder table, the error plot, the final
+        model and the changes not taken.
+    """
     from balancer_id.report.plots import plot_error_ladder
 
     d = result.to_dict()
@@ -127,7 +164,27 @@ def improve_section(result: ImproveResult) -> Section:
 
 
 def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequence[Path]) -> Path:
-    """The fit of the final model, the ladder and the final diagnosis."""
+    """The fit of the final model, the ladder and the final diagnosis.
+
+    Parameters
+    ----------
+    result : ImproveResult
+        What :func:`~balancer_id.diagnose.improve.improve_model` returned.
+    path : str or Path
+        The report file; ``.html``/``.htm`` or ``.pdf``.
+    inputs : sequence of Path
+        The logs fitted; listed in the report and never overwritten by it.
+
+    Returns
+    -------
+    Path
+        ``path``, written whole.
+
+    Raises
+    ------
+    UsageError
+        Another suffix, a missing directory, or ``path`` is one of the input logs.
+    """
     from balancer_id.fit.classic import paper_method
     from balancer_id.fit.result import FitResult
     from balancer_id.report.document import write_fit_report
@@ -151,7 +208,40 @@ def write_full_report(
     effects_files: Sequence[str | Path] = (),
     trajectory: Trapezoid | None = None,
 ) -> Path:
-    """Identify, diagnose and write everything in one report (``balancer-id report``)."""
+    """Identify, diagnose and write everything in one report (``balancer-id report``).
+
+    The fit includes the per-trial fits; the report holds the fit's sections and the
+    diagnosis.
+
+    Parameters
+    ----------
+    logs : sequence of Path
+        The logs to identify from; their trials are fitted together.
+    out : str or Path
+        The report file; ``.html``/``.htm`` or ``.pdf``. It is checked before any fitting.
+    model : str, optional
+        Model spec; None uses the default (``variable_viscosity``).
+    fixed : mapping of str to float, optional
+        Parameters held at the given values instead of fitted (SI units).
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    effects_files : sequence of str or Path
+        Python files with user effects.
+    trajectory : Trapezoid, optional
+        The robot's reference move, when a robot held the load (``servo``).
+
+    Returns
+    -------
+    Path
+        ``out``, written whole.
+
+    Raises
+    ------
+    UsageError
+        A bad report path (suffix, directory, or one of the logs).
+    IdentificationError
+        When the logs hold no step trial or the fit does not converge.
+    """
     from balancer_id.diagnose.diagnosis import diagnose_match
     from balancer_id.fit.api import fit
     from balancer_id.model.registry import default_registry

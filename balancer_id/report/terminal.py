@@ -17,7 +17,16 @@ def _fmt(x: Any, digits: int = 4) -> str:
 
 
 def print_inspection(console: Console, info: dict[str, Any]) -> None:
-    """Print what ``inspect`` read and the trials it found."""
+    """Print what ``inspect`` read and the trials it found.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    info : dict
+        The CONTRACT.md ``inspect`` object, as
+        :func:`~balancer_id.pipeline.describe_log` returns it.
+    """
     console.print(
         f"[bold]{info['file']}[/bold]  format={info['format']}  "
         f"rate={_fmt(info['sample_rate_hz'])} Hz  samples={info['n_samples']}  "
@@ -48,7 +57,16 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
 
 
 def print_fit(console: Console, result: dict[str, Any]) -> None:
-    """Print a fit result: parameters with uncertainties, the paper's method, errors."""
+    """Print a fit result: parameters with uncertainties, the paper's method, errors.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    result : dict
+        The CONTRACT.md ``fit`` object (:meth:`FitResult.to_dict`); the per-trial table
+        and the robot coupling are printed when it holds them.
+    """
     table = Table(title=f"model {result['model']}: simulation matching over all trials")
     for col in ("parameter", "value", "std. error", "95% interval", "unit", "note"):
         table.add_column(col)
@@ -105,7 +123,15 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
 
 
 def print_effects(console: Console, effects: list[dict[str, Any]]) -> None:
-    """Print the effect library."""
+    """Print the effect library.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    effects : list of dict
+        One :meth:`Effect.describe` dict per effect, each with an added ``origin``.
+    """
     table = Table(title="effects (join with '+' in --model; the base is always present)")
     for col in ("effect", "parameters", "meaning", "origin"):
         table.add_column(col)
@@ -118,7 +144,16 @@ def print_effects(console: Console, effects: list[dict[str, Any]]) -> None:
 
 
 def print_compare(console: Console, result: dict[str, Any]) -> None:
-    """Print the models side by side, overall and per trial, with their worst windows."""
+    """Print the models side by side, overall and per trial, with their worst windows.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    result : dict
+        The CONTRACT.md ``compare`` object: ``{"models": [...]}``, one
+        :meth:`ModelComparison.to_dict` per model, all on the same trials.
+    """
     models = result["models"]
     table = Table(title="models compared on the same trials")
     for col in ("model", "RMSE (m/s^2)", "fit %", "AIC", "BIC", "worst window"):
@@ -149,7 +184,15 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
 
 
 def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
-    """Print the verdict, the residual tests and the ranked suggestions."""
+    """Print the verdict, the residual tests and the ranked suggestions.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    result : dict
+        The CONTRACT.md ``diagnose`` object (:meth:`Diagnosis.to_dict`).
+    """
     colour = "green" if result["verdict"] == "adequate" else "red"
     m = result["metrics"]
     console.print(
@@ -207,7 +250,15 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
 
 
 def print_improve(console: Console, result: dict[str, Any]) -> None:
-    """Print the ladder of models and the final verdict."""
+    """Print the ladder of models and the final verdict.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print (the CLI's stdout console).
+    result : dict
+        The CONTRACT.md ``improve`` object (:meth:`ImproveResult.to_dict`).
+    """
     table = Table(title="improve: effects added while BIC and held-out trials improve")
     for col in ("step", "model", "added", "RMSE", "held-out RMSE", "BIC"):
         table.add_column(col)

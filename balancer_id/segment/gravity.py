@@ -46,7 +46,19 @@ class VerticalMotion:
     sign_known: bool = True
 
     def flipped(self, why: str) -> VerticalMotion:
-        """Return the same motion with the up direction reversed, noting ``why``."""
+        """Return the same motion with the up direction reversed, noting ``why``.
+
+        Parameters
+        ----------
+        why : str
+            The reason for the flip (a force step, signed thrusts), appended to
+            :attr:`method`.
+
+        Returns
+        -------
+        VerticalMotion
+            ``accel`` and ``up`` negated, the same rest mask, and ``sign_known`` True.
+        """
         return VerticalMotion(-self.accel, -self.up, self.rest, f"{self.method}; {why}", True)
 
 
@@ -113,7 +125,18 @@ def vertical_motion(
 
 
 def check_vertical(vertical: str) -> None:
-    """Raise :class:`UsageError` unless ``vertical`` is one of :data:`VERTICAL_CHOICES`."""
+    """Raise :class:`UsageError` unless ``vertical`` is one of :data:`VERTICAL_CHOICES`.
+
+    Parameters
+    ----------
+    vertical : str
+        The ``--vertical`` choice: ``"auto"``, ``"x"``, ``"y"`` or ``"z"``.
+
+    Raises
+    ------
+    UsageError
+        For any other value.
+    """
     if vertical not in VERTICAL_CHOICES:
         raise UsageError(f"vertical must be one of {', '.join(VERTICAL_CHOICES)}, not {vertical!r}")
 

@@ -27,12 +27,34 @@ def n_samples(seconds: float, rate_hz: float, minimum: int = 1) -> int:
 
 
 def odd(n: int) -> int:
-    """Return ``n`` if odd, else ``n + 1`` (filter kernels need a centre sample)."""
+    """Return ``n`` if odd, else ``n + 1`` (filter kernels need a centre sample).
+
+    Parameters
+    ----------
+    n : int
+        A kernel length (samples).
+
+    Returns
+    -------
+    int
+    """
     return n if n % 2 else n + 1
 
 
 def rate_of(time: np.ndarray) -> float:
-    """Return the sample rate (Hz) from the median time step of ``time``."""
+    """Return the sample rate (Hz) from the median time step of ``time``.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times (s); non-finite and non-positive steps (gaps in the record, repeats)
+        are ignored.
+
+    Returns
+    -------
+    float
+        ``1 / median(dt)`` (Hz), NaN when there is no positive step.
+    """
     dt = np.diff(time)
     dt = dt[np.isfinite(dt) & (dt > 0)]
     if dt.size == 0:
@@ -84,7 +106,20 @@ def smooth(x: np.ndarray, size: int) -> np.ndarray:
 
 
 def local_std(x: np.ndarray, size: int) -> np.ndarray:
-    """Centred moving standard deviation over ``size`` samples."""
+    """Centred moving standard deviation over ``size`` samples.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal.
+    size : int
+        Window length (samples); the edges repeat the end samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        The standard deviation around each sample, same length as ``x``.
+    """
     x = np.asarray(x, dtype=float)
     m = ndimage.uniform_filter1d(x, size=size, mode="nearest")
     m2 = ndimage.uniform_filter1d(x * x, size=size, mode="nearest")
@@ -156,7 +191,22 @@ def block_noise(x: np.ndarray, block: int, floor: float) -> float:
 
 
 def block_range(x: np.ndarray, block: int) -> float:
-    """Typical peak-to-peak range of a detrended block (covers noise and quantization)."""
+    """Typical peak-to-peak range of a detrended block (covers noise and quantization).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        One-dimensional signal.
+    block : int
+        Block length (samples); with fewer than ``block`` samples, or a block shorter
+        than 3, the range of the whole signal is returned.
+
+    Returns
+    -------
+    float
+        The median over blocks of the detrended block's peak-to-peak range (same unit as
+        ``x``), 0 for an empty signal.
+    """
     x = np.asarray(x, dtype=float)
     if x.size < block or block < 3:
         return float(np.ptp(x)) if x.size else 0.0
@@ -168,6 +218,17 @@ def clipped_mean(x: np.ndarray, half_width: float) -> float:
 
     Unlike a median or a trimmed mean it keeps the sub-quantum information that noise
     dithers into a coarsely quantized signal, while spikes weigh at most ``half_width``.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The samples of a stretch.
+    half_width : float
+        Half-width of the clip around the median (same unit as ``x``).
+
+    Returns
+    -------
+    float
     """
     x = np.asarray(x, dtype=float)
     if x.size == 0:
@@ -177,7 +238,17 @@ def clipped_mean(x: np.ndarray, half_width: float) -> float:
 
 
 def level(x: np.ndarray) -> float:
-    """Robust level of a stretch: the 20 %-trimmed mean (NaN when empty)."""
+    """Robust level of a stretch: the 20 %-trimmed mean (NaN when empty).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The samples of a stretch; 20 % are cut from each end before averaging.
+
+    Returns
+    -------
+    float
+    """
     x = np.asarray(x, dtype=float)
     if x.size == 0:
         return float("nan")
@@ -185,7 +256,18 @@ def level(x: np.ndarray) -> float:
 
 
 def spread(x: np.ndarray) -> float:
-    """Robust standard deviation of a stretch (IQR / 1.349; 0 when shorter than 2)."""
+    """Robust standard deviation of a stretch (IQR / 1.349; 0 when shorter than 2).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The samples of a stretch.
+
+    Returns
+    -------
+    float
+        Equal to the standard deviation for Gaussian samples, unmoved by a few outliers.
+    """
     x = np.asarray(x, dtype=float)
     if x.size < 2:
         return 0.0

@@ -147,7 +147,14 @@ class Detection:
     rejected: dict[str, int] = field(default_factory=dict)
 
     def reject(self, reason: str) -> None:
-        """Count one candidate dropped for ``reason``."""
+        """Count one candidate dropped for ``reason``.
+
+        Parameters
+        ----------
+        reason : str
+            Why the candidate step was dropped; a key of :attr:`rejected`, reported in
+            the error message when no step is kept.
+        """
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
 
 
@@ -176,7 +183,22 @@ def gap_breaks(rec: Recording, bridge_s: float = 0.0) -> np.ndarray:
 
 
 def segment_bounds(i: int, breaks: np.ndarray, n: int) -> tuple[int, int]:
-    """The gap-free stretch ``[lo, hi)`` that holds sample ``i``."""
+    """The gap-free stretch ``[lo, hi)`` that holds sample ``i``.
+
+    Parameters
+    ----------
+    i : int
+        Index of a sample.
+    breaks : numpy.ndarray
+        First sample after each gap, sorted (see :func:`gap_breaks`).
+    n : int
+        Number of samples of the recording.
+
+    Returns
+    -------
+    lo, hi : int
+        First sample of the stretch and the sample just past its end.
+    """
     j = int(np.searchsorted(breaks, i, side="right"))
     lo = int(breaks[j - 1]) if j > 0 else 0
     hi = int(breaks[j]) if j < breaks.size else n

@@ -63,7 +63,19 @@ class Channel:
     clip: float
 
     def level(self, lo: int, hi: int) -> float:
-        """Clipped mean of the samples ``[lo, hi)``."""
+        """Clipped mean of the samples ``[lo, hi)``.
+
+        Parameters
+        ----------
+        lo, hi : int
+            Sample range, end excluded; a negative ``lo`` is taken as 0.
+
+        Returns
+        -------
+        float
+            The mean of the raw samples clipped to their median +- :attr:`clip` (N or
+            m/s^2), NaN for an empty range.
+        """
         return clipped_mean(self.raw[max(0, lo) : hi], self.clip)
 
 

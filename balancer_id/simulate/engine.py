@@ -139,7 +139,19 @@ class PackedTrials:
 
     @classmethod
     def pack(cls, trials: Sequence[TrialInput]) -> PackedTrials:
-        """Concatenate the trials' arrays."""
+        """Concatenate the trials' arrays.
+
+        Parameters
+        ----------
+        trials : sequence of TrialInput
+            The trials, in order; a missing robot reference is packed as zeros.
+
+        Returns
+        -------
+        PackedTrials
+            Sample times, thrust breakpoints and values, and the robot references, each
+            concatenated, with the offsets of each trial.
+        """
         times = [np.ascontiguousarray(tr.time, dtype=float) for tr in trials]
         zeros = [np.zeros_like(t) for t in times]
         zr = [
@@ -163,7 +175,23 @@ class PackedTrials:
         )
 
     def run(self, model: Model, pvec: np.ndarray, substeps: int = DEFAULT_SUBSTEPS) -> np.ndarray:
-        """Simulate every trial; returns the ``(n_total, 5)`` output array."""
+        """Simulate every trial; returns the ``(n_total, 5)`` output array.
+
+        Parameters
+        ----------
+        model : Model
+            The model; its kernel is compiled on first use.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order (SI units).
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        numpy.ndarray
+            One row per packed sample, columns :data:`OUT_COLUMNS`: acceleration
+            (m/s^2), velocity (m/s), position (m), drive force (N), operating force (N).
+        """
         out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
         get_kernel(model).simulate_batch(
             self.t_all,

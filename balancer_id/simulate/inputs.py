@@ -26,12 +26,42 @@ class Thrust:
 
     @classmethod
     def step(cls, t0: float, f_in: float) -> Thrust:
-        """A step of ``f_in`` newtons at ``t0`` seconds."""
+        """A step of ``f_in`` newtons at ``t0`` seconds.
+
+        Parameters
+        ----------
+        t0 : float
+            Onset of the step (s); the thrust is 0 before it.
+        f_in : float
+            Thrust from the onset on (N, up positive).
+
+        Returns
+        -------
+        Thrust
+        """
         return cls(np.array([float(t0)]), np.array([float(f_in)]))
 
     @classmethod
     def series(cls, t: np.ndarray, u: np.ndarray) -> Thrust:
-        """A measured force series, held constant between samples (zero-order hold)."""
+        """A measured force series, held constant between samples (zero-order hold).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Sample times (s), increasing; the thrust is 0 before ``t[0]``.
+        u : numpy.ndarray
+            Thrust at each sample (N, up positive), same shape as ``t``.
+
+        Returns
+        -------
+        Thrust
+            Holding copies of ``t`` and ``u``.
+
+        Raises
+        ------
+        ValueError
+            When ``t`` and ``u`` are not 1-D arrays of equal length.
+        """
         t = np.asarray(t, dtype=float)
         u = np.asarray(u, dtype=float)
         if t.shape != u.shape or t.ndim != 1:
@@ -39,7 +69,18 @@ class Thrust:
         return cls(t.copy(), u.copy())
 
     def at(self, t: np.ndarray) -> np.ndarray:
-        """Evaluate ``u`` at times ``t`` (right-continuous)."""
+        """Evaluate ``u`` at times ``t`` (right-continuous).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Times (s).
+
+        Returns
+        -------
+        numpy.ndarray
+            The thrust at each time (N); 0 before the first breakpoint.
+        """
         idx = np.searchsorted(self.times, np.asarray(t, dtype=float), side="right") - 1
         return np.where(idx >= 0, self.values[np.clip(idx, 0, None)], 0.0)
 
@@ -70,7 +111,22 @@ class Trapezoid:
             raise ValueError("trapezoid: speed and accel must be positive")
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reference position and velocity at times ``t``."""
+        """Reference position and velocity at times ``t``.
+
+        A move too short to reach :attr:`speed` has a triangular speed profile.
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Times (s), on the same clock as :attr:`start`.
+
+        Returns
+        -------
+        z_ref : numpy.ndarray
+            Position (m), 0 before the start and ``distance`` after the end.
+        v_ref : numpy.ndarray
+            Velocity (m/s), 0 outside the move.
+        """
         t = np.asarray(t, dtype=float) - self.start
         dist = abs(self.distance)
         sign = 1.0 if self.distance >= 0 else -1.0
@@ -104,6 +160,16 @@ class Trapezoid:
 
 def parse_trajectory(text: str) -> Trapezoid:
     """Parse ``"trapezoid:distance=-0.2,speed=0.1,accel=0.5[,start=1.0]"`` (CONTRACT.md).
+
+    Parameters
+    ----------
+    text : str
+        The ``--trajectory`` value: ``distance`` in m (up positive), ``speed`` in m/s,
+        ``accel`` in m/s^2 and optionally ``start`` in s.
+
+    Returns
+    -------
+    Trapezoid
 
     Raises
     ------

@@ -26,7 +26,26 @@ except ImportError:  # pragma: no cover
 
 
 def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
-    """Compile ``func`` in numba's nopython mode, or return it unchanged without numba."""
+    """Compile ``func`` in numba's nopython mode, or return it unchanged without numba.
+
+    Usable bare (``@jit``), with options (``@jit(cache=True)``) or as a call
+    (``jit(f)``). Compilation uses numpy's error model and fast-math flags
+    :data:`FASTMATH`.
+
+    Parameters
+    ----------
+    func : callable, optional
+        The scalar function to compile; None returns a decorator.
+    cache : bool
+        Let numba cache the machine code on disk (the function must live in an
+        importable file).
+
+    Returns
+    -------
+    callable
+        The compiled dispatcher (or ``func`` itself without numba), or a decorator
+        producing it when ``func`` is None.
+    """
 
     def wrap(f: Callable[..., Any]) -> Any:
         if not HAVE_NUMBA:

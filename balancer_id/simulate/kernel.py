@@ -243,12 +243,28 @@ def _args(model: Model, cls: type[Effect]) -> str:
 def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[Effect]]]:
     """Write the kernel source of ``model``.
 
+    Parameters
+    ----------
+    model : Model
+        The model whose effects' hooks are stitched into the kernel.
+    cache : bool
+        True writes a module for disk caching: each effect is imported by name and the
+        kernels are compiled with ``cache=True``. An effect that cannot be imported by
+        name is then only named in a comment ``(in memory)``. False leaves every effect
+        to be supplied through ``aliases`` in the namespace the source is run in.
+
     Returns
     -------
     source : str
         The module's source.
     aliases : dict
         Alias -> effect class, for in-memory compilation.
+
+    Raises
+    ------
+    ValueError
+        When an effect replaces ``T_a`` but no effect provides the ``time_constant``
+        hook.
     """
     index = {n: i for i, n in enumerate(model.param_names)}
     aliases: dict[str, type[Effect]] = {}

@@ -21,7 +21,19 @@ _PLAIN_JIT = "def jit(f=None, **kw):\n    return f if f is not None else (lambda
 
 
 def python_rhs(model: Model):
-    """The model's right-hand side ``rhs(t, f, v, z, u, zr, vr, p)`` as plain Python."""
+    """The model's right-hand side ``rhs(t, f, v, z, u, zr, vr, p)`` as plain Python.
+
+    Parameters
+    ----------
+    model : Model
+        The model; its generated kernel source is run without numba.
+
+    Returns
+    -------
+    callable
+        ``rhs(t, f, v, z, u, zr, vr, p)`` of the generated kernel, where ``p`` is the
+        parameter vector in ``model.param_names`` order.
+    """
     source, aliases = generate_source(model, cache=False)
     source = source.replace("from balancer_id.simulate.jit import jit\n", _PLAIN_JIT)
     namespace: dict[str, object] = dict(aliases)

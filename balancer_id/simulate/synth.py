@@ -60,7 +60,20 @@ class SensorSettings:
 
 
 def up_vector(tilt_deg: float, azimuth_deg: float) -> np.ndarray:
-    """The vertical (up) direction in the sensor frame of a sensor tilted by ``tilt_deg``."""
+    """The vertical (up) direction in the sensor frame of a sensor tilted by ``tilt_deg``.
+
+    Parameters
+    ----------
+    tilt_deg : float
+        Angle between the sensor's z axis and the vertical (degrees).
+    azimuth_deg : float
+        Direction of the tilt in the sensor's x-y plane, from the x axis (degrees).
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit vector, shape ``(3,)``.
+    """
     th, ph = np.radians(tilt_deg), np.radians(azimuth_deg)
     return np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
 
@@ -169,12 +182,40 @@ def write_synthetic_log(
     """Simulate and write a PASCO Capstone CSV (what ``balancer-id simulate`` does).
 
     The file is written whole or not at all, and an existing file is only replaced with
-    ``overwrite=True``. Parameters are those of :func:`synthetic_recordings`.
+    ``overwrite=True``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file to write.
+    model : Model
+        The true model.
+    params : mapping of str to float
+        True parameter values (SI units); parameters not given take their defaults.
+    thrusts : sequence of float
+        Signed thrust of each run (N, up positive).
+    sensor : SensorSettings, optional
+        Noise, quantization, tilt, drop-outs; None uses the defaults.
+    rest_s : float
+        Rest before the step (s).
+    duration_s : float
+        Recording after the step (s).
+    trajectory : Trapezoid, optional
+        A robot's reference move (``servo``), relative to each run's start.
+    seed : int
+        Seed of every random choice.
+    overwrite : bool
+        Replace an existing file; False refuses to.
 
     Returns
     -------
     list of Recording
         What was written.
+
+    Raises
+    ------
+    OutputExistsError
+        When the file exists and ``overwrite`` is False.
     """
     from balancer_id.read.writers import write_log
 
