@@ -49,6 +49,9 @@ ColumnsOpt = Annotated[
     str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
 ]
 GOpt = Annotated[float, typer.Option("--g", help="Gravity in m/s^2.")]
+AccelUnitOpt = Annotated[
+    str, typer.Option("--accel-unit", help="auto|m/s^2|g: unit of the acceleration columns.")
+]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 FixOpt = Annotated[
     list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
@@ -120,7 +123,12 @@ def _assignments(items: list[str] | None, what: str) -> dict[str, float]:
 
 
 def _read_options(
-    thrust: str | None, force_sign: int | None, vertical: str, columns: str | None, g: float
+    thrust: str | None,
+    force_sign: int | None,
+    vertical: str,
+    columns: str | None,
+    g: float,
+    accel_unit: str = "auto",
 ):
     from balancer_id.errors import UsageError
     from balancer_id.pipeline import ReadOptions
@@ -143,6 +151,7 @@ def _read_options(
         force_sign=force_sign,
         vertical=vertical,
         g=g,
+        accel_unit=accel_unit,
     )
 
 
@@ -180,12 +189,13 @@ def inspect(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.pipeline import describe_log, read, segment
 
-    options = _read_options(thrust, force_sign, vertical, columns, g)
+    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     data = read(log, options)
     try:
         trials = segment(data, options)
@@ -232,6 +242,7 @@ def fit(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id import cache
@@ -256,7 +267,7 @@ def fit(
     if out is None:
         from balancer_id.fit import fit as run_fit
 
-        options = _read_options(thrust, force_sign, vertical, columns, g)
+        options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
         result = run_fit(
             logs,
             model=model,
@@ -379,6 +390,7 @@ def compare(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails."""
     from balancer_id.diagnose import compare as run_compare
@@ -388,7 +400,7 @@ def compare(
         logs,
         specs,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g),
+        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
     )
@@ -421,6 +433,7 @@ def diagnose(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Residual tests and ranked suggestions of missing effects."""
     from balancer_id.diagnose import diagnose as run_diagnose
@@ -429,7 +442,7 @@ def diagnose(
         logs,
         model=model,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g),
+        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
     )
@@ -462,6 +475,7 @@ def improve(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve."""
     from balancer_id.diagnose import improve as run_improve
@@ -470,7 +484,7 @@ def improve(
         logs,
         start=start,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g),
+        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
         max_steps=max_steps,
@@ -506,6 +520,7 @@ def report(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots."""
     from balancer_id.report.sections import write_full_report
@@ -515,7 +530,7 @@ def report(
         out,
         model=model,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g),
+        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
     )
@@ -543,6 +558,7 @@ def batch(
     vertical: VerticalOpt = "auto",
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
+    accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
     from balancer_id.batch import run_batch
@@ -552,7 +568,7 @@ def batch(
         out,
         model=model,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(None, force_sign, vertical, columns, g),
+        options=_read_options(None, force_sign, vertical, columns, g, accel_unit),
         effects_files=effects_file or (),
         jobs=jobs,
         scheduler=scheduler,

@@ -28,6 +28,9 @@ class ReadOptions:
         ``auto``, ``x``, ``y`` or ``z`` for logs without gravity.
     g : float
         Gravity (m/s^2).
+    accel_unit : str
+        ``auto``, ``m/s^2`` or ``g``: unit of the acceleration columns (``auto`` reads the
+        header and converts evidently-g data with a warning).
     """
 
     columns: dict[str, str] | None = None
@@ -35,6 +38,7 @@ class ReadOptions:
     force_sign: int | None = None
     vertical: str = "auto"
     g: float = G_DEFAULT
+    accel_unit: str = "auto"
 
 
 @dataclass
@@ -67,7 +71,7 @@ def read(path: str | Path, options: ReadOptions | None = None) -> Log:
     from balancer_id.read import read_log
 
     options = options or ReadOptions()
-    return read_log(path, columns=options.columns, g=options.g)
+    return read_log(path, columns=options.columns, g=options.g, accel_unit=options.accel_unit)
 
 
 def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
