@@ -8,9 +8,12 @@ from balancer_id.model.effect import Effect, Param
 class SpeedLimit(Effect):
     """The drum's winding speed saturates at ``v_max`` (specification: 500 mm/s).
 
-    Where ``|v| >= v_max`` and the net force pushes outward the acceleration is zero, so
-    the measured acceleration drops to zero abruptly and the speed plateaus at the same
-    value in every long trial.
+    While the net force pushes outward, with ``x = (v_max - |v|) / (2 |a| tau)`` and
+    ``tau = 20 ms`` (the drive's speed loop), the acceleration ``a`` becomes
+    ``a x (2 - x)`` for ``x < 1``: unchanged far from the limit, ``(v_max - |v|) / tau``
+    close to it, zero at it. The measured acceleration drops to
+    zero within a few samples and the speed plateaus at the same value in every long
+    trial.
     """
 
     name = "speed_limit"
