@@ -64,6 +64,24 @@ TrajectoryOpt = Annotated[
 ]
 
 
+def _version(value: bool) -> None:
+    if value:
+        from balancer_id import __version__
+
+        typer.echo(f"balancer-id {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """Identify a passive balancer's dynamics from force/acceleration step logs."""
+
+
 def _fail(message: str, code: int) -> None:
     typer.echo(f"balancer-id: error: {' '.join(str(message).split())}", err=True)
     raise typer.Exit(code)
