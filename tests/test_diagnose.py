@@ -20,11 +20,15 @@ from balancer_id.segment import find_trials
 from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
 
 
-def trials_with(spec: str, extra: dict[str, float], seed: int, registry=None) -> list[TrialData]:
+def trials_with(
+    spec: str, extra: dict[str, float], seed: int, registry=None, rho: float = 0.0
+) -> list[TrialData]:
     """Six paper trials of a balancer with ``spec`` hidden, read back through segmentation."""
     model = parse_model(spec, registry) if registry else parse_model(spec)
     truth = {k: v for k, v in {**PAPER, **extra}.items() if k in model.param_names}
-    sensor = SensorSettings(tilt_deg=15.0, accel_noise=0.03, force_noise=0.03)
+    sensor = SensorSettings(
+        tilt_deg=15.0, accel_noise=0.03, force_noise=0.03, noise_correlation=rho
+    )
     recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
     found = find_trials(Log(Path(f"{spec}.csv"), "pasco-capstone", recs))
     return [TrialData.from_trial(t) for t in found]
@@ -62,6 +66,22 @@ def test_nothing_hidden_is_adequate():
     tests = diagnosis.tests
     assert tests["whiteness"]["ljung_box_p"] > 1e-3
     assert {r["label"] for r in tests["regimes"] if r["group"] == "regime"} >= {"rest", "rise"}
+
+
+def test_coloured_sensor_noise_is_not_a_missing_effect():
+    # a sensor's low-pass filter makes its noise correlated (lag-one 0.6): not white, yet
+    # nothing is missing from the model
+    trials = trials_with("variable_viscosity", {}, seed=15, rho=0.6)
+    diagnosis = diagnose_match(fit_paper_model(trials))
+    assert diagnosis.tests["whiteness"]["ljung_box_p"] < 1e-6
+    assert diagnosis.verdict == "adequate"
+
+
+def test_a_hidden_effect_is_found_through_coloured_noise():
+    trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=16, rho=0.6)
+    diagnosis = diagnose_match(fit_paper_model(trials))
+    assert diagnosis.verdict == "effect missing"
+    assert diagnosis.suggestions[0].effect == "karnopp"
 
 
 class Explodes(Effect):

@@ -53,7 +53,9 @@ class DiagnosisContext:
         The fit being diagnosed.
     trials : list of TrialView
     noise_floor : float
-        White acceleration noise (m/s^2), from the residual's sample-to-sample differences.
+        Acceleration noise (m/s^2): the larger of the white-noise level from the residual's
+        sample-to-sample differences and the spread of the resting samples before the
+        onsets (which also holds coloured noise).
     dt : float
         Median sample interval (s).
     """
@@ -165,6 +167,7 @@ def build_context(match: MatchResult) -> DiagnosisContext:
     lag = values.get("T_a", values.get("T_up", 0.3))
     views = []
     diffs = []
+    resting = []
     dts = []
     for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
         t = td.time - td.t_step
@@ -185,6 +188,14 @@ def build_context(match: MatchResult) -> DiagnosisContext:
             )
         )
         diffs.append(np.diff(y - ym))
+        rest = t < -0.02
+        if rest.sum() >= 10:
+            resting.append(y[rest] - np.mean(y[rest]))
         dts.append(np.median(np.diff(td.time)))
     noise = white_noise_level(np.concatenate(diffs))
+    rest_all = np.concatenate(resting) if resting else np.array([])
+    if rest_all.size >= 50:
+        # Coloured noise (a sensor's low-pass filter) hides part of its variance from the
+        # differences; the resting samples before the onsets show all of it.
+        noise = max(noise, float(np.std(rest_all)))
     return DiagnosisContext(match, views, noise, float(np.median(dts)))

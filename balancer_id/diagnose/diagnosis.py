@@ -27,7 +27,7 @@ from balancer_id.fit.matching import MatchResult
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
 BIC_THRESHOLD = 30.0
 #: ... and the share of the error above the noise floor it must remove.
-MIN_EXCESS_DROP = 0.2
+MIN_EXCESS_DROP = 0.1
 
 
 @dataclass
@@ -165,7 +165,9 @@ def diagnose_match(
             failures.append(refit.error or cand.effect.name)
             continue
         new = refit.match.metrics
-        d_bic = float(match.metrics["bic"] - new["bic"])
+        # BIC counts every sample as independent; with coloured noise they are not, so the
+        # improvement is scaled by the effective share of independent samples.
+        d_bic = float(match.metrics["bic"] - new["bic"]) * independence(refit.match)
         drop = excess_drop(match.metrics["rmse"], new["rmse"], ctx.noise_floor)
         suggestions.append(
             Suggestion(
@@ -184,6 +186,33 @@ def diagnose_match(
     suggestions.sort(key=lambda s: -s.score)
     verdict, summary = _verdict(ctx, tests, suggestions)
     return Diagnosis(match, ctx, tests, suggestions, verdict, summary, failures)
+
+
+def independence(match: MatchResult) -> float:
+    """Effective share of independent samples in a fit's residual, ``(1 - r1) / (1 + r1)``.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A fit; ``r1`` is the lag-one autocorrelation of its residual, averaged over trials.
+
+    Returns
+    -------
+    float
+        1 for a white residual, smaller for a correlated one (at least 0.05).
+    """
+    r1s, weights = [], []
+    for sl in match.data.slices():
+        r = match.residual[sl]
+        r = r - np.mean(r)
+        denom = float(r @ r)
+        if r.size > 10 and denom > 0:
+            r1s.append(float(r[:-1] @ r[1:]) / denom)
+            weights.append(r.size)
+    if not r1s:
+        return 1.0
+    r1 = max(float(np.average(r1s, weights=weights)), 0.0)
+    return float(min(max((1.0 - r1) / (1.0 + r1), 0.05), 1.0))
 
 
 def excess_drop(rmse_before: float, rmse_after: float, noise_floor: float) -> float:

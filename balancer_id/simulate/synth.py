@@ -29,7 +29,10 @@ class SensorSettings:
     rate_hz : float
         Sample rate.
     accel_noise, force_noise : float
-        Standard deviation of white noise (m/s^2, N).
+        Standard deviation of the noise (m/s^2, N).
+    noise_correlation : float
+        Lag-one correlation of the acceleration noise (0 = white; a sensor's internal
+        low-pass filter makes it positive): AR(1) noise with the same standard deviation.
     quantize : bool
         Round to the sensor's resolution (0.2 m/s^2, 0.03 N).
     tilt_deg : float
@@ -49,6 +52,7 @@ class SensorSettings:
 
     rate_hz: float = 200.0
     accel_noise: float = 0.03
+    noise_correlation: float = 0.0
     force_noise: float = 0.03
     quantize: bool = False
     tilt_deg: float = 10.0
@@ -134,7 +138,9 @@ def synthetic_recordings(
     recordings = []
     for k, sim in enumerate(sims):
         specific = (sim.accel + sensor.g)[:, None] * up[None, :]
-        accel = specific + rng.normal(0.0, sensor.accel_noise, specific.shape)
+        accel = specific + _ar1_noise(
+            rng, sensor.accel_noise, sensor.noise_correlation, specific.shape
+        )
         force = sensor.force_offset + sensor.force_sign * sim.operating_force
         force = force + rng.normal(0.0, sensor.force_noise, force.shape)
         if sensor.quantize:
@@ -231,3 +237,19 @@ def write_synthetic_log(
     )
     write_log(Path(path), recordings, "pasco-capstone", overwrite=overwrite)
     return recordings
+
+
+def _ar1_noise(
+    rng: np.random.Generator, sigma: float, rho: float, shape: tuple[int, ...]
+) -> np.ndarray:
+    """Noise of standard deviation ``sigma`` and lag-one correlation ``rho`` along axis 0."""
+    white = rng.normal(0.0, sigma, shape)
+    if rho == 0.0:
+        return white
+    from scipy.signal import lfilter
+
+    first = white[:1]
+    rest = lfilter(
+        [np.sqrt(1.0 - rho**2)], [1.0, -rho], white[1:], axis=0, zi=rho * first[None, 0]
+    )[0]
+    return np.concatenate([first, rest])
