@@ -325,6 +325,9 @@ def simulate(
     ),
     noise: Annotated[float, typer.Option("--noise", help="Acceleration noise (m/s^2).")] = 0.03,
     force_noise: Annotated[float, typer.Option("--force-noise", help="Force noise (N).")] = 0.03,
+    noise_correlation: Annotated[
+        float, typer.Option("--noise-correlation", help="Lag-one correlation of the noise.")
+    ] = 0.0,
     quantize: Annotated[bool, typer.Option("--quantize", help="Sensor resolution.")] = False,
     tilt: Annotated[float, typer.Option("--tilt", help="Sensor tilt (degrees).")] = 10.0,
     drop: Annotated[float, typer.Option("--drop", help="Fraction of samples dropped.")] = 0.0,
@@ -357,10 +360,13 @@ def simulate(
         raise UsageError("a model with 'servo' needs --trajectory")
     if force_sign not in (1, -1):
         raise UsageError("--force-sign must be +1 or -1")
+    if not 0.0 <= noise_correlation < 1.0:
+        raise UsageError("--noise-correlation must be in [0, 1)")
     sensor = SensorSettings(
         rate_hz=rate,
         accel_noise=noise,
         force_noise=force_noise,
+        noise_correlation=noise_correlation,
         quantize=quantize,
         tilt_deg=tilt,
         drop_fraction=drop,
