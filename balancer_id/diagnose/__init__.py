@@ -1,6 +1,6 @@
 """Diagnosis: where the model fails, which effect is missing, and adding it."""
 
-from balancer_id.diagnose.api import compare, diagnose, improve
+from balancer_id.diagnose.api import compare, diagnose, fit_and_diagnose, improve
 from balancer_id.diagnose.compare import ModelComparison, compare_models
 from balancer_id.diagnose.diagnosis import Diagnosis, Suggestion, diagnose_match
 from balancer_id.diagnose.improve import ImproveResult, improve_model
@@ -14,6 +14,7 @@ __all__ = [
     "compare_models",
     "diagnose",
     "diagnose_match",
+    "fit_and_diagnose",
     "improve",
     "improve_model",
 ]

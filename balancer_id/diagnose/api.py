@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from balancer_id.diagnose.compare import ModelComparison, compare_models
 from balancer_id.diagnose.diagnosis import Diagnosis, diagnose_match
 from balancer_id.diagnose.improve import ImproveResult, improve_model
 from balancer_id.fit.api import fit, resolve_model, trial_data
+from balancer_id.fit.result import FitResult
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.pipeline import ReadOptions
 from balancer_id.simulate.inputs import Trapezoid
@@ -18,6 +20,79 @@ Source = str | Path
 
 def _strs(items: Sequence[object]) -> list[str]:
     return [str(x) for x in items if isinstance(x, str | Path)]
+
+
+def _fit_with_context(
+    sources: Sequence[Source],
+    model: str | None,
+    fixed: Mapping[str, float] | None,
+    options: ReadOptions | None,
+    effects_files: Sequence[Source],
+    registry: Registry | None,
+    trajectory: Trapezoid | None,
+    per_trial: bool = False,
+) -> tuple[FitResult, dict[str, Any]]:
+    """Fit ``model`` and return the keyword arguments the diagnosis of that fit needs."""
+    registry = registry or default_registry(effects_files)
+    result = fit(
+        sources,
+        model=model,
+        fixed=fixed,
+        options=options,
+        registry=registry,
+        trajectory=trajectory,
+        per_trial=per_trial,
+    )
+    context = {
+        "paths": _strs(sources),
+        "effects_files": _strs(effects_files),
+        "with_trajectory": trajectory is not None,
+        "fixed": dict(fixed or {}),
+    }
+    return result, context
+
+
+def fit_and_diagnose(
+    sources: Sequence[Source],
+    *,
+    model: str | None = None,
+    fixed: Mapping[str, float] | None = None,
+    options: ReadOptions | None = None,
+    effects_files: Sequence[Source] = (),
+    registry: Registry | None = None,
+    trajectory: Trapezoid | None = None,
+    per_trial: bool = False,
+) -> tuple[FitResult, Diagnosis]:
+    """Fit ``model`` and diagnose its residual; return both (for reports).
+
+    Parameters
+    ----------
+    sources : sequence of str or Path
+        The logs to fit; their trials are fitted together.
+    model : str, optional
+        Model spec; None uses the default (``variable_viscosity``).
+    fixed : mapping of str to float, optional
+        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+    options : ReadOptions, optional
+        How the logs are read and segmented; None uses the defaults.
+    effects_files : sequence of str or Path
+        Python files with user effects to register next to the built-in ones.
+    registry : Registry, optional
+        The effect registry; None builds the default registry plus ``effects_files``.
+    trajectory : Trapezoid, optional
+        The robot's reference motion (makes ``servo`` available).
+    per_trial : bool
+        Also fit each trial alone.
+
+    Returns
+    -------
+    tuple of (FitResult, Diagnosis)
+        The identification and the diagnosis of its residual.
+    """
+    result, context = _fit_with_context(
+        sources, model, fixed, options, effects_files, registry, trajectory, per_trial
+    )
+    return result, diagnose_match(result.match, **context)
 
 
 def diagnose(
@@ -62,17 +137,15 @@ def diagnose(
     IdentificationError
         When the logs hold no step trial or the fit does not converge.
     """
-    registry = registry or default_registry(effects_files)
-    result = fit(
-        sources, model=model, fixed=fixed, options=options, registry=registry, trajectory=trajectory
-    )
-    return diagnose_match(
-        result.match,
-        paths=_strs(sources),
-        effects_files=_strs(effects_files),
-        with_trajectory=trajectory is not None,
-        fixed=dict(fixed or {}),
-    )
+    return fit_and_diagnose(
+        sources,
+        model=model,
+        fixed=fixed,
+        options=options,
+        effects_files=effects_files,
+        registry=registry,
+        trajectory=trajectory,
+    )[1]
 
 
 def improve(
@@ -119,18 +192,10 @@ def improve(
     IdentificationError
         When the logs hold no step trial or the fit of the start model does not converge.
     """
-    registry = registry or default_registry(effects_files)
-    result = fit(
-        sources, model=start, fixed=fixed, options=options, registry=registry, trajectory=trajectory
+    result, context = _fit_with_context(
+        sources, start, fixed, options, effects_files, registry, trajectory
     )
-    return improve_model(
-        result.match,
-        max_steps=max_steps,
-        paths=_strs(sources),
-        effects_files=_strs(effects_files),
-        with_trajectory=trajectory is not None,
-        fixed=dict(fixed or {}),
-    )
+    return improve_model(result.match, max_steps=max_steps, **context)
 
 
 def compare(

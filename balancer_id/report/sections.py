@@ -242,27 +242,17 @@ def write_full_report(
     IdentificationError
         When the logs hold no step trial or the fit does not converge.
     """
-    from balancer_id.diagnose.diagnosis import diagnose_match
-    from balancer_id.fit.api import fit
-    from balancer_id.model.registry import default_registry
+    from balancer_id.diagnose.api import fit_and_diagnose
     from balancer_id.report.document import check_report_path, write_fit_report
 
     check_report_path(out, logs)
-    registry = default_registry(effects_files)
-    result = fit(
+    result, diagnosis = fit_and_diagnose(
         logs,
         model=model,
         fixed=fixed,
         options=options,
-        registry=registry,
+        effects_files=effects_files,
         trajectory=trajectory,
         per_trial=True,
-    )
-    diagnosis = diagnose_match(
-        result.match,
-        paths=[str(p) for p in logs],
-        effects_files=[str(f) for f in effects_files],
-        with_trajectory=trajectory is not None,
-        fixed=dict(fixed or {}),
     )
     return write_fit_report(result, out, extra_sections=[diagnosis_section(diagnosis)])

@@ -53,8 +53,3 @@ def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
         return numba.njit(cache=cache, error_model="numpy", fastmath=FASTMATH)(f)
 
     return wrap if func is None else wrap(func)
-
-
-def jit_enabled() -> bool:
-    """Whether kernels are compiled (False: plain Python)."""
-    return HAVE_NUMBA

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.errors import EffectError
-from balancer_id.model.effect import HOOKS, Effect
+from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulate.jit import HAVE_NUMBA
 
@@ -460,8 +460,3 @@ def _numba_version() -> str:
     import numba
 
     return numba.__version__
-
-
-def hook_names() -> tuple[str, ...]:
-    """The hooks a kernel stitches together (for documentation)."""
-    return tuple(HOOKS)
