@@ -1,8 +1,8 @@
 """balancer-id: identify a passive balancer's dynamics from force/acceleration logs.
 
 The pipeline, one subpackage each: :mod:`~balancer_id.read` -> :mod:`~balancer_id.segment`
--> :mod:`~balancer_id.model` / :mod:`~balancer_id.simulate` -> :mod:`~balancer_id.fit`
--> :mod:`~balancer_id.diagnose` -> :mod:`~balancer_id.report`.
+-> :mod:`~balancer_id.model` / :mod:`~balancer_id.simulation` -> :mod:`~balancer_id.identify`
+-> :mod:`~balancer_id.diagnostics` -> :mod:`~balancer_id.report`.
 Heavy modules are imported lazily, so ``import balancer_id`` is quick.
 """
 
@@ -18,11 +18,11 @@ _LAZY = {
     "Param": "balancer_id.model",
     "parse_model": "balancer_id.model",
     "Registry": "balancer_id.model",
-    "simulate": "balancer_id.simulate",
-    "Thrust": "balancer_id.simulate",
+    "simulate": "balancer_id.simulation",
+    "Thrust": "balancer_id.simulation",
     "read_log": "balancer_id.read",
     "find_trials": "balancer_id.segment",
-    "fit": "balancer_id.fit",
+    "fit": "balancer_id.identify",
 }
 
 

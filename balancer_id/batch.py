@@ -39,7 +39,7 @@ from balancer_id.errors import BalancerIdError, UsageError
 
 if TYPE_CHECKING:
     from balancer_id.model.spec import Model
-    from balancer_id.pipeline import ReadOptions
+    from balancer_id.trials import ReadOptions
 
 #: Name of the summary table written into the output folder.
 SUMMARY_NAME = "summary.csv"
@@ -51,7 +51,7 @@ METRIC_COLUMNS = ("rmse", "nrmse_fit_percent", "aic", "bic")
 LEADING_PARAMETERS = ("m_a", "T_a")
 
 #: Modules a forkserver imports once, so forked workers start with them loaded.
-_PRELOAD = ("balancer_id.fit.api", "balancer_id.read", "balancer_id.segment", "lmfit")
+_PRELOAD = ("balancer_id.identify.api", "balancer_id.read", "balancer_id.segment", "lmfit")
 
 #: Each worker process runs one BLAS/OpenMP thread: the pool is the parallelism (and
 #: the fits' small matrices run faster on one thread anyway). A value the user set wins.
@@ -446,7 +446,7 @@ def _prepare_model(
     model: str | None, fixed: Mapping[str, float] | None, extra: Sequence[str]
 ) -> Model:
     """Resolve the model, check ``fixed`` against it and warm the kernel's disk cache."""
-    from balancer_id.fit.api import resolve_model
+    from balancer_id.identify.api import resolve_model
 
     mdl = resolve_model(model, extra)
     unknown = sorted(set(fixed or {}) - set(mdl.param_names))
@@ -477,9 +477,9 @@ def warm_kernel(model: Model) -> None:
     """
     import numpy as np
 
-    from balancer_id.simulate.engine import TrialInput, simulate_many
-    from balancer_id.simulate.inputs import Thrust
-    from balancer_id.simulate.kernel import get_kernel
+    from balancer_id.simulation.engine import TrialInput, simulate_many
+    from balancer_id.simulation.inputs import Thrust
+    from balancer_id.simulation.kernel import get_kernel
 
     get_kernel(model)
     simulate_many(
@@ -520,7 +520,7 @@ def _identify(
     """
     start = time.perf_counter()
     try:
-        from balancer_id.fit.api import fit  # a worker's first log pays the import
+        from balancer_id.identify.api import fit  # a worker's first log pays the import
 
         start = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:

@@ -33,7 +33,7 @@ import numpy as np
 
 from balancer_id.batch import BatchResult, run_batch, warm_kernel
 from balancer_id.model import parse_model
-from balancer_id.simulate.synth import SensorSettings, write_synthetic_log
+from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
@@ -119,7 +119,7 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    from balancer_id.fit.api import fit  # imports and compilation before any timing
+    from balancer_id.identify.api import fit  # imports and compilation before any timing
 
     warm_kernel(parse_model("variable_viscosity"))
     masses = np.linspace(10.0, 20.0, args.logs)

@@ -41,10 +41,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from diagnose_cases import HIDDEN, NOT_HERE, Case, build_cases, make_setup
 
-from balancer_id.diagnose import diagnose_match
-from balancer_id.diagnose.diagnosis import BIC_THRESHOLD, MIN_EXCESS_DROP
-from balancer_id.fit.classic import paper_method
-from balancer_id.fit.matching import match_trials
+from balancer_id.diagnostics import diagnose_match
+from balancer_id.diagnostics.diagnosis import BIC_THRESHOLD, MIN_EXCESS_DROP
+from balancer_id.identify.classic import paper_method
+from balancer_id.identify.matching import match_trials
 from balancer_id.model import parse_model
 
 TARGET_TOP1 = 0.90

@@ -24,13 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from balancer_id.fit.data import FitData, TrialData
-from balancer_id.fit.matching import match_trials
+from balancer_id.identify.data import FitData, TrialData
+from balancer_id.identify.matching import match_trials
 from balancer_id.model import parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
-from balancer_id.simulate.reference import simulate_reference
-from balancer_id.simulate.synth import SensorSettings, synthetic_recordings, write_synthetic_log
+from balancer_id.simulation.reference import simulate_reference
+from balancer_id.simulation.synth import SensorSettings, synthetic_recordings, write_synthetic_log
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 TOLERANCE = {"m_a": 0.02, "T_a": 0.05, "D0": 0.08, "A": 0.15}

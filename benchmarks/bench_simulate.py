@@ -16,10 +16,10 @@ import time
 import numpy as np
 
 from balancer_id.model import parse_model
-from balancer_id.simulate import Thrust, TrialInput
-from balancer_id.simulate.engine import PackedTrials
-from balancer_id.simulate.kernel import get_kernel
-from balancer_id.simulate.reference import simulate_reference
+from balancer_id.simulation import Thrust, TrialInput
+from balancer_id.simulation.engine import PackedTrials
+from balancer_id.simulation.kernel import get_kernel
+from balancer_id.simulation.reference import simulate_reference
 
 SPEC = "variable_viscosity+karnopp+speed_limit+dead_time"
 PARAMS = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4, "f_s": 0.98, "v_max": 0.5, "tau_d": 0.05}
@@ -51,7 +51,7 @@ def main() -> None:
     code = (
         "import time; t0 = time.perf_counter();"
         "from balancer_id.model import parse_model;"
-        "from balancer_id.simulate.kernel import get_kernel;"
+        "from balancer_id.simulation.kernel import get_kernel;"
         f"get_kernel(parse_model('{SPEC}')); print(time.perf_counter() - t0)"
     )
     cold = float(

@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from balancer_id.fit.data import TrialData
+from balancer_id.identify.data import TrialData
 from balancer_id.model import parse_model
 from balancer_id.read import read_log, write_log
 from balancer_id.read.recording import Recording
 from balancer_id.segment import find_trials
-from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
+from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 
 #: The paper's balancer (MODEL.md reference values).
 PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}

@@ -8,8 +8,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from balancer_id.fit import resolve_model
-from balancer_id.simulate.synth import SensorSettings, write_synthetic_log
+from balancer_id.identify import resolve_model
+from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "sample_logs"

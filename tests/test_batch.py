@@ -18,7 +18,7 @@ from balancer_id.errors import UsageError
 from balancer_id.model import parse_model
 from balancer_id.read.recording import Recording
 from balancer_id.read.writers import write_log
-from balancer_id.simulate.synth import write_synthetic_log
+from balancer_id.simulation.synth import write_synthetic_log
 
 TRUE = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 THRUSTS = [2.45, -4.9, 7.35]

@@ -11,13 +11,13 @@ import pytest
 from conftest import EXAMPLES, PAPER, PAPER_THRUSTS, SAMPLE_LOGS
 
 from balancer_id import Effect, Param
-from balancer_id.diagnose import diagnose_match, improve_model
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import match_trials
+from balancer_id.diagnostics import diagnose_match, improve_model
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import match_trials
 from balancer_id.model import Registry, parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
-from balancer_id.simulate.synth import SensorSettings, synthetic_recordings
+from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 
 
 def trials_with(

@@ -35,7 +35,7 @@ def _modules() -> Iterator[ModuleType]:
     """Import and yield every module of the package except the ones left out."""
     yield balancer_id
     for info in pkgutil.walk_packages(balancer_id.__path__, "balancer_id."):
-        if info.name not in SKIP_MODULES:
+        if not any(info.name == m or info.name.startswith(m + ".") for m in SKIP_MODULES):
             yield importlib.import_module(info.name)
 
 

@@ -15,11 +15,11 @@ import pytest
 from conftest import EXAMPLES
 
 from balancer_id.errors import ModelSpecError
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import match_trials
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import match_trials
 from balancer_id.model import Effect, parse_model
 from balancer_id.model.registry import Registry, default_registry
-from balancer_id.simulate import Thrust, Trapezoid, TrialInput, simulate_many
+from balancer_id.simulation import Thrust, Trapezoid, TrialInput, simulate_many
 
 NOISE = 0.01  # m/s^2; the tolerances below are ~10x the Cramer-Rao spread at this noise
 THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)

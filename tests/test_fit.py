@@ -9,11 +9,11 @@ import pytest
 from conftest import PAPER, PAPER_THRUSTS, SAMPLE_LOGS
 
 from balancer_id.errors import IdentificationError
-from balancer_id.fit import fit, match_trials, paper_method
-from balancer_id.fit.coupling import coupling
-from balancer_id.fit.data import TrialData
+from balancer_id.identify import fit, match_trials, paper_method
+from balancer_id.identify.coupling import coupling
+from balancer_id.identify.data import TrialData
 from balancer_id.model import parse_model
-from balancer_id.simulate import Thrust, TrialInput, simulate_many
+from balancer_id.simulation import Thrust, TrialInput, simulate_many
 
 
 def step_trials(spec, truth, thrusts, noise, rng, seconds=8.0):

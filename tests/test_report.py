@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from balancer_id.cli import app
 from balancer_id.errors import UsageError
-from balancer_id.fit import fit
-from balancer_id.fit.result import FitResult
+from balancer_id.identify import fit
+from balancer_id.identify.result import FitResult
 from balancer_id.model.spec import parse_model
 from balancer_id.report import plots
 from balancer_id.report.document import (
@@ -25,7 +25,7 @@ from balancer_id.report.document import (
     write_fit_report,
     write_report,
 )
-from balancer_id.simulate.synth import write_synthetic_log
+from balancer_id.simulation.synth import write_synthetic_log
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TRUE = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}

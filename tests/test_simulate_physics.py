@@ -7,8 +7,8 @@ import pytest
 
 from balancer_id.model import parse_model
 from balancer_id.model.effects import BUILTIN_EFFECTS
-from balancer_id.simulate import Thrust, Trapezoid, TrialInput, simulate
-from balancer_id.simulate.reference import simulate_reference
+from balancer_id.simulation import Thrust, Trapezoid, TrialInput, simulate
+from balancer_id.simulation.reference import simulate_reference
 
 M, T = 15.1, 0.33
 DT = 0.005
@@ -82,7 +82,7 @@ def test_sticks_again_without_chattering_after_the_thrust_is_removed():
 
 
 def test_speed_plateau_at_v_max():
-    from balancer_id.simulate.kernel import SPEED_LIMIT_TAU
+    from balancer_id.simulation.kernel import SPEED_LIMIT_TAU
 
     t = grid(6.0)
     sim = simulate(

@@ -149,7 +149,7 @@ def _read_options(
     accel_unit: str = "auto",
 ):
     from balancer_id.errors import UsageError
-    from balancer_id.pipeline import ReadOptions
+    from balancer_id.trials import ReadOptions
 
     if force_sign not in (None, 1, -1):
         raise UsageError("--force-sign must be +1 or -1")
@@ -175,7 +175,7 @@ def _read_options(
 
 def _trajectory(text: str | None):
     from balancer_id.errors import UsageError
-    from balancer_id.simulate.inputs import parse_trajectory
+    from balancer_id.simulation.inputs import parse_trajectory
 
     if text is None:
         return None
@@ -211,7 +211,7 @@ def inspect(
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
-    from balancer_id.pipeline import describe_log, read, segment
+    from balancer_id.trials import describe_log, read, segment
 
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     data = read(log, options)
@@ -283,7 +283,7 @@ def fit(
     key = None if no_cache else cache.result_key("fit", [*logs, *(effects_file or ())], key_options)
     out = cache.load(key) if report is None else None
     if out is None:
-        from balancer_id.fit import fit as run_fit
+        from balancer_id.identify import fit as run_fit
 
         options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
         result = run_fit(
@@ -347,8 +347,8 @@ def simulate(
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
     from balancer_id.errors import UsageError
-    from balancer_id.fit import resolve_model
-    from balancer_id.simulate.synth import SensorSettings, write_synthetic_log
+    from balancer_id.identify import resolve_model
+    from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
     mdl = resolve_model(model, effects_file or ())
     values = mdl.resolve(_assignments(param, "--param"))
@@ -417,7 +417,7 @@ def compare(
     accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails."""
-    from balancer_id.diagnose import compare as run_compare
+    from balancer_id.diagnostics import compare as run_compare
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
     results = run_compare(
@@ -460,7 +460,7 @@ def diagnose(
     accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Residual tests and ranked suggestions of missing effects."""
-    from balancer_id.diagnose import diagnose as run_diagnose
+    from balancer_id.diagnostics import diagnose as run_diagnose
 
     result = run_diagnose(
         logs,
@@ -502,7 +502,7 @@ def improve(
     accel_unit: AccelUnitOpt = "auto",
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve."""
-    from balancer_id.diagnose import improve as run_improve
+    from balancer_id.diagnostics import improve as run_improve
 
     result = run_improve(
         logs,
@@ -616,7 +616,7 @@ def effects(
     effects_file: EffectsFileOpt = None,
 ) -> None:
     """List the effects available, built in and user-supplied, with their parameters."""
-    from balancer_id.model.effects.base import Base
+    from balancer_id.model.effects.base_model import Base
     from balancer_id.model.registry import default_registry
 
     registry = default_registry(effects_file or ())

@@ -6,14 +6,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from balancer_id.diagnose.compare import ModelComparison, compare_models
-from balancer_id.diagnose.diagnosis import Diagnosis, diagnose_match
-from balancer_id.diagnose.improve import ImproveResult, improve_model
-from balancer_id.fit.api import fit, resolve_model, trial_data
-from balancer_id.fit.result import FitResult
+from balancer_id.diagnostics.compare import ModelComparison, compare_models
+from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose_match
+from balancer_id.diagnostics.improve import ImproveResult, improve_model
+from balancer_id.identify.api import fit, resolve_model, trial_data
+from balancer_id.identify.result import FitResult
 from balancer_id.model.registry import Registry, default_registry
-from balancer_id.pipeline import ReadOptions
-from balancer_id.simulate.inputs import Trapezoid
+from balancer_id.trials import ReadOptions
+from balancer_id.simulation.inputs import Trapezoid
 
 Source = str | Path
 
@@ -232,7 +232,7 @@ def compare(
     Returns
     -------
     list of ModelComparison
-        One row per model (see :func:`~balancer_id.diagnose.compare.compare_models`).
+        One row per model (see :func:`~balancer_id.diagnostics.compare.compare_models`).
 
     Raises
     ------

@@ -6,8 +6,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from balancer_id.errors import BalancerIdError, ModelSpecError
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import MatchResult, match_trials
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model, parse_model
 

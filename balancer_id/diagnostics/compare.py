@@ -7,12 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from balancer_id.diagnose.context import build_context
-from balancer_id.diagnose.residual_tests import worst_windows
-from balancer_id.fit.classic import paper_method
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import MatchResult, match_trials
-from balancer_id.fit.metrics import error_metrics
+from balancer_id.diagnostics.context import build_context
+from balancer_id.diagnostics.residual_tests import worst_windows
+from balancer_id.identify.classic import paper_method
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
 

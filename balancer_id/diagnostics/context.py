@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import MatchResult
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult
 
 #: Regimes of a trial, in the order they occur (see :func:`regime_masks`).
 REGIMES = ("rest", "rise", "steady", "stuck")

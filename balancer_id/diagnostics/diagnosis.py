@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from balancer_id.diagnose.candidates import Refit, candidates, quick_refit
-from balancer_id.diagnose.context import DiagnosisContext, build_context
-from balancer_id.diagnose.residual_tests import (
+from balancer_id.diagnostics.candidates import Refit, candidates, quick_refit
+from balancer_id.diagnostics.context import DiagnosisContext, build_context
+from balancer_id.diagnostics.residual_tests import (
     input_correlation,
     regime_table,
     spectrum_peaks,
@@ -18,10 +18,10 @@ from balancer_id.diagnose.residual_tests import (
     whiteness,
     worst_windows,
 )
-from balancer_id.diagnose.signatures import Signature, signature_of
-from balancer_id.fit.classic import paper_method
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import MatchResult
+from balancer_id.diagnostics.signatures import Signature, signature_of
+from balancer_id.identify.classic import paper_method
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult
 
 #: BIC improvement a candidate needs before an effect is called missing. Calibrated on
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -330,7 +330,7 @@ def parameter_drift(
         ``|thrust|`` and its ``slope_z`` (when the thrusts differ), and ``up_minus_down``
         (when both directions occur).
     """
-    from balancer_id.fit.api import fit_each_trial
+    from balancer_id.identify.api import fit_each_trial
 
     if len(trials) < 3:
         return []

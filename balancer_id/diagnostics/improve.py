@@ -1,7 +1,7 @@
 """``improve``: add the best-supported effect, refit, and repeat while the model gets better.
 
 A step is taken when the diagnosis calls an effect missing (BIC improvement and a real
-drop of the error above the noise floor, :func:`~balancer_id.diagnose.diagnosis.is_missing`)
+drop of the error above the noise floor, :func:`~balancer_id.diagnostics.diagnosis.is_missing`)
 *and* the error on held-out trials falls (K-fold cross-validation across trials).
 """
 
@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from balancer_id.diagnose.diagnosis import Diagnosis, diagnose_match, is_missing
+from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose_match, is_missing
 from balancer_id.errors import BalancerIdError
-from balancer_id.fit.data import FitData, TrialData
-from balancer_id.fit.matching import MatchResult, match_trials
+from balancer_id.identify.data import FitData, TrialData
+from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.model.spec import Model
 
 #: Folds of the cross-validation across trials.

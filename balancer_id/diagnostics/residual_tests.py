@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from balancer_id.diagnose.context import REGIMES, DiagnosisContext
-from balancer_id.fit.data import thrust_levels
+from balancer_id.diagnostics.context import REGIMES, DiagnosisContext
+from balancer_id.identify.data import thrust_levels
 
 #: Lags of the whiteness tests (samples).
 ACF_LAGS = 25

@@ -1,6 +1,6 @@
 """How each missing effect shows in the residual (MODEL.md, "Residual signatures").
 
-A check looks at a :class:`~balancer_id.diagnose.context.DiagnosisContext` and returns a
+A check looks at a :class:`~balancer_id.diagnostics.context.DiagnosisContext` and returns a
 :class:`Signature`: a strength in [0, 1], the evidence in numbers and words, and start
 values for the quick refit. Built-in checks are listed in :data:`SIGNATURES`; a user
 effect contributes its own by defining ``signature(ctx)`` as a classmethod, and any
@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from balancer_id.diagnose.context import DiagnosisContext
-from balancer_id.diagnose.residual_tests import input_correlation, state_correlations
+from balancer_id.diagnostics.context import DiagnosisContext
+from balancer_id.diagnostics.residual_tests import input_correlation, state_correlations
 
 
 @dataclass
@@ -285,7 +285,7 @@ def check_servo(ctx: DiagnosisContext) -> Signature:
     Signature
         Strength in [0, 1], the evidence in words and numbers; no start values.
     """
-    from balancer_id.diagnose.residual_tests import spectrum_peaks
+    from balancer_id.diagnostics.residual_tests import spectrum_peaks
 
     peaks = spectrum_peaks(ctx)["peaks"]
     if not peaks:

@@ -1,10 +1,10 @@
 """Identification: the paper's method and simulation matching over all trials."""
 
-from balancer_id.fit.api import fit, resolve_model, trial_data
-from balancer_id.fit.classic import ClassicResult, paper_method
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import MatchResult, match_trials
-from balancer_id.fit.result import FitResult
+from balancer_id.identify.api import fit, resolve_model, trial_data
+from balancer_id.identify.classic import ClassicResult, paper_method
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.result import FitResult
 
 __all__ = [
     "ClassicResult",

@@ -1,4 +1,4 @@
-"""``balancer_id.fit``: the whole identification, as the ``fit`` command runs it."""
+"""``balancer_id.identify``: the whole identification, as the ``fit`` command runs it."""
 
 from __future__ import annotations
 
@@ -6,16 +6,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from balancer_id.errors import IdentificationError
-from balancer_id.fit.classic import paper_method
-from balancer_id.fit.coupling import coupling
-from balancer_id.fit.data import TrialData
-from balancer_id.fit.matching import match_trials
-from balancer_id.fit.result import FitResult, PerTrialFit
+from balancer_id.identify.classic import paper_method
+from balancer_id.identify.coupling import coupling
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import match_trials
+from balancer_id.identify.result import FitResult, PerTrialFit
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
-from balancer_id.pipeline import ReadOptions, load_trials
+from balancer_id.trials import ReadOptions, load_trials
 from balancer_id.segment.trial import Trial
-from balancer_id.simulate.inputs import Trapezoid
+from balancer_id.simulation.inputs import Trapezoid
 
 
 def resolve_model(
@@ -127,7 +127,7 @@ def fit(
     per_trial : bool
         Also fit each trial alone, so drift with thrust and direction shows.
     n_starts : int
-        Optimizer starts (see :func:`~balancer_id.fit.matching.match_trials`).
+        Optimizer starts (see :func:`~balancer_id.identify.matching.match_trials`).
     seed : int
         Seed of the extra starts.
     max_nfev : int

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from balancer_id.fit.data import TrialData
+from balancer_id.identify.data import TrialData
 
 #: Length of the window after the onset used for the first-order fit (s).
 CLASSIC_WINDOW_S = 2.0

@@ -9,8 +9,8 @@ import numpy as np
 
 from balancer_id.errors import IdentificationError
 from balancer_id.segment.trial import Trial
-from balancer_id.simulate.engine import PackedTrials, TrialInput
-from balancer_id.simulate.inputs import Thrust, Trapezoid
+from balancer_id.simulation.engine import PackedTrials, TrialInput
+from balancer_id.simulation.inputs import Thrust, Trapezoid
 
 
 @dataclass

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from balancer_id.errors import IdentificationError
-from balancer_id.fit.data import FitData, TrialData, thrust_levels
-from balancer_id.fit.metrics import error_metrics
+from balancer_id.identify.data import FitData, TrialData, thrust_levels
+from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
 #: Parameters that need trials at two or more thrust levels.

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from balancer_id.fit.classic import ClassicResult
-from balancer_id.fit.coupling import Coupling
-from balancer_id.fit.matching import MatchResult
+from balancer_id.identify.classic import ClassicResult
+from balancer_id.identify.coupling import Coupling
+from balancer_id.identify.matching import MatchResult
 from balancer_id.jsonsafe import json_ready
 
 

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from balancer_id.errors import ModelSpecError
 from balancer_id.model.effect import EXCLUSIVE_HOOKS, Effect, Param
-from balancer_id.model.effects.base import Base
+from balancer_id.model.effects.base_model import Base
 from balancer_id.model.registry import Registry
 
 if TYPE_CHECKING:

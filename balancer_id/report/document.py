@@ -45,7 +45,7 @@ from balancer_id.report.plots import (
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from balancer_id.fit.result import FitResult
+    from balancer_id.identify.result import FitResult
     from balancer_id.model.effect import Effect
 
 #: Trials per figure in the report (3 rows of 2).
@@ -237,7 +237,7 @@ def write_fit_report(
     Parameters
     ----------
     result : FitResult
-        What :func:`balancer_id.fit.fit` returned.
+        What :func:`balancer_id.identify.fit` returned.
     path : str or Path
         The report file; ``.html``/``.htm`` or ``.pdf``.
     extra_sections : list of Section, optional

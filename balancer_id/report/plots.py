@@ -26,11 +26,11 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from balancer_id.fit.classic import ClassicResult
-    from balancer_id.fit.coupling import Coupling
-    from balancer_id.fit.data import TrialData
-    from balancer_id.fit.matching import MatchResult
-    from balancer_id.fit.result import PerTrialFit
+    from balancer_id.identify.classic import ClassicResult
+    from balancer_id.identify.coupling import Coupling
+    from balancer_id.identify.data import TrialData
+    from balancer_id.identify.matching import MatchResult
+    from balancer_id.identify.result import PerTrialFit
 
 #: One model's simulated acceleration, per trial: ``(label, [y_model of trial 0, ...])``.
 #: An entry may be ``None`` where that model has no simulation of the trial.
@@ -386,7 +386,7 @@ def plot_paper_method(
     Parameters
     ----------
     classic : ClassicResult
-        The paper's method (:func:`balancer_id.fit.classic.paper_method`).
+        The paper's method (:func:`balancer_id.identify.classic.paper_method`).
     path : str or Path, optional
         Write a PNG here (atomically) instead of returning the figure.
     reference : mapping, optional
@@ -744,7 +744,7 @@ def plot_coupling(
     Parameters
     ----------
     coupling : Coupling
-        :func:`balancer_id.fit.coupling.coupling`.
+        :func:`balancer_id.identify.coupling.coupling`.
     path : str or Path, optional
         Write a PNG here (atomically) instead of returning the figure.
     params : mapping, optional

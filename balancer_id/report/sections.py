@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING, Any
 from balancer_id.report.document import Cell, Paragraph, Plot, Section, Table, format_value
 
 if TYPE_CHECKING:
-    from balancer_id.diagnose import Diagnosis, ImproveResult, ModelComparison
-    from balancer_id.pipeline import ReadOptions
-    from balancer_id.simulate.inputs import Trapezoid
+    from balancer_id.diagnostics import Diagnosis, ImproveResult, ModelComparison
+    from balancer_id.trials import ReadOptions
+    from balancer_id.simulation.inputs import Trapezoid
 
 
 def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
@@ -43,7 +43,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     Parameters
     ----------
     diagnosis : Diagnosis
-        What :func:`~balancer_id.diagnose.diagnosis.diagnose_match` returned.
+        What :func:`~balancer_id.diagnostics.diagnosis.diagnose_match` returned.
 
     Returns
     -------
@@ -132,7 +132,7 @@ def improve_section(result: ImproveResult) -> Section:
     Parameters
     ----------
     result : ImproveResult
-        What :func:`~balancer_id.diagnose.improve.improve_model` returned.
+        What :func:`~balancer_id.diagnostics.improve.improve_model` returned.
 
     Returns
     -------
@@ -169,7 +169,7 @@ def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequen
     Parameters
     ----------
     result : ImproveResult
-        What :func:`~balancer_id.diagnose.improve.improve_model` returned.
+        What :func:`~balancer_id.diagnostics.improve.improve_model` returned.
     path : str or Path
         The report file; ``.html``/``.htm`` or ``.pdf``.
     inputs : sequence of Path
@@ -185,8 +185,8 @@ def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequen
     UsageError
         Another suffix, a missing directory, or ``path`` is one of the input logs.
     """
-    from balancer_id.fit.classic import paper_method
-    from balancer_id.fit.result import FitResult
+    from balancer_id.identify.classic import paper_method
+    from balancer_id.identify.result import FitResult
     from balancer_id.report.document import write_fit_report
 
     final = result.steps[-1].match
@@ -242,7 +242,7 @@ def write_full_report(
     IdentificationError
         When the logs hold no step trial or the fit does not converge.
     """
-    from balancer_id.diagnose.api import fit_and_diagnose
+    from balancer_id.diagnostics.api import fit_and_diagnose
     from balancer_id.report.document import check_report_path, write_fit_report
 
     check_report_path(out, logs)

@@ -25,7 +25,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
         Where to print (the CLI's stdout console).
     info : dict
         The CONTRACT.md ``inspect`` object, as
-        :func:`~balancer_id.pipeline.describe_log` returns it.
+        :func:`~balancer_id.trials.describe_log` returns it.
     """
     console.print(
         f"[bold]{info['file']}[/bold]  format={info['format']}  "

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 
 from balancer_id.model.spec import Model
-from balancer_id.simulate.inputs import Thrust
-from balancer_id.simulate.kernel import OUT_COLUMNS, get_kernel
+from balancer_id.simulation.inputs import Thrust
+from balancer_id.simulation.kernel import OUT_COLUMNS, get_kernel
 
 #: Internal RK4 steps per sample interval.
 DEFAULT_SUBSTEPS = 1

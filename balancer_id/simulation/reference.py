@@ -14,8 +14,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from balancer_id.model.spec import Model
-from balancer_id.simulate.engine import Simulation, TrialInput
-from balancer_id.simulate.kernel import generate_source
+from balancer_id.simulation.engine import Simulation, TrialInput
+from balancer_id.simulation.kernel import generate_source
 
 _PLAIN_JIT = "def jit(f=None, **kw):\n    return f if f is not None else (lambda g: g)\n"
 
@@ -35,7 +35,7 @@ def python_rhs(model: Model):
         parameter vector in ``model.param_names`` order.
     """
     source, aliases = generate_source(model, cache=False)
-    source = source.replace("from balancer_id.simulate.jit import jit\n", _PLAIN_JIT)
+    source = source.replace("from balancer_id.simulation.jit import jit\n", _PLAIN_JIT)
     namespace: dict[str, object] = dict(aliases)
     exec(compile(source, "<balancer_id reference rhs>", "exec"), namespace)
     return namespace["rhs"]

@@ -16,8 +16,8 @@ import numpy as np
 from balancer_id.constants import ACCEL_RESOLUTION, FORCE_RESOLUTION_N, G_DEFAULT
 from balancer_id.model.spec import Model
 from balancer_id.read.recording import Recording
-from balancer_id.simulate.engine import TrialInput, simulate_many
-from balancer_id.simulate.inputs import Thrust, Trapezoid
+from balancer_id.simulation.engine import TrialInput, simulate_many
+from balancer_id.simulation.inputs import Thrust, Trapezoid
 
 
 @dataclass(frozen=True)

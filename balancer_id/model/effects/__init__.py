@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from balancer_id.model.effect import Effect
 from balancer_id.model.effects.asymmetric_lag import AsymmetricLag
-from balancer_id.model.effects.base import Base
+from balancer_id.model.effects.base_model import Base
 from balancer_id.model.effects.bias import Bias
 from balancer_id.model.effects.dead_time import DeadTime
 from balancer_id.model.effects.karnopp import Karnopp
