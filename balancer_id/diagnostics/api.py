@@ -12,8 +12,8 @@ from balancer_id.diagnostics.improve import ImproveResult, improve_model
 from balancer_id.identify.api import fit, resolve_model, trial_data
 from balancer_id.identify.result import FitResult
 from balancer_id.model.registry import Registry, default_registry
-from balancer_id.trials import ReadOptions
 from balancer_id.simulation.inputs import Trapezoid
+from balancer_id.trials import ReadOptions
 
 Source = str | Path
 

@@ -13,9 +13,9 @@ from balancer_id.identify.matching import match_trials
 from balancer_id.identify.result import FitResult, PerTrialFit
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
-from balancer_id.trials import ReadOptions, load_trials
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.inputs import Trapezoid
+from balancer_id.trials import ReadOptions, load_trials
 
 
 def resolve_model(

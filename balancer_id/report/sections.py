@@ -10,8 +10,8 @@ from balancer_id.report.document import Cell, Paragraph, Plot, Section, Table, f
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics import Diagnosis, ImproveResult, ModelComparison
-    from balancer_id.trials import ReadOptions
     from balancer_id.simulation.inputs import Trapezoid
+    from balancer_id.trials import ReadOptions
 
 
 def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
