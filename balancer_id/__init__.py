@@ -1,9 +1,22 @@
 """balancer-id: identify a passive balancer's dynamics from force/acceleration logs.
 
-The pipeline, one subpackage each: :mod:`~balancer_id.read` -> :mod:`~balancer_id.segment`
--> :mod:`~balancer_id.model` / :mod:`~balancer_id.simulation` -> :mod:`~balancer_id.identify`
--> :mod:`~balancer_id.diagnostics` -> :mod:`~balancer_id.report`.
-Heavy modules are imported lazily, so ``import balancer_id`` is quick.
+The public API is a set of plain functions that stay what they are however often and in
+whatever order they are called (no subpackage carries the name of one of them)::
+
+    load_trials(paths, options) -> TrialSet       the door: read and segment, once
+    fit(trials, model=...) -> FitResult            the paper's method, simulation matching
+    diagnose(fit) -> Diagnosis                     residual tests, suggested effects
+    improve(fit) -> ImproveResult                  add effects while they help
+    compare(trials, models) -> [ModelComparison]
+    simulate(model, values, thrust, ...)           the balancer's response
+    read_log(path) -> Log
+
+``fit``, ``diagnose``, ``improve`` and ``compare`` also take log paths (one as a plain
+``str``). The layers: :mod:`~balancer_id.read` -> :mod:`~balancer_id.segment` ->
+:mod:`~balancer_id.model` -> :mod:`~balancer_id.simulation` -> :mod:`~balancer_id.trials`
+-> :mod:`~balancer_id.identify` -> :mod:`~balancer_id.diagnostics` ->
+:mod:`~balancer_id.report` -> :mod:`~balancer_id.cli`. Heavy modules are imported lazily,
+so ``import balancer_id`` is quick.
 """
 
 from __future__ import annotations
@@ -13,6 +26,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
+#: Public name -> the module that defines it (imported on first use).
 _LAZY = {
     "Effect": "balancer_id.model",
     "Param": "balancer_id.model",
@@ -22,7 +36,14 @@ _LAZY = {
     "Thrust": "balancer_id.simulation",
     "read_log": "balancer_id.read",
     "find_trials": "balancer_id.segment",
-    "fit": "balancer_id.identify",
+    "ReadOptions": "balancer_id.trials",
+    "TrialSet": "balancer_id.trials",
+    "load_trials": "balancer_id.trials",
+    "fit": "balancer_id.identify.api",
+    "FitResult": "balancer_id.identify.result",
+    "diagnose": "balancer_id.diagnostics.api",
+    "improve": "balancer_id.diagnostics.api",
+    "compare": "balancer_id.diagnostics.api",
 }
 
 
@@ -30,7 +51,9 @@ def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'balancer_id' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
 
 
 __all__ = sorted(_LAZY)

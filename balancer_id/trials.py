@@ -1,20 +1,34 @@
-"""Read logs and find their trials: the shared front half of every command."""
+"""The door: logs are read and segmented here, once, into a typed :class:`TrialSet`.
+
+Everything below this module works on trials, never on paths: the CLI and the public API
+turn what the user gave (paths, options, a reference move) into a :class:`TrialSet` with
+:func:`load_trials`, and the identification, the diagnosis and the reports take it from
+there. A :class:`ReadOptions` checks itself when it is made, so a bad option fails before
+any file is read (exit code 2).
+"""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import NoTrialError, UsageError
 from balancer_id.read.recording import Log
 from balancer_id.segment.trial import Trial
 
+if TYPE_CHECKING:
+    from balancer_id.simulation.inputs import Trapezoid
+
+#: Values of ``vertical``.
+VERTICAL_AXES = ("auto", "x", "y", "z")
 
 @dataclass(frozen=True)
 class ReadOptions:
-    """How logs are read and segmented (the CLI's common options).
+    """How logs are read and segmented (the CLI's common options); checked when made.
 
     Attributes
     ----------
@@ -27,10 +41,15 @@ class ReadOptions:
     vertical : str
         ``auto``, ``x``, ``y`` or ``z`` for logs without gravity.
     g : float
-        Gravity (m/s^2).
+        Gravity (m/s^2), positive and finite.
     accel_unit : str
         ``auto``, ``m/s^2`` or ``g``: unit of the acceleration columns (``auto`` reads the
         header and converts evidently-g data with a warning).
+
+    Raises
+    ------
+    UsageError
+        When an option is out of its range (the message names the option).
     """
 
     columns: dict[str, str] | None = None
@@ -39,6 +58,154 @@ class ReadOptions:
     vertical: str = "auto"
     g: float = G_DEFAULT
     accel_unit: str = "auto"
+
+    def __post_init__(self) -> None:
+        from balancer_id.read.generic import MAP_KEYS
+        from balancer_id.read.units import check_accel_unit
+
+        if self.force_sign not in (None, 1, -1):
+            raise UsageError("--force-sign must be +1 or -1")
+        if self.vertical not in VERTICAL_AXES:
+            raise UsageError("--vertical must be auto, x, y or z")
+        try:
+            g = float(self.g)
+        except (TypeError, ValueError):
+            raise UsageError(f"--g {self.g!r}: give gravity in m/s^2, e.g. 9.81") from None
+        if not (math.isfinite(g) and g > 0):
+            raise UsageError(f"--g {self.g!r}: gravity must be a positive, finite m/s^2 value")
+        object.__setattr__(self, "g", g)
+        object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
+        if self.thrusts is not None:
+            thrusts = [float(f) for f in self.thrusts]
+            if not all(math.isfinite(f) for f in thrusts):
+                raise UsageError("--thrust: give each trial's thrust in N as a finite number")
+            object.__setattr__(self, "thrusts", thrusts)
+        if self.columns is not None:
+            cmap = {str(k).strip().lower(): str(v).strip() for k, v in self.columns.items()}
+            unknown = sorted(set(cmap) - set(MAP_KEYS))
+            if unknown:
+                raise UsageError(
+                    f"unknown column role(s) {', '.join(unknown)} in the column map; "
+                    f"use {', '.join(MAP_KEYS)}"
+                )
+            if not all(cmap.values()):
+                raise UsageError("--columns: every role needs a column name, e.g. time=t")
+            object.__setattr__(self, "columns", cmap)
+
+    @classmethod
+    def from_text(
+        cls,
+        *,
+        thrust: str | None = None,
+        force_sign: int | None = None,
+        vertical: str = "auto",
+        columns: str | None = None,
+        g: float = G_DEFAULT,
+        accel_unit: str = "auto",
+    ) -> ReadOptions:
+        """Build from the command-line spelling (``--thrust 2.45,-4.9``, ``--columns t=..``).
+
+        Parameters
+        ----------
+        thrust : str, optional
+            Thrusts in N separated by commas.
+        force_sign : int, optional
+            +1 or -1.
+        vertical : str
+            ``auto``, ``x``, ``y`` or ``z``.
+        columns : str, optional
+            ``ROLE=COLUMN`` pairs separated by commas.
+        g : float
+            Gravity (m/s^2).
+        accel_unit : str
+            ``auto``, ``m/s^2`` or ``g``.
+
+        Returns
+        -------
+        ReadOptions
+
+        Raises
+        ------
+        UsageError
+            A malformed list or an option out of range.
+        """
+        thrusts = None
+        if thrust is not None:
+            try:
+                thrusts = [float(x) for x in thrust.split(",") if x.strip()]
+            except ValueError:
+                raise UsageError(f"--thrust '{thrust}': give numbers separated by commas") from None
+        cmap = None
+        if columns:
+            cmap = {}
+            for item in columns.split(","):
+                key, sep, value = item.partition("=")
+                if not sep:
+                    raise UsageError(f"--columns '{item}': expected ROLE=COLUMN, e.g. time=t")
+                cmap[key.strip()] = value.strip()
+        return cls(
+            columns=cmap,
+            thrusts=thrusts,
+            force_sign=force_sign,
+            vertical=vertical,
+            g=g,
+            accel_unit=accel_unit,
+        )
+
+    def to_dict(self) -> dict[str, object]:
+        """Every option, JSON-ready (for cache keys and provenance)."""
+        return {
+            "columns": dict(self.columns) if self.columns is not None else None,
+            "thrusts": list(self.thrusts) if self.thrusts is not None else None,
+            "force_sign": self.force_sign,
+            "vertical": self.vertical,
+            "g": self.g,
+            "accel_unit": self.accel_unit,
+        }
+
+    def cli_args(self) -> list[str]:
+        """The command-line options that reproduce these options (defaults left out).
+
+        Returns
+        -------
+        list of str
+            E.g. ``["--thrust", "2.45,-4.9", "--g", "9.81"]``.
+        """
+        args: list[str] = []
+        if self.thrusts is not None:
+            args += ["--thrust", ",".join(repr(f) for f in self.thrusts)]
+        if self.force_sign is not None:
+            args += ["--force-sign", str(self.force_sign)]
+        if self.vertical != "auto":
+            args += ["--vertical", self.vertical]
+        if self.columns is not None:
+            args += ["--columns", ",".join(f"{k}={v}" for k, v in self.columns.items())]
+        if self.g != G_DEFAULT:
+            args += ["--g", repr(self.g)]
+        if self.accel_unit != "auto":
+            args += ["--accel-unit", self.accel_unit]
+        return args
+
+
+def trajectory_text(trajectory: Trapezoid) -> str:
+    """The ``--trajectory`` spelling of a reference move.
+
+    Parameters
+    ----------
+    trajectory : Trapezoid
+        The robot's reference move.
+
+    Returns
+    -------
+    str
+        ``"trapezoid:distance=D,speed=V,accel=A,start=T"`` (round-trips through
+        :func:`~balancer_id.simulation.inputs.parse_trajectory`).
+    """
+    t = trajectory
+    return (
+        f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},"
+        f"start={t.start!r}"
+    )
 
 
 @dataclass
@@ -49,15 +216,65 @@ class LoadedLog:
     trials: list[Trial] = field(default_factory=list)
 
 
+@dataclass
+class TrialSet:
+    """The trials of one request, with where they came from and how they were read.
+
+    Attributes
+    ----------
+    logs : list of LoadedLog
+        The logs read, each with its trials (``Trial.index`` counts over all of them).
+    options : ReadOptions
+        How the logs were read and segmented.
+    trajectory : Trapezoid or None
+        The robot's reference move, when a robot held the load (``servo``).
+    loose : list
+        Trials given ready-made (segmented :class:`Trial` objects or the fitters'
+        ``TrialData``), after those of the logs.
+    """
+
+    logs: list[LoadedLog] = field(default_factory=list)
+    options: ReadOptions = field(default_factory=ReadOptions)
+    trajectory: Trapezoid | None = None
+    loose: list[object] = field(default_factory=list)
+
+    @property
+    def paths(self) -> list[str]:
+        """The logs read, as given."""
+        return [str(item.log.path) for item in self.logs]
+
+    @property
+    def trials(self) -> list[Trial]:
+        """The segmented trials of the logs, in order."""
+        return [t for item in self.logs for t in item.trials]
+
+    def __len__(self) -> int:
+        return len(self.trials) + len(self.loose)
+
+    def option_args(self) -> list[str]:
+        """The command-line options that reproduce how this set was read.
+
+        Returns
+        -------
+        list of str
+            The reading options that differ from their defaults and ``--trajectory``
+            when a reference move is known (the logs are :attr:`paths`).
+        """
+        args = self.options.cli_args()
+        if self.trajectory is not None:
+            args += ["--trajectory", trajectory_text(self.trajectory)]
+        return args
+
+
 def read(path: str | Path, options: ReadOptions | None = None) -> Log:
-    """Read one log with the options' column map and gravity.
+    """Read one log with the options' column map, gravity and acceleration unit.
 
     Parameters
     ----------
     path : str or Path
         The CSV log.
     options : ReadOptions, optional
-        Only ``columns`` and ``g`` are used here; None uses the defaults.
+        Only ``columns``, ``g`` and ``accel_unit`` are used here; None uses the defaults.
 
     Returns
     -------
@@ -82,8 +299,7 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     log : Log
         A log from :func:`read`.
     options : ReadOptions, optional
-        Column map, thrusts, force sign, vertical axis and gravity; None uses the
-        defaults.
+        Thrusts, force sign, vertical axis and gravity; None uses the defaults.
 
     Returns
     -------
@@ -115,8 +331,7 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
     path : str or Path
         The CSV log.
     options : ReadOptions, optional
-        Column map, thrusts, force sign, vertical axis and gravity; None uses the
-        defaults.
+        How the log is read and segmented; None uses the defaults.
 
     Returns
     -------
@@ -133,32 +348,42 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
     return LoadedLog(log, segment(log, options))
 
 
-def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None) -> list[LoadedLog]:
-    """Read several logs; trials are renumbered across logs.
+def load_trials(
+    paths: str | Path | Sequence[str | Path],
+    options: ReadOptions | None = None,
+    trajectory: Trapezoid | None = None,
+) -> TrialSet:
+    """Read and segment logs into one :class:`TrialSet`; trials are renumbered across logs.
 
     A log without trials is skipped as long as another log has some.
 
     Parameters
     ----------
-    paths : sequence of str or Path
-        The CSV logs, in order.
+    paths : str, Path or sequence of them
+        One log or several, in order.
     options : ReadOptions, optional
-        Column map, thrusts, force sign, vertical axis and gravity; None uses the
-        defaults.
-        ``thrusts`` may only be given with a single log.
+        How the logs are read and segmented; None uses the defaults. ``thrusts`` may only
+        be given with a single log.
+    trajectory : Trapezoid, optional
+        The robot's reference move, when a robot held the load (``servo``).
 
     Returns
     -------
-    list of LoadedLog
-        One per log with trials; ``Trial.index`` counts over all of them.
+    TrialSet
+        One :class:`LoadedLog` per log with trials; ``Trial.index`` counts over all.
 
     Raises
     ------
     UsageError
-        ``thrusts`` given with more than one log.
+        ``thrusts`` given with more than one log, or no log at all.
     NoTrialError
         When no log holds a trial.
     """
+    if isinstance(paths, str | Path):
+        paths = [paths]
+    paths = list(paths)
+    if not paths:
+        raise UsageError("give at least one log")
     options = options or ReadOptions()
     if options.thrusts is not None and len(paths) > 1:
         raise UsageError("--thrust lists the trials of one log; give one log per command")
@@ -178,7 +403,53 @@ def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None)
         for trial in item.trials:
             trial.index = k
             k += 1
-    return loaded
+    return TrialSet(loaded, options, trajectory)
+
+
+def as_trial_set(
+    sources: TrialSet | str | Path | Sequence[object],
+    options: ReadOptions | None = None,
+    trajectory: Trapezoid | None = None,
+) -> TrialSet:
+    """What the public functions accept, as a :class:`TrialSet`.
+
+    Parameters
+    ----------
+    sources : TrialSet, str, Path or sequence
+        A ready set (returned as is), one log path, or a sequence of log paths and
+        ready-made trials (segmented :class:`Trial` or ``TrialData``), mixed freely; the
+        trials of the logs come first.
+    options : ReadOptions, optional
+        How the logs are read; None uses the defaults. Not allowed with a ready set.
+    trajectory : Trapezoid, optional
+        The robot's reference move; not allowed with a ready set (it carries its own).
+
+    Returns
+    -------
+    TrialSet
+
+    Raises
+    ------
+    UsageError
+        Options or a trajectory given with a ready set.
+    """
+    if isinstance(sources, TrialSet):
+        if options is not None or trajectory is not None:
+            raise UsageError(
+                "a TrialSet carries its reading options and reference move; "
+                "give them to load_trials instead"
+            )
+        return sources
+    if isinstance(sources, str | Path):
+        sources = [sources]
+    paths = [s for s in sources if isinstance(s, str | Path)]
+    loose = [s for s in sources if not isinstance(s, str | Path)]
+    if paths:
+        ts = load_trials(paths, options, trajectory)
+    else:
+        ts = TrialSet(options=options or ReadOptions(), trajectory=trajectory)
+    ts.loose = loose
+    return ts
 
 
 def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:

@@ -41,10 +41,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from diagnose_cases import HIDDEN, NOT_HERE, Case, build_cases, make_setup
 
-from balancer_id.diagnostics import diagnose_match
-from balancer_id.diagnostics.diagnosis import BIC_THRESHOLD, MIN_EXCESS_DROP
+from balancer_id.diagnostics.diagnosis import BIC_THRESHOLD, MIN_EXCESS_DROP, diagnose
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.matching import match_trials
+from balancer_id.identify.result import fit_match
 from balancer_id.model import parse_model
 
 TARGET_TOP1 = 0.90
@@ -200,14 +200,9 @@ def run_case(case: Case) -> Outcome:
         out.notes.extend(setup.warnings)
         model = parse_model(case.hidden.fit_spec)
         classic = paper_method(setup.trials)
-        start: dict[str, float] = {}
-        for name in ("m_a", "T_a"):
-            value, p = getattr(classic, name), model.param(name)
-            if value == value and p.min < value < p.max:
-                start[name] = float(value)
-        match = match_trials(model, setup.trials, start=start)
+        match = match_trials(model, setup.trials, start=classic.start_values(model))
         out.notes.extend(match.warnings)
-        diagnosis = diagnose_match(match, paths=setup.paths)
+        diagnosis = diagnose(fit_match(match, classic=classic))
         ctx = diagnosis.context
         out.verdict = diagnosis.verdict
         out.noise_floor = ctx.noise_floor

@@ -11,18 +11,21 @@ import pytest
 from conftest import EXAMPLES, PAPER, PAPER_THRUSTS, SAMPLE_LOGS
 
 from balancer_id import Effect, Param
-from balancer_id.diagnostics import diagnose_match, improve_model
-from balancer_id.identify.data import TrialData
+from balancer_id.diagnostics.diagnosis import diagnose
+from balancer_id.diagnostics.improve import improve
+from balancer_id.identify.api import trial_data
 from balancer_id.identify.matching import match_trials
+from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model import Registry, parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
+from balancer_id.trials import LoadedLog, TrialSet
 
 
 def trials_with(
     spec: str, extra: dict[str, float], seed: int, registry=None, rho: float = 0.0
-) -> list[TrialData]:
+) -> TrialSet:
     """Six paper trials of a balancer with ``spec`` hidden, read back through segmentation."""
     model = parse_model(spec, registry) if registry else parse_model(spec)
     truth = {k: v for k, v in {**PAPER, **extra}.items() if k in model.param_names}
@@ -30,13 +33,14 @@ def trials_with(
         tilt_deg=15.0, accel_noise=0.03, force_noise=0.03, noise_correlation=rho
     )
     recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
-    found = find_trials(Log(Path(f"{spec}.csv"), "pasco-capstone", recs))
-    return [TrialData.from_trial(t) for t in found]
+    log = Log(Path(f"{spec}.csv"), "pasco-capstone", recs)
+    return TrialSet([LoadedLog(log, find_trials(log))])
 
 
-def fit_paper_model(trials, registry=None):
+def fit_paper_model(trials: TrialSet, registry=None) -> FitResult:
     model = parse_model("variable_viscosity", registry) if registry else parse_model()
-    return match_trials(model, trials, start={"m_a": 15.0, "T_a": 0.3})
+    match = match_trials(model, trial_data(trials), start={"m_a": 15.0, "T_a": 0.3})
+    return fit_match(match, trials)
 
 
 @pytest.mark.parametrize(
@@ -45,11 +49,13 @@ def fit_paper_model(trials, registry=None):
 )
 def test_hidden_effect_is_found_first(hidden, extra):
     trials = trials_with(f"variable_viscosity+{hidden}", extra, seed=11)
-    diagnosis = diagnose_match(fit_paper_model(trials), paths=["log.csv"])
+    diagnosis = diagnose(fit_paper_model(trials))
     assert diagnosis.verdict == "effect missing"
     best = diagnosis.suggestions[0]
     assert best.effect == hidden
-    assert best.command == (f"balancer-id fit log.csv --model variable_viscosity+{hidden}")
+    assert best.command == (
+        f"balancer-id fit variable_viscosity+{hidden}.csv --model variable_viscosity+{hidden}"
+    )
     assert best.excess_drop > 0.5  # adding it removes most of the error above the noise
     out = diagnosis.to_dict()
     assert out["suggestions"][0]["effect"] == hidden
@@ -58,7 +64,7 @@ def test_hidden_effect_is_found_first(hidden, extra):
 
 def test_nothing_hidden_is_adequate():
     trials = trials_with("variable_viscosity", {}, seed=12)
-    diagnosis = diagnose_match(fit_paper_model(trials))
+    diagnosis = diagnose(fit_paper_model(trials))
     assert diagnosis.verdict == "adequate"
     assert diagnosis.context.excess_rmse() < 0.3 * diagnosis.context.noise_floor
     # the noise floor is estimated within 5 % of the simulated 0.03 m/s^2
@@ -72,14 +78,14 @@ def test_coloured_sensor_noise_is_not_a_missing_effect():
     # a sensor's low-pass filter makes its noise correlated (lag-one 0.6): not white, yet
     # nothing is missing from the model
     trials = trials_with("variable_viscosity", {}, seed=15, rho=0.6)
-    diagnosis = diagnose_match(fit_paper_model(trials))
+    diagnosis = diagnose(fit_paper_model(trials))
     assert diagnosis.tests["whiteness"]["ljung_box_p"] < 1e-6
     assert diagnosis.verdict == "adequate"
 
 
 def test_a_hidden_effect_is_found_through_coloured_noise():
     trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=16, rho=0.6)
-    diagnosis = diagnose_match(fit_paper_model(trials))
+    diagnosis = diagnose(fit_paper_model(trials))
     assert diagnosis.verdict == "effect missing"
     assert diagnosis.suggestions[0].effect == "karnopp"
 
@@ -113,7 +119,7 @@ def test_failing_user_effects_are_reported_by_name_and_the_rest_go_on():
     registry.add(Explodes)
     registry.add(MakesNaN)
     trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=13)
-    diagnosis = diagnose_match(fit_paper_model(trials, registry))
+    diagnosis = diagnose(fit_paper_model(trials, registry))
     failed = " ".join(diagnosis.failures)
     assert "explodes" in failed and "makes_nan" in failed
     assert diagnosis.suggestions[0].effect == "karnopp"
@@ -124,7 +130,7 @@ def test_improve_walks_the_hose_example_to_the_noise_floor():
     registry.load_file(EXAMPLES / "effects" / "hose_spring.py")
     trials = trials_with("variable_viscosity+hose_spring", {"k_h": 4.0}, seed=14, registry=registry)
     start = fit_paper_model(trials, registry)
-    result = improve_model(start, max_steps=2)
+    result = improve(start, max_steps=2)
     models = [s.model for s in result.steps]
     assert models[0] == "variable_viscosity"
     assert models[1] == "variable_viscosity+hose_spring"

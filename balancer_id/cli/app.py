@@ -1,21 +1,36 @@
-"""The ``balancer-id`` command: it parses arguments, calls the library and writes output.
+"""The ``balancer-id`` command: each command parses, loads, calls the library, renders.
 
 Data go to stdout (one JSON object with ``--json``), messages to stderr. Errors are one
 line with the exit codes of CONTRACT.md; there is never a traceback (set
-``BALANCER_ID_DEBUG=1`` to see one).
+``BALANCER_ID_DEBUG=1`` to see one). The options shared by several commands are declared
+once in :mod:`balancer_id.cli.options`.
 """
 
 from __future__ import annotations
 
-import functools
 import json
-import os
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated
 
 import typer
+
+from balancer_id.cli.options import (
+    EffectsFileOpt,
+    FixOpt,
+    JsonOpt,
+    LogsArg,
+    ModelOpt,
+    TrajectoryOpt,
+    assignments,
+    floats,
+    guarded,
+    read_options,
+    trajectory,
+)
+
+if TYPE_CHECKING:
+    from balancer_id.trials import ReadOptions
 
 app = typer.Typer(
     add_completion=False,
@@ -23,45 +38,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Identify a passive balancer's dynamics from force/acceleration step logs.",
 )
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-# Options shared by several commands -----------------------------------------------------
-ModelOpt = Annotated[
-    str | None,
-    typer.Option("--model", "-m", help="Effects joined by '+' (default variable_viscosity)."),
-]
-EffectsFileOpt = Annotated[
-    list[Path] | None,
-    typer.Option("--effects-file", help="A .py file of user effects (repeatable)."),
-]
-ThrustOpt = Annotated[
-    str | None,
-    typer.Option("--thrust", help="Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."),
-]
-ForceSignOpt = Annotated[
-    int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
-]
-VerticalOpt = Annotated[
-    str, typer.Option("--vertical", help="auto|x|y|z: vertical axis of logs without gravity.")
-]
-ColumnsOpt = Annotated[
-    str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
-]
-GOpt = Annotated[float, typer.Option("--g", help="Gravity in m/s^2.")]
-AccelUnitOpt = Annotated[
-    str, typer.Option("--accel-unit", help="auto|m/s^2|g: unit of the acceleration columns.")
-]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
-FixOpt = Annotated[
-    list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
-]
-TrajectoryOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--trajectory", help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..'."
-    ),
-]
 
 
 def _version(value: bool) -> None:
@@ -82,109 +58,6 @@ def _main(
     """Identify a passive balancer's dynamics from force/acceleration step logs."""
 
 
-def _fail(message: str, code: int) -> None:
-    typer.echo(f"balancer-id: error: {' '.join(str(message).split())}", err=True)
-    raise typer.Exit(code)
-
-
-def guarded(func: F) -> F:
-    """Turn library errors into one-line messages and CONTRACT.md exit codes."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from balancer_id.errors import BalancerIdError
-
-        try:
-            return func(*args, **kwargs)
-        except (typer.Exit, typer.Abort):
-            raise
-        except BalancerIdError as exc:
-            _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail("interrupted", 130)
-        except Exception as exc:  # never a traceback for the user
-            if os.environ.get("BALANCER_ID_DEBUG"):
-                raise
-            _fail(
-                f"internal error {type(exc).__name__}: {exc} "
-                "(rerun with BALANCER_ID_DEBUG=1 and report it)",
-                1,
-            )
-
-    return wrapper  # type: ignore[return-value]
-
-
-def _floats(text: str | None, what: str) -> list[float] | None:
-    from balancer_id.errors import UsageError
-
-    if text is None:
-        return None
-    try:
-        return [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise UsageError(f"{what} '{text}': give numbers separated by commas") from None
-
-
-def _assignments(items: list[str] | None, what: str) -> dict[str, float]:
-    from balancer_id.errors import UsageError
-
-    out: dict[str, float] = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        try:
-            if not sep:
-                raise ValueError
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise UsageError(f"{what} '{item}': expected NAME=VALUE, e.g. m_a=15.1") from None
-    return out
-
-
-def _read_options(
-    thrust: str | None,
-    force_sign: int | None,
-    vertical: str,
-    columns: str | None,
-    g: float,
-    accel_unit: str = "auto",
-):
-    from balancer_id.errors import UsageError
-    from balancer_id.trials import ReadOptions
-
-    if force_sign not in (None, 1, -1):
-        raise UsageError("--force-sign must be +1 or -1")
-    if vertical not in ("auto", "x", "y", "z"):
-        raise UsageError("--vertical must be auto, x, y or z")
-    cmap = None
-    if columns:
-        cmap = {}
-        for item in columns.split(","):
-            key, sep, value = item.partition("=")
-            if not sep:
-                raise UsageError(f"--columns '{item}': expected ROLE=COLUMN, e.g. time=t")
-            cmap[key.strip()] = value.strip()
-    return ReadOptions(
-        columns=cmap,
-        thrusts=_floats(thrust, "--thrust"),
-        force_sign=force_sign,
-        vertical=vertical,
-        g=g,
-        accel_unit=accel_unit,
-    )
-
-
-def _trajectory(text: str | None):
-    from balancer_id.errors import UsageError
-    from balancer_id.simulation.inputs import parse_trajectory
-
-    if text is None:
-        return None
-    try:
-        return parse_trajectory(text)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-
-
 def _emit_json(obj: object) -> None:
     sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
 
@@ -195,25 +68,26 @@ def _console():
     return Console(width=max(100, Console().width))
 
 
+def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
+    from balancer_id.trials import load_trials
+
+    return load_trials(logs, options, trajectory(trajectory_text))
+
+
 # Commands -----------------------------------------------------------------------------
 @app.command()
 @guarded
+@read_options()
 def inspect(
     log: Annotated[Path, typer.Argument(help="The log to read.")],
     json_out: JsonOpt = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
-    thrust: ThrustOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
-    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     data = read(log, options)
     try:
         trials = segment(data, options)
@@ -228,9 +102,8 @@ def inspect(
     if json_out:
         _emit_json(info)
     else:
-        print_inspection = __import__(
-            "balancer_id.report.terminal", fromlist=["print_inspection"]
-        ).print_inspection
+        from balancer_id.report.terminal import print_inspection
+
         print_inspection(_console(), info)
     if problem is not None:
         raise problem
@@ -238,10 +111,10 @@ def inspect(
 
 @app.command()
 @guarded
+@read_options()
 def fit(
-    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    logs: LogsArg,
     model: ModelOpt = None,
-    thrust: ThrustOpt = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     report: Annotated[
@@ -255,44 +128,38 @@ def fit(
         bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
     ] = False,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    trajectory_text: TrajectoryOpt = None,
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
+    from balancer_id.cli.request import FitRequest
+
+    request = FitRequest(
+        logs=tuple(str(p) for p in logs),
+        model=model,
+        fixed=assignments(fix, "--fix"),
+        options=options,
+        per_trial=per_trial,
+        starts=starts,
+        trajectory=trajectory_text,
+        effects_files=tuple(str(p) for p in effects_file or ()),
+    )
+    key = None if no_cache else request.cache_key()
     from balancer_id import cache
 
-    fixed = _assignments(fix, "--fix")
-    key_options = {
-        "model": model,
-        "thrust": thrust,
-        "fix": fixed,
-        "per_trial": per_trial,
-        "starts": starts,
-        "trajectory": trajectory,
-        "force_sign": force_sign,
-        "vertical": vertical,
-        "columns": columns,
-        "g": g,
-        "logs": [str(p) for p in logs],
-        "effects": [str(p) for p in effects_file or ()],
-    }
-    key = None if no_cache else cache.result_key("fit", [*logs, *(effects_file or ())], key_options)
     out = cache.load(key) if report is None else None
     if out is None:
-        from balancer_id.identify import fit as run_fit
+        from balancer_id.identify.api import fit as run_fit
 
-        options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+        if report is not None:
+            from balancer_id.report.document import check_report_path
+
+            check_report_path(report, logs)
         result = run_fit(
-            logs,
+            _load(logs, options, trajectory_text),
             model=model,
-            fixed=fixed,
-            options=options,
-            effects_files=effects_file or (),
-            trajectory=_trajectory(trajectory),
+            fixed=request.fixed,
+            effects_files=request.effects_files,
             per_trial=per_trial,
             n_starts=starts,
         )
@@ -342,22 +209,23 @@ def simulate(
         bool, typer.Option("--overwrite", help="Replace an existing file.")
     ] = False,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
+    trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
     from balancer_id.errors import UsageError
-    from balancer_id.identify import resolve_model
+    from balancer_id.identify.api import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
     mdl = resolve_model(model, effects_file or ())
-    values = mdl.resolve(_assignments(param, "--param"))
-    thrusts = _floats(thrust, "--thrust") or []
+    values = mdl.resolve(assignments(param, "--param"))
+    thrusts = floats(thrust, "--thrust") or []
     if not thrusts:
         raise UsageError("--thrust: give at least one thrust")
-    traj = _trajectory(trajectory)
-    if mdl.has("servo") and traj is None:
-        raise UsageError("a model with 'servo' needs --trajectory")
+    traj = trajectory(trajectory_text)
+    if mdl.needs_reference_move and traj is None:
+        names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
+        raise UsageError(f"a model with '{names}' needs --trajectory")
     if force_sign not in (1, -1):
         raise UsageError("--force-sign must be +1 or -1")
     if not 0.0 <= noise_correlation < 1.0:
@@ -399,34 +267,28 @@ def simulate(
 
 @app.command()
 @guarded
+@read_options()
 def compare(
-    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    logs: LogsArg,
     model: Annotated[
         str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
     ] = "viscous,variable_viscosity",
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
-    thrust: ThrustOpt = None,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    trajectory_text: TrajectoryOpt = None,
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails."""
-    from balancer_id.diagnostics import compare as run_compare
+    from balancer_id.diagnostics.api import compare as run_compare
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
     results = run_compare(
-        logs,
+        _load(logs, options, trajectory_text),
         specs,
-        fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+        fixed=assignments(fix, "--fix"),
         effects_files=effects_file or (),
-        trajectory=_trajectory(trajectory),
     )
     out = {"models": [r.to_dict() for r in results]}
     if plot is not None:
@@ -443,32 +305,53 @@ def compare(
         print_compare(_console(), out)
 
 
+def _fit(
+    logs: list[Path],
+    options: ReadOptions,
+    *,
+    model: str | None,
+    fix: list[str] | None,
+    effects_file: list[Path] | None,
+    trajectory_text: str | None,
+    per_trial: bool = False,
+):
+    """Parse the fit's own options, load the trials, fit."""
+    from balancer_id.identify.api import fit as run_fit
+
+    fixed = assignments(fix, "--fix")
+    return run_fit(
+        _load(logs, options, trajectory_text),
+        model=model,
+        fixed=fixed,
+        effects_files=effects_file or (),
+        per_trial=per_trial,
+    )
+
+
 @app.command()
 @guarded
+@read_options()
 def diagnose(
-    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    logs: LogsArg,
     model: ModelOpt = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
-    thrust: ThrustOpt = None,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    trajectory_text: TrajectoryOpt = None,
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Residual tests and ranked suggestions of missing effects."""
-    from balancer_id.diagnostics import diagnose as run_diagnose
+    from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
 
     result = run_diagnose(
-        logs,
-        model=model,
-        fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
-        effects_files=effects_file or (),
-        trajectory=_trajectory(trajectory),
+        _fit(
+            logs,
+            options,
+            model=model,
+            fix=fix,
+            effects_file=effects_file,
+            trajectory_text=trajectory_text,
+        )
     )
     out = result.to_dict()
     if json_out:
@@ -481,8 +364,9 @@ def diagnose(
 
 @app.command()
 @guarded
+@read_options()
 def improve(
-    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    logs: LogsArg,
     start: Annotated[
         str | None,
         typer.Option("--start", help="Model to start from (default variable_viscosity)."),
@@ -492,25 +376,26 @@ def improve(
     json_out: JsonOpt = False,
     report: Annotated[Path | None, typer.Option("--report", help="FILE.html or FILE.pdf.")] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="The error ladder as PNG.")] = None,
-    thrust: ThrustOpt = None,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    trajectory_text: TrajectoryOpt = None,
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve."""
-    from balancer_id.diagnostics import improve as run_improve
+    from balancer_id.diagnostics.improve import improve as run_improve
 
+    if report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(report, logs)
     result = run_improve(
-        logs,
-        start=start,
-        fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
-        effects_files=effects_file or (),
-        trajectory=_trajectory(trajectory),
+        _fit(
+            logs,
+            options,
+            model=start,
+            fix=fix,
+            effects_file=effects_file,
+            trajectory_text=trajectory_text,
+        ),
         max_steps=max_steps,
     )
     out = result.to_dict()
@@ -521,7 +406,7 @@ def improve(
     if report is not None:
         from balancer_id.report.sections import write_improve_report
 
-        write_improve_report(result, report, inputs=logs)
+        write_improve_report(result, report)
     if json_out:
         _emit_json(out)
     else:
@@ -532,37 +417,38 @@ def improve(
 
 @app.command()
 @guarded
+@read_options()
 def report(
-    logs: Annotated[list[Path], typer.Argument(help="One or more logs.")],
+    logs: LogsArg,
     out: Annotated[Path, typer.Option("--out", help="FILE.html or FILE.pdf.")],
     model: ModelOpt = None,
     fix: FixOpt = None,
-    thrust: ThrustOpt = None,
     effects_file: EffectsFileOpt = None,
-    trajectory: TrajectoryOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    trajectory_text: TrajectoryOpt = None,
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots."""
+    from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
+    from balancer_id.report.document import check_report_path
     from balancer_id.report.sections import write_full_report
 
-    write_full_report(
+    check_report_path(out, logs)
+    result = _fit(
         logs,
-        out,
+        options,
         model=model,
-        fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
-        effects_files=effects_file or (),
-        trajectory=_trajectory(trajectory),
+        fix=fix,
+        effects_file=effects_file,
+        trajectory_text=trajectory_text,
+        per_trial=True,
     )
+    write_full_report(result, run_diagnose(result), out)
     typer.echo(f"wrote {out}", err=True)
 
 
 @app.command()
 @guarded
+@read_options(thrust=False)
 def batch(
     paths: Annotated[list[Path], typer.Argument(help="Logs or folders of logs.")],
     out: Annotated[
@@ -578,11 +464,7 @@ def batch(
     ] = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
-    force_sign: ForceSignOpt = None,
-    vertical: VerticalOpt = "auto",
-    columns: ColumnsOpt = None,
-    g: GOpt = 9.8,
-    accel_unit: AccelUnitOpt = "auto",
+    options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
     from balancer_id.batch import run_batch
@@ -591,8 +473,8 @@ def batch(
         paths,
         out,
         model=model,
-        fixed=_assignments(fix, "--fix"),
-        options=_read_options(None, force_sign, vertical, columns, g, accel_unit),
+        fixed=assignments(fix, "--fix"),
+        options=options,
         effects_files=effects_file or (),
         jobs=jobs,
         scheduler=scheduler,

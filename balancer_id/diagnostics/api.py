@@ -1,4 +1,10 @@
-"""Library entry points of ``compare``, ``diagnose`` and ``improve`` (the CLI calls these)."""
+"""Library entry points of ``compare``, ``diagnose`` and ``improve``.
+
+``diagnose`` and ``improve`` take a :class:`~balancer_id.identify.result.FitResult` and
+reuse what it computed (trials, paper's method, per-trial fits). For convenience they
+also take what :func:`~balancer_id.identify.api.fit` takes (paths, a TrialSet) and fit
+first.
+"""
 
 from __future__ import annotations
 
@@ -7,125 +13,60 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.diagnostics.compare import ModelComparison, compare_models
-from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose_match
-from balancer_id.diagnostics.improve import ImproveResult, improve_model
-from balancer_id.identify.api import fit, resolve_model, trial_data
+from balancer_id.diagnostics.diagnosis import Diagnosis
+from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
+from balancer_id.diagnostics.improve import ImproveResult
+from balancer_id.diagnostics.improve import improve as improve_fit
+from balancer_id.identify.api import Sources, fit, resolve_model, trial_data
 from balancer_id.identify.result import FitResult
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.simulation.inputs import Trapezoid
-from balancer_id.trials import ReadOptions
-
-Source = str | Path
+from balancer_id.trials import ReadOptions, as_trial_set
 
 
-def _strs(items: Sequence[object]) -> list[str]:
-    return [str(x) for x in items if isinstance(x, str | Path)]
+def _fitted(
+    source: FitResult | Sources, model: str | None, fit_options: dict[str, Any]
+) -> FitResult:
+    if isinstance(source, FitResult):
+        if model is not None or any(v not in (None, (), {}) for v in fit_options.values()):
+            from balancer_id.errors import UsageError
 
-
-def _fit_with_context(
-    sources: Sequence[Source],
-    model: str | None,
-    fixed: Mapping[str, float] | None,
-    options: ReadOptions | None,
-    effects_files: Sequence[Source],
-    registry: Registry | None,
-    trajectory: Trapezoid | None,
-    per_trial: bool = False,
-) -> tuple[FitResult, dict[str, Any]]:
-    """Fit ``model`` and return the keyword arguments the diagnosis of that fit needs."""
-    registry = registry or default_registry(effects_files)
-    result = fit(
-        sources,
-        model=model,
-        fixed=fixed,
-        options=options,
-        registry=registry,
-        trajectory=trajectory,
-        per_trial=per_trial,
-    )
-    context = {
-        "paths": _strs(sources),
-        "effects_files": _strs(effects_files),
-        "with_trajectory": trajectory is not None,
-        "fixed": dict(fixed or {}),
-    }
-    return result, context
-
-
-def fit_and_diagnose(
-    sources: Sequence[Source],
-    *,
-    model: str | None = None,
-    fixed: Mapping[str, float] | None = None,
-    options: ReadOptions | None = None,
-    effects_files: Sequence[Source] = (),
-    registry: Registry | None = None,
-    trajectory: Trapezoid | None = None,
-    per_trial: bool = False,
-) -> tuple[FitResult, Diagnosis]:
-    """Fit ``model`` and diagnose its residual; return both (for reports).
-
-    Parameters
-    ----------
-    sources : sequence of str or Path
-        The logs to fit; their trials are fitted together.
-    model : str, optional
-        Model spec; None uses the default (``variable_viscosity``).
-    fixed : mapping of str to float, optional
-        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
-    options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
-    effects_files : sequence of str or Path
-        Python files with user effects to register next to the built-in ones.
-    registry : Registry, optional
-        The effect registry; None builds the default registry plus ``effects_files``.
-    trajectory : Trapezoid, optional
-        The robot's reference motion (makes ``servo`` available).
-    per_trial : bool
-        Also fit each trial alone.
-
-    Returns
-    -------
-    tuple of (FitResult, Diagnosis)
-        The identification and the diagnosis of its residual.
-    """
-    result, context = _fit_with_context(
-        sources, model, fixed, options, effects_files, registry, trajectory, per_trial
-    )
-    return result, diagnose_match(result.match, **context)
+            raise UsageError(
+                "a FitResult carries its model, options and trials; give fit options to fit()"
+            )
+        return source
+    return fit(source, model=model, **fit_options)
 
 
 def diagnose(
-    sources: Sequence[Source],
+    source: FitResult | Sources,
     *,
     model: str | None = None,
     fixed: Mapping[str, float] | None = None,
     options: ReadOptions | None = None,
-    effects_files: Sequence[Source] = (),
+    effects_files: Sequence[str | Path] = (),
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
 ) -> Diagnosis:
-    """Fit ``model`` and diagnose its residual (see :func:`diagnose_match`).
+    """Diagnose a fit's residual (see :func:`~balancer_id.diagnostics.diagnosis.diagnose`).
 
     Parameters
     ----------
-    sources : sequence of str or Path
-        The logs to fit; their trials are fitted together.
+    source : FitResult, TrialSet, str, Path or sequence
+        A fit to diagnose, or what :func:`~balancer_id.identify.api.fit` takes (the
+        logs are then fitted first with the options below).
     model : str, optional
-        Model spec such as ``"viscous+karnopp"``; None uses the default
-        (``variable_viscosity``).
+        Model spec when fitting; None uses the default (``variable_viscosity``).
     fixed : mapping of str to float, optional
-        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+        Parameters held at the given values when fitting (MODEL.md names, SI units).
     options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
+        How the logs are read and segmented when fitting.
     effects_files : sequence of str or Path
-        Python files with user effects to register next to the built-in ones.
+        Python files with user effects when fitting.
     registry : Registry, optional
-        The effect registry to resolve model specs in; None builds the default registry
-        plus ``effects_files``.
+        The effect registry when fitting; None builds the default plus ``effects_files``.
     trajectory : Trapezoid, optional
-        The robot's reference motion, when a robot held the load; it makes effects with
-        an ``operating_force`` hook (``servo``) available.
+        The robot's reference motion when fitting (makes ``servo`` available).
 
     Returns
     -------
@@ -136,51 +77,54 @@ def diagnose(
     ------
     IdentificationError
         When the logs hold no step trial or the fit does not converge.
+    UsageError
+        Fit options given with a ready FitResult.
     """
-    return fit_and_diagnose(
-        sources,
-        model=model,
-        fixed=fixed,
-        options=options,
-        effects_files=effects_files,
-        registry=registry,
-        trajectory=trajectory,
-    )[1]
+    kw = {
+        "fixed": fixed,
+        "options": options,
+        "effects_files": effects_files,
+        "registry": registry,
+        "trajectory": trajectory,
+    }
+    return diagnose_fit(_fitted(source, model, kw))
 
 
 def improve(
-    sources: Sequence[Source],
+    source: FitResult | Sources,
     *,
     start: str | None = None,
     fixed: Mapping[str, float] | None = None,
     options: ReadOptions | None = None,
-    effects_files: Sequence[Source] = (),
+    effects_files: Sequence[str | Path] = (),
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
     max_steps: int = 4,
+    diagnosis: Diagnosis | None = None,
 ) -> ImproveResult:
-    """Fit the start model and add effects while they help (see :func:`improve_model`).
+    """Add effects to a fit while they help (see :func:`~balancer_id.diagnostics.improve.improve`).
 
     Parameters
     ----------
-    sources : sequence of str or Path
-        The logs to fit; their trials are fitted together.
+    source : FitResult, TrialSet, str, Path or sequence
+        The fit to start from, or what :func:`~balancer_id.identify.api.fit` takes (the
+        start model is then fitted first).
     start : str, optional
-        Spec of the model to start from; None uses the default (``variable_viscosity``).
+        Spec of the model to start from when fitting; None uses the default.
     fixed : mapping of str to float, optional
-        Parameters held at the given values instead of fitted (MODEL.md names, SI units).
+        Parameters held at the given values when fitting (MODEL.md names, SI units).
     options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
+        How the logs are read and segmented when fitting.
     effects_files : sequence of str or Path
-        Python files with user effects to register next to the built-in ones.
+        Python files with user effects when fitting.
     registry : Registry, optional
-        The effect registry to resolve model specs in; None builds the default registry
-        plus ``effects_files``.
+        The effect registry when fitting; None builds the default plus ``effects_files``.
     trajectory : Trapezoid, optional
-        The robot's reference motion, when a robot held the load; it makes effects with
-        an ``operating_force`` hook (``servo``) available.
+        The robot's reference motion when fitting (makes ``servo`` available).
     max_steps : int
         Effects to add at most.
+    diagnosis : Diagnosis, optional
+        The diagnosis of a given FitResult, when already made (not made again).
 
     Returns
     -------
@@ -191,20 +135,26 @@ def improve(
     ------
     IdentificationError
         When the logs hold no step trial or the fit of the start model does not converge.
+    UsageError
+        Fit options given with a ready FitResult.
     """
-    result, context = _fit_with_context(
-        sources, start, fixed, options, effects_files, registry, trajectory
-    )
-    return improve_model(result.match, max_steps=max_steps, **context)
+    kw = {
+        "fixed": fixed,
+        "options": options,
+        "effects_files": effects_files,
+        "registry": registry,
+        "trajectory": trajectory,
+    }
+    return improve_fit(_fitted(source, start, kw), max_steps=max_steps, diagnosis=diagnosis)
 
 
 def compare(
-    sources: Sequence[Source],
+    trials: Sources,
     models: Sequence[str],
     *,
     fixed: Mapping[str, float] | None = None,
     options: ReadOptions | None = None,
-    effects_files: Sequence[Source] = (),
+    effects_files: Sequence[str | Path] = (),
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
 ) -> list[ModelComparison]:
@@ -212,22 +162,21 @@ def compare(
 
     Parameters
     ----------
-    sources : sequence of str or Path
-        The logs to fit; every model sees the same trials.
+    trials : TrialSet, str, Path or sequence
+        The trials (or logs) to fit; every model sees the same trials.
     models : sequence of str
         Model specs to compare (``"viscous"``, ``"viscous+karnopp"`` ...).
     fixed : mapping of str to float, optional
         Parameters held at the given values instead of fitted (MODEL.md names, SI units).
     options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
+        How logs are read and segmented when ``trials`` holds paths.
     effects_files : sequence of str or Path
         Python files with user effects to register next to the built-in ones.
     registry : Registry, optional
         The effect registry to resolve model specs in; None builds the default registry
         plus ``effects_files``.
     trajectory : Trapezoid, optional
-        The robot's reference motion, when a robot held the load; it makes effects with
-        an ``operating_force`` hook (``servo``) available.
+        The robot's reference motion when ``trials`` holds paths (``servo``).
 
     Returns
     -------
@@ -239,7 +188,9 @@ def compare(
     ModelSpecError
         When a spec names an unknown effect or an invalid combination.
     """
+    if isinstance(models, str):
+        models = [models]
     registry = registry or default_registry(effects_files)
     parsed = [resolve_model(spec, registry=registry) for spec in models]
-    trials, _ = trial_data(sources, options, trajectory)
-    return compare_models(parsed, trials, fixed)
+    data = trial_data(as_trial_set(trials, options, trajectory))
+    return compare_models(parsed, data, fixed)

@@ -164,7 +164,7 @@ def build_context(match: MatchResult) -> DiagnosisContext:
     values = match.values()
     pvec = np.array([values[n] for n in model.param_names])
     out = match.data.packed.run(model, pvec)
-    lag = values.get("T_a", values.get("T_up", 0.3))
+    lag = model.drive_lag(values)
     views = []
     diffs = []
     resting = []

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import shlex
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,9 +17,9 @@ from balancer_id.diagnostics.residual_tests import (
     worst_windows,
 )
 from balancer_id.diagnostics.signatures import Signature, signature_of
-from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.result import FitResult
 
 #: BIC improvement a candidate needs before an effect is called missing. Calibrated on
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -62,16 +60,107 @@ class Suggestion:
 
 
 @dataclass
-class Diagnosis:
-    """Everything ``balancer-id diagnose`` reports."""
+class ResidualTests:
+    """The residual tests of a fit (CONTRACT.md ``diagnose`` ``residual_tests``).
 
-    match: MatchResult
+    Attributes
+    ----------
+    noise_floor : float
+        Acceleration noise (m/s^2).
+    whiteness : dict
+        Autocorrelation, its band and the Ljung-Box test
+        (:func:`~balancer_id.diagnostics.residual_tests.whiteness`).
+    input_cross_correlation : dict
+        The residual against the thrust step, its peak and significance.
+    spectrum : dict
+        ``peaks`` of the residual's spectrum.
+    regimes : list of dict
+        The residual by regime, direction and thrust level.
+    state_correlation : dict of str to float
+        Correlation of the residual with each simulated state.
+    worst_windows : list of dict
+        Where the residual is largest.
+    paper_line : dict
+        ``m_a``, ``intercept_N`` and ``free_slope`` of the paper's method.
+    parameter_drift : list of dict
+        Per-trial refits: each parameter's slope against thrust and up/down difference.
+    """
+
+    noise_floor: float
+    whiteness: dict[str, object]
+    input_cross_correlation: dict[str, object]
+    spectrum: dict[str, object]
+    regimes: list[dict[str, object]]
+    state_correlation: dict[str, float]
+    worst_windows: list[dict[str, object]]
+    paper_line: dict[str, float]
+    parameter_drift: list[dict[str, object]]
+
+    def __getitem__(self, key: str) -> object:
+        """The test named ``key``, as in :meth:`to_dict`.
+
+        Parameters
+        ----------
+        key : str
+            A key of the CONTRACT.md ``residual_tests`` object.
+
+        Returns
+        -------
+        object
+        """
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def to_dict(self) -> dict[str, object]:
+        """The CONTRACT.md ``residual_tests`` object."""
+        return {
+            "noise_floor": self.noise_floor,
+            "whiteness": self.whiteness,
+            "input_cross_correlation": self.input_cross_correlation,
+            "spectrum": self.spectrum,
+            "regimes": self.regimes,
+            "state_correlation": self.state_correlation,
+            "worst_windows": self.worst_windows,
+            "paper_line": self.paper_line,
+            "parameter_drift": self.parameter_drift,
+        }
+
+
+@dataclass
+class Diagnosis:
+    """Everything ``balancer-id diagnose`` reports.
+
+    Attributes
+    ----------
+    fit : FitResult
+        The fit diagnosed (its trials, paper's method and per-trial fits are reused).
+    context : DiagnosisContext
+        The fit's residuals, trial by trial, and the noise floor.
+    tests : ResidualTests
+        The residual tests.
+    suggestions : list of Suggestion
+        Candidate effects, best first.
+    verdict : str
+        ``adequate`` or ``effect missing``.
+    summary : str
+        One paragraph saying why.
+    failures : list of str
+        Candidates whose check or refit failed (named).
+    """
+
+    fit: FitResult
     context: DiagnosisContext
-    tests: dict[str, object]
+    tests: ResidualTests
     suggestions: list[Suggestion]
     verdict: str
     summary: str
     failures: list[str] = field(default_factory=list)
+
+    @property
+    def match(self) -> MatchResult:
+        """The simulation-matching fit diagnosed."""
+        return self.fit.match
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object."""
@@ -86,7 +175,7 @@ class Diagnosis:
                     "excess_rmse": self.context.excess_rmse(),
                 },
                 "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
-                "residual_tests": self.tests,
+                "residual_tests": self.tests.to_dict(),
                 "verdict": self.verdict,
                 "summary": self.summary,
                 "suggestions": [s.to_dict() for s in self.suggestions],
@@ -95,65 +184,47 @@ class Diagnosis:
         )
 
 
-def _command(model_spec: str, paths: Sequence[str], effects_files: Sequence[str]) -> str:
-    parts = ["balancer-id", "fit", *paths, "--model", model_spec]
-    for f in effects_files:
-        parts += ["--effects-file", f]
-    return shlex.join(parts)
-
-
-def diagnose_match(
-    match: MatchResult,
-    *,
-    paths: Sequence[str] = (),
-    effects_files: Sequence[str] = (),
-    with_trajectory: bool = False,
-    fixed: dict[str, float] | None = None,
-) -> Diagnosis:
+def diagnose(fit: FitResult) -> Diagnosis:
     """Test the residual of a fit and rank the effects that could explain it.
+
+    The fit's paper's method and per-trial fits are reused (the per-trial fits are
+    computed here when the fit has none yet, and kept on it); each candidate is refitted
+    from the fit and from the paper's method's start values.
 
     Parameters
     ----------
-    match : MatchResult
-        A fit over all trials.
-    paths : sequence of str
-        The logs (for the suggested commands).
-    effects_files : sequence of str
-        User effect files (for the suggested commands).
-    with_trajectory : bool
-        Whether a robot reference is known (``servo`` is only tried then).
-    fixed : dict, optional
-        Parameters held in the original fit (held in the refits too).
+    fit : FitResult
+        A fit over all trials, with what it was computed from (trials, fixed values,
+        effect files, reference move: the suggested commands carry them all).
 
     Returns
     -------
     Diagnosis
     """
+    match = fit.match
     ctx = build_context(match)
     trials: list[TrialData] = list(match.data.trials)
-    classic = paper_method(trials)
-    tests = {
-        "noise_floor": ctx.noise_floor,
-        "whiteness": whiteness(ctx),
-        "input_cross_correlation": _thin(input_correlation(ctx)),
-        "spectrum": {"peaks": spectrum_peaks(ctx)["peaks"]},
-        "regimes": regime_table(ctx),
-        "state_correlation": state_correlations(ctx),
-        "worst_windows": worst_windows(ctx),
-        "paper_line": {
+    classic = fit.classic
+    fixed = fit.fixed or None
+    tests = ResidualTests(
+        noise_floor=ctx.noise_floor,
+        whiteness=whiteness(ctx),
+        input_cross_correlation=_thin(input_correlation(ctx)),
+        spectrum={"peaks": spectrum_peaks(ctx)["peaks"]},
+        regimes=regime_table(ctx),
+        state_correlation=state_correlations(ctx),
+        worst_windows=worst_windows(ctx),
+        paper_line={
             "m_a": classic.m_a,
             "intercept_N": classic.intercept_N,
             "free_slope": classic.free_slope,
         },
-        "parameter_drift": parameter_drift(match, trials, fixed),
-    }
-    fresh = {
-        k: float(v)
-        for k, v in (("m_a", classic.m_a), ("T_a", classic.T_a))
-        if np.isfinite(v) and v > 0
-    }
+        parameter_drift=parameter_drift(fit),
+    )
+    fresh = classic.start_values(match.model)
     suggestions: list[Suggestion] = []
     failures: list[str] = []
+    with_trajectory = fit.trial_set.trajectory is not None
     for cand in candidates(match.model, with_trajectory=with_trajectory):
         try:
             sig = signature_of(cand.effect, ctx)
@@ -178,14 +249,14 @@ def diagnose_match(
                 rmse=new["rmse"],
                 excess_drop=float(drop),
                 signature=sig,
-                command=_command(cand.model.spec, paths, effects_files),
+                command=fit.command(cand.model),
                 model=cand.model.spec,
                 refit=refit.match,
             )
         )
     suggestions.sort(key=lambda s: -s.score)
     verdict, summary = _verdict(ctx, tests, suggestions)
-    return Diagnosis(match, ctx, tests, suggestions, verdict, summary, failures)
+    return Diagnosis(fit, ctx, tests, suggestions, verdict, summary, failures)
 
 
 def independence(match: MatchResult) -> float:
@@ -269,9 +340,9 @@ def is_missing(s: Suggestion) -> bool:
 
 
 def _verdict(
-    ctx: DiagnosisContext, tests: dict[str, object], suggestions: list[Suggestion]
+    ctx: DiagnosisContext, tests: ResidualTests, suggestions: list[Suggestion]
 ) -> tuple[str, str]:
-    white = tests["whiteness"]
+    white = tests.whiteness
     excess = ctx.excess_rmse()
     ratio = excess / ctx.noise_floor if ctx.noise_floor > 0 else np.inf
     if suggestions and is_missing(suggestions[0]):
@@ -283,10 +354,10 @@ def _verdict(
         )
     p = white.get("ljung_box_p")
     if p is not None and p < 1e-6 and ratio > 0.5:
-        where = tests["worst_windows"][0] if tests["worst_windows"] else None
-        corr = tests["state_correlation"]
+        where = tests.worst_windows[0] if tests.worst_windows else None
+        corr = tests.state_correlation
         name, r = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("-", 0.0)
-        peaks = tests["spectrum"]["peaks"]
+        peaks = tests.spectrum["peaks"]
         return "effect missing", (
             "no effect in the library explains the residual: it is not white (Ljung-Box "
             f"p = {p:.1e}) and the error above the noise floor is {ratio:.1f}x the noise; "
@@ -307,20 +378,15 @@ def _verdict(
     )
 
 
-def parameter_drift(
-    match: MatchResult, trials: Sequence[TrialData], fixed: dict[str, float] | None = None
-) -> list[dict[str, object]]:
+def parameter_drift(fit: FitResult) -> list[dict[str, object]]:
     """Per-trial refits of the current model: slope of each parameter against thrust
     and the up/down difference, with their significance.
 
     Parameters
     ----------
-    match : MatchResult
-        The joint fit; each trial's refit starts from its values.
-    trials : sequence of TrialData
-        The trials to refit one by one; fewer than three give no rows.
-    fixed : dict of str to float, optional
-        Parameters held at these values in every refit.
+    fit : FitResult
+        The joint fit; its per-trial fits (:meth:`FitResult.per_trial_fits`, computed once
+        and kept) are used. Fewer than three trials give no rows.
 
     Returns
     -------
@@ -330,11 +396,10 @@ def parameter_drift(
         ``|thrust|`` and its ``slope_z`` (when the thrusts differ), and ``up_minus_down``
         (when both directions occur).
     """
-    from balancer_id.identify.api import fit_each_trial
-
-    if len(trials) < 3:
+    match = fit.match
+    if len(match.data.trials) < 3:
         return []
-    per = fit_each_trial(match.model, trials, match.values(), fixed)
+    per = fit.per_trial_fits()
     rows = []
     for name in match.model.param_names:
         vals = [(abs(p.thrust_N), p.direction, p.values[name], p.stderr.get(name)) for p in per]

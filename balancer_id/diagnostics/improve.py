@@ -12,10 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose_match, is_missing
+from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose, is_missing
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.data import FitData, TrialData
 from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
 
 #: Folds of the cross-validation across trials.
@@ -24,13 +25,32 @@ CV_FOLDS = 3
 
 @dataclass
 class ImproveStep:
-    """One rung of the ladder."""
+    """One rung of the ladder.
+
+    Attributes
+    ----------
+    model : str
+        The spec of the rung's model.
+    added : str or None
+        The effect added on this rung (None on the first).
+    fit : FitResult
+        The rung's fit (sharing the trials, paper's method and fixed values of the start).
+    cv_rmse : float or None
+        Held-out RMSE (m/s^2).
+    evidence : str
+        The signature evidence that chose the effect.
+    """
 
     model: str
     added: str | None
-    match: MatchResult
+    fit: FitResult
     cv_rmse: float | None
     evidence: str = ""
+
+    @property
+    def match(self) -> MatchResult:
+        """The rung's simulation-matching fit."""
+        return self.fit.match
 
     def to_dict(self) -> dict[str, object]:
         """CONTRACT.md ``improve`` step."""
@@ -125,42 +145,33 @@ def cross_validated_rmse(
     return float(np.sqrt(sq / count))
 
 
-def improve_model(
-    start: MatchResult,
-    *,
-    max_steps: int = 4,
-    paths: Sequence[str] = (),
-    effects_files: Sequence[str] = (),
-    with_trajectory: bool = False,
-    fixed: Mapping[str, float] | None = None,
+def improve(
+    fit: FitResult, *, max_steps: int = 4, diagnosis: Diagnosis | None = None
 ) -> ImproveResult:
-    """Climb the ladder from a fitted model.
+    """Climb the ladder from a fit: add the best-supported effect while it helps.
 
     Parameters
     ----------
-    start : MatchResult
-        The fit of the starting model.
+    fit : FitResult
+        The fit of the starting model (its trials, fixed values, effect files and
+        reference move carry over to every rung and every printed command).
     max_steps : int
         Effects to add at most.
-    paths, effects_files : sequence of str
-        For the commands in the diagnosis.
-    with_trajectory : bool
-        Whether a robot reference is known.
-    fixed : mapping, optional
-        Parameters held throughout.
+    diagnosis : Diagnosis, optional
+        The diagnosis of ``fit`` when it is already made (it is not made again).
 
     Returns
     -------
     ImproveResult
     """
-    trials = list(start.data.trials)
-    fixed = dict(fixed or {})
-    current = start
-    cv = cross_validated_rmse(current.model, trials, current.values(), fixed)
-    steps = [ImproveStep(current.model.spec, None, current, cv)]
+    trials = list(fit.match.data.trials)
+    fixed = fit.fixed or None
+    current = fit
+    cv = cross_validated_rmse(current.spec_model, trials, current.values, fixed)
+    steps = [ImproveStep(current.model, None, current, cv)]
     rejected: list[str] = []
-    kw = {"paths": paths, "effects_files": effects_files, "with_trajectory": with_trajectory}
-    diagnosis = diagnose_match(current, fixed=fixed, **kw)
+    if diagnosis is None or diagnosis.fit is not fit:
+        diagnosis = diagnose(current)
     for _ in range(max_steps):
         chosen = None
         for s in diagnosis.suggestions:
@@ -178,7 +189,13 @@ def improve_model(
         if chosen is None:
             break
         s, cv = chosen
-        current = s.refit
-        steps.append(ImproveStep(current.model.spec, s.effect, current, cv, s.signature.evidence))
-        diagnosis = diagnose_match(current, fixed=fixed, **kw)
+        current = fit_match(
+            s.refit,
+            fit.trial_set,
+            classic=fit.classic,
+            fixed=fit.held(s.refit.model),
+            effects_files=fit.effects_files,
+        )
+        steps.append(ImproveStep(current.model, s.effect, current, cv, s.signature.evidence))
+        diagnosis = diagnose(current)
     return ImproveResult(steps, diagnosis, rejected)

@@ -7,15 +7,27 @@ from pathlib import Path
 
 from balancer_id.errors import IdentificationError
 from balancer_id.identify.classic import paper_method
-from balancer_id.identify.coupling import coupling
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
-from balancer_id.identify.result import FitResult, PerTrialFit
+from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
+from balancer_id.identify.result import FitResult, coupling_of, fit_match
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.inputs import Trapezoid
-from balancer_id.trials import ReadOptions, load_trials
+from balancer_id.trials import ReadOptions, TrialSet, as_trial_set
+
+__all__ = [
+    "PerTrialFit",
+    "coupling_of",
+    "fit",
+    "fit_each_trial",
+    "fit_match",
+    "resolve_model",
+    "trial_data",
+]
+
+Sources = TrialSet | str | Path | Sequence[str | Path | Trial | TrialData]
 
 
 def resolve_model(
@@ -51,49 +63,35 @@ def resolve_model(
     return parse_model(model or DEFAULT_SPEC, registry)
 
 
-def trial_data(
-    sources: Sequence[str | Path | Trial | TrialData],
-    options: ReadOptions | None = None,
-    trajectory: Trapezoid | None = None,
-) -> tuple[list[TrialData], list[str]]:
-    """Turn log paths, segmented trials or ready TrialData into TrialData (renumbered).
+def trial_data(trials: TrialSet) -> list[TrialData]:
+    """The trials of a set as the fitters see them, renumbered from 0.
 
     Parameters
     ----------
-    sources : sequence of str, Path, Trial or TrialData
-        Log paths (read and segmented, in order), segmented trials and ready TrialData,
-        mixed freely. The trials of the logs come first, then the others in order.
-    options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
-    trajectory : Trapezoid, optional
-        The robot's reference move, evaluated at each trial's sample times (``servo``).
+    trials : TrialSet
+        The segmented trials of the logs, then the ready-made ones (segmented
+        :class:`Trial` or :class:`TrialData`); the set's reference move is evaluated at
+        each trial's sample times.
 
     Returns
     -------
-    trials : list of TrialData
+    list of TrialData
         All trials, their ``index`` renumbered from 0.
-    names : list of str
-        The paths of the logs read.
     """
-    paths = [s for s in sources if isinstance(s, str | Path)]
-    data: list[TrialData] = []
-    names: list[str] = []
-    if paths:
-        for item in load_trials(paths, options):
-            names.append(str(item.log.path))
-            data.extend(TrialData.from_trial(t, trajectory=trajectory) for t in item.trials)
-    for s in sources:
+    traj = trials.trajectory
+    data = [TrialData.from_trial(t, trajectory=traj) for t in trials.trials]
+    for s in trials.loose:
         if isinstance(s, Trial):
-            data.append(TrialData.from_trial(s, trajectory=trajectory))
+            data.append(TrialData.from_trial(s, trajectory=traj))
         elif isinstance(s, TrialData):
             data.append(s)
     for k, td in enumerate(data):
         td.index = k
-    return data, names
+    return data
 
 
 def fit(
-    sources: Sequence[str | Path | Trial | TrialData],
+    trials: Sources,
     *,
     model: str | Model | None = None,
     fixed: Mapping[str, float] | None = None,
@@ -110,20 +108,22 @@ def fit(
 
     Parameters
     ----------
-    sources : sequence
-        Log paths, segmented :class:`Trial` objects or :class:`TrialData`.
+    trials : TrialSet, str, Path or sequence
+        A :class:`~balancer_id.trials.TrialSet` from
+        :func:`~balancer_id.trials.load_trials`, one log path, or log paths, segmented
+        :class:`Trial` objects and :class:`TrialData`, mixed (paths are read first).
     model : str or Model, optional
         Spec (default ``variable_viscosity``).
     fixed : mapping, optional
         Parameters held at known values (nameplate figures).
     options : ReadOptions, optional
-        Reading and segmentation options (column map, thrusts, force sign, ...).
+        Reading and segmentation options when ``trials`` holds paths.
     effects_files : sequence of path
         User effect files.
     registry : Registry, optional
         A registry to resolve effect names in (tests, plug-ins).
     trajectory : Trapezoid, optional
-        The robot's reference move (``servo``).
+        The robot's reference move (``servo``) when ``trials`` holds paths.
     per_trial : bool
         Also fit each trial alone, so drift with thrust and direction shows.
     n_starts : int
@@ -143,23 +143,25 @@ def fit(
         No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
-    if mdl.has("servo") and trajectory is None:
+    ts = as_trial_set(trials, options, trajectory)
+    if mdl.needs_reference_move and ts.trajectory is None:
         raise IdentificationError(
-            "a model with 'servo' needs the robot's reference move: give --trajectory "
+            f"a model with '{'+'.join(e.name for e in mdl.effects if e.needs_reference_move())}'"
+            " needs the robot's reference move: give --trajectory "
             "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
-    trials, names = trial_data(sources, options, trajectory)
-    if not trials:
+    data = trial_data(ts)
+    if not data:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
-    classic = paper_method(trials)
-    start: dict[str, float] = {}
-    for name in ("m_a", "T_a"):
-        value = getattr(classic, name)
-        spec_param = mdl.param(name) if name in mdl.param_names else None
-        if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
-            start[name] = float(value)
+    classic = paper_method(data)
     match = match_trials(
-        mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed, max_nfev=max_nfev
+        mdl,
+        data,
+        start=classic.start_values(mdl),
+        fixed=fixed,
+        n_starts=n_starts,
+        seed=seed,
+        max_nfev=max_nfev,
     )
     if not match.success:
         raise IdentificationError(
@@ -167,55 +169,10 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
-    result = FitResult(match=match, classic=classic, sources=names)
-    if mdl.has("servo"):
-        v = match.values()
-        result.coupling = coupling(
-            v["m_a"], v.get("T_a", v.get("T_up", 0.3)), v.get("D0", 0.0), v["k_r"], v["c_r"]
-        )
+    result = fit_match(
+        match, ts, classic=classic, fixed=fixed, effects_files=effects_files
+    )
     if per_trial:
-        result.per_trial = fit_each_trial(mdl, trials, match.values(), fixed)
+        result.include_per_trial = True
+        result.per_trial_fits()
     return result
-
-
-def fit_each_trial(
-    model: Model,
-    trials: Sequence[TrialData],
-    start: Mapping[str, float],
-    fixed: Mapping[str, float] | None = None,
-) -> list[PerTrialFit]:
-    """Fit ``model`` to each trial alone, starting from the joint fit.
-
-    Parameters
-    ----------
-    model : Model
-        The model to fit.
-    trials : sequence of TrialData
-        The trials; each is fitted on its own.
-    start : mapping of str to float
-        Start values of every fit (the joint fit's values).
-    fixed : mapping of str to float, optional
-        Parameters held at these values.
-
-    Returns
-    -------
-    list of PerTrialFit
-        One per trial whose fit succeeded; a trial that cannot be fitted is left out.
-    """
-    out = []
-    for td in trials:
-        try:
-            m = match_trials(model, [td], start=start, fixed=fixed)
-        except IdentificationError:
-            continue
-        out.append(
-            PerTrialFit(
-                index=td.index,
-                thrust_N=td.thrust_N,
-                direction=td.direction,
-                values=m.values(),
-                stderr={k: p.stderr for k, p in m.parameters.items()},
-                rmse=m.metrics["rmse"],
-            )
-        )
-    return out

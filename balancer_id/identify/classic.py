@@ -17,6 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from balancer_id.identify.data import TrialData
+from balancer_id.model.spec import Model
 
 #: Length of the window after the onset used for the first-order fit (s).
 CLASSIC_WINDOW_S = 2.0
@@ -84,6 +85,34 @@ class ClassicResult:
             {"thrust_N": k[0], "direction": k[1], "T_a": float(np.mean(v)), "n": len(v)}
             for k, v in sorted(groups.items())
         ]
+
+    def start_values(self, model: Model) -> dict[str, float]:
+        """Start values of a simulation-matching fit of ``model`` from the paper's method.
+
+        ``m_a`` starts ``m_a``; ``T_a`` starts every parameter the model declares as its
+        drive lag (``T_a``, or ``T_up`` and ``T_down``). A value that is not finite or not
+        strictly inside the parameter's bounds is left out (the parameter's own start
+        value is used).
+
+        Parameters
+        ----------
+        model : Model
+            The model to be fitted.
+
+        Returns
+        -------
+        dict of str to float
+            Parameter name -> start value.
+        """
+        wanted = {"m_a": self.m_a, **{name: self.T_a for name in model.drive_lag_names}}
+        out: dict[str, float] = {}
+        for name, value in wanted.items():
+            if name not in model.param_names:
+                continue
+            p = model.param(name)
+            if np.isfinite(value) and p.min < value < p.max:
+                out[name] = float(value)
+        return out
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict (CONTRACT.md ``classic`` plus details)."""

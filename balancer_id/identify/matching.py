@@ -13,9 +13,6 @@ from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
-#: Parameters that need trials at two or more thrust levels.
-NEEDS_THRUST_LEVELS = ("A",)
-
 
 @dataclass
 class ParameterEstimate:
@@ -141,7 +138,7 @@ def match_trials(
     fixed = dict(fixed or {})
     notes: list[str] = []
     levels = thrust_levels(trials)
-    for name in NEEDS_THRUST_LEVELS:
+    for name in model.thrust_level_names:
         if name in model.param_names and name not in fixed and len(levels) < 2:
             value = dict(start or {}).get(name, model.param(name).value)
             fixed[name] = value

@@ -1,70 +1,82 @@
-"""The result of an identification: it owns its data; rendering lives in ``report``."""
+"""The result of an identification: it owns its data; rendering lives in ``report``.
+
+A :class:`FitResult` records what it was computed from (the :class:`~balancer_id.trials.
+TrialSet`, the values held fixed, the user effect files), so what comes after it (the
+diagnosis, improve, the reports) reuses its paper's method and per-trial fits instead of
+computing them again, and a command that reproduces it is derived from it.
+"""
 
 from __future__ import annotations
 
+import shlex
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
-from balancer_id.identify.classic import ClassicResult
-from balancer_id.identify.coupling import Coupling
+from balancer_id.identify.classic import ClassicResult, paper_method
+from balancer_id.identify.coupling import Coupling, coupling
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
+from balancer_id.model.spec import Model
+from balancer_id.trials import TrialSet
 
-
-@dataclass
-class PerTrialFit:
-    """The model fitted to one trial alone (``--per-trial``)."""
-
-    index: int
-    thrust_N: float
-    direction: str
-    values: dict[str, float]
-    stderr: dict[str, float | None]
-    rmse: float
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready dict."""
-        return {
-            "index": self.index,
-            "thrust_N": self.thrust_N,
-            "direction": self.direction,
-            "parameters": {
-                k: {"value": v, "stderr": self.stderr.get(k)} for k, v in self.values.items()
-            },
-            "rmse": self.rmse,
-        }
+__all__ = ["FitResult", "PerTrialFit", "coupling_of", "fit_match"]
 
 
 @dataclass
 class FitResult:
-    """Everything ``balancer-id fit`` reports.
+    """Everything ``balancer-id fit`` reports, and what it was computed from.
 
     Attributes
     ----------
     match : MatchResult
         The simulation-matching fit over all trials.
     classic : ClassicResult
-        The paper's method.
-    sources : list of str
-        The logs fitted.
+        The paper's method (it depends on the trials only, so every model of the same
+        trials shares it).
+    trial_set : TrialSet
+        The trials fitted, the logs they came from, the reading options and the
+        reference move.
+    fixed : dict of str to float
+        Parameters held at known values (``--fix``).
+    effects_files : list of str
+        User effect files the model was resolved with (``--effects-file``).
     coupling : Coupling or None
-        Robot-balancer loop figures when the model has ``servo``.
+        Robot-balancer loop figures when the model needs a reference move (``servo``).
     per_trial : list of PerTrialFit
-        Per-trial refits when asked for.
+        Per-trial refits, once computed (:meth:`per_trial_fits`).
+    include_per_trial : bool
+        Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
     warnings : list of str
         What the user should know (fixed parameters, poorly determined ones, ...).
     """
 
     match: MatchResult
     classic: ClassicResult
-    sources: list[str]
+    trial_set: TrialSet = field(default_factory=TrialSet)
+    fixed: dict[str, float] = field(default_factory=dict)
+    effects_files: list[str] = field(default_factory=list)
     coupling: Coupling | None = None
     per_trial: list[PerTrialFit] = field(default_factory=list)
+    include_per_trial: bool = False
     warnings: list[str] = field(default_factory=list)
+    _per_trial_done: bool = field(default=False, init=False, repr=False)
 
     @property
     def model(self) -> str:
         """The model's spec."""
         return self.match.model.spec
+
+    @property
+    def spec_model(self) -> Model:
+        """The fitted :class:`~balancer_id.model.spec.Model`."""
+        return self.match.model
+
+    @property
+    def sources(self) -> list[str]:
+        """The logs fitted."""
+        return self.trial_set.paths
 
     @property
     def values(self) -> dict[str, float]:
@@ -75,6 +87,68 @@ class FitResult:
     def metrics(self) -> dict[str, float]:
         """CONTRACT.md error figures."""
         return self.match.metrics
+
+    def held(self, model: Model | None = None) -> dict[str, float]:
+        """The fixed values that apply to ``model`` (default: this fit's model).
+
+        Parameters
+        ----------
+        model : Model, optional
+            A model of the same trials (a candidate one effect away).
+
+        Returns
+        -------
+        dict of str to float
+            The entries of :attr:`fixed` that name a parameter of ``model``.
+        """
+        names = (model or self.match.model).param_names
+        return {k: v for k, v in self.fixed.items() if k in names}
+
+    def per_trial_fits(self) -> list[PerTrialFit]:
+        """Each trial fitted alone from the joint fit; computed once, then reused.
+
+        Returns
+        -------
+        list of PerTrialFit
+            One per trial whose fit succeeded.
+        """
+        if not self._per_trial_done:
+            self.per_trial = fit_each_trial(
+                self.match.model, self.match.data.trials, self.values, self.fixed or None
+            )
+            self._per_trial_done = True
+        return self.per_trial
+
+    def command(self, model: str | Model | None = None, subcommand: str = "fit") -> str:
+        """The shell command that reproduces this fit, or a fit of another model.
+
+        Parameters
+        ----------
+        model : str or Model, optional
+            The model to fit instead of this fit's (a suggestion's model); with a
+            :class:`~balancer_id.model.spec.Model` only the fixed values it has are kept.
+        subcommand : str
+            ``fit``, ``diagnose``, ``improve`` or ``report``.
+
+        Returns
+        -------
+        str
+            ``balancer-id SUBCOMMAND LOGS... --model SPEC`` with every ``--fix``,
+            ``--effects-file``, reading option and ``--trajectory`` the fit was made with,
+            quoted for a POSIX shell.
+        """
+        if isinstance(model, Model):
+            spec, fixed = model.spec, self.held(model)
+        else:
+            spec, fixed = model or self.model, self.fixed
+        args = ["balancer-id", subcommand, *self.sources]
+        args += ["--start" if subcommand == "improve" else "--model", spec]
+        for name, value in fixed.items():
+            args += ["--fix", f"{name}={value!r}"]
+        for path in self.effects_files:
+            args += ["--effects-file", path]
+        args += self.trial_set.option_args()
+        return shlex.join(args)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""
@@ -103,6 +177,68 @@ class FitResult:
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()
-        if self.per_trial:
+        if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
         return json_ready(out)
+
+
+def coupling_of(model: Model, values: Mapping[str, float]) -> Coupling | None:
+    """Robot-balancer loop figures of a fitted model that needs a reference move.
+
+    Parameters
+    ----------
+    model : Model
+        The fitted model.
+    values : mapping of str to float
+        Its fitted values.
+
+    Returns
+    -------
+    Coupling or None
+        None when the model needs no reference move (no robot in the loop).
+    """
+    if not model.needs_reference_move:
+        return None
+    v = dict(values)
+    return coupling(v["m_a"], model.drive_lag(v), v.get("D0", 0.0), v["k_r"], v["c_r"])
+
+
+def fit_match(
+    match: MatchResult,
+    trials: TrialSet | None = None,
+    *,
+    classic: ClassicResult | None = None,
+    fixed: Mapping[str, float] | None = None,
+    effects_files: Sequence[str | Path] = (),
+) -> FitResult:
+    """A :class:`FitResult` around a ready simulation-matching fit.
+
+    Used for the refits of the diagnosis and improve (they share the trials, the paper's
+    method and the fixed values of the fit they came from) and for fits made with
+    :func:`~balancer_id.identify.matching.match_trials` directly.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    trials : TrialSet, optional
+        Where its trials came from; None: an empty set (no logs to name).
+    classic : ClassicResult, optional
+        The paper's method on the same trials; None computes it.
+    fixed : mapping of str to float, optional
+        Values held in the fit (kept for the refits and the printed commands).
+    effects_files : sequence of str or Path
+        User effect files the model was resolved with.
+
+    Returns
+    -------
+    FitResult
+    """
+    return FitResult(
+        match=match,
+        classic=classic if classic is not None else paper_method(match.data.trials),
+        trial_set=trials if trials is not None else TrialSet(),
+        fixed=dict(fixed or {}),
+        effects_files=[str(f) for f in effects_files],
+        coupling=coupling_of(match.model, match.values()),
+    )

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from balancer_id.errors import ModelSpecError
 
@@ -57,6 +57,13 @@ class Param:
         SI unit, for tables and reports.
     description : str
         One line of meaning.
+    drive_lag : bool
+        The parameter is a time constant of the drive's lag (``T_a``, ``T_up``,
+        ``T_down``): the paper's method's ``T_a`` starts it, and the diagnosis reads the
+        first one of a model as its lag.
+    needs_thrust_levels : bool
+        The parameter is only identifiable from trials at two or more thrust levels
+        (``A``); with one level the fit holds it at its start value and says so.
     """
 
     name: str
@@ -65,6 +72,8 @@ class Param:
     max: float
     unit: str
     description: str
+    drive_lag: bool = False
+    needs_thrust_levels: bool = False
 
     def to_dict(self) -> dict[str, object]:
         """Return the parameter as a JSON-ready dict."""
@@ -102,6 +111,30 @@ class Effect:
     example : dict
         Typical true values of the effect's parameters (tests, docs, ``simulate``);
         parameters missing here use their start value.
+    needs_reference : bool or None
+        The effect needs the robot's reference move (``--trajectory``) to be simulated or
+        fitted; None (the default) infers it: an effect with an ``operating_force`` hook
+        needs it.
+
+    Notes
+    -----
+    Besides the force hooks, an effect can provide two optional hooks that the fitting
+    and the diagnosis call when present; both are plain Python, not compiled:
+
+    ``guess(trials, current) -> dict``
+        A ``classmethod``: start values of the effect's own parameters from the data, as
+        lmfit's ``Model.guess``. ``trials`` are the fitted trials (``TrialData``: time,
+        measured acceleration, thrust), ``current`` the values of the fit the effect is
+        added to. The diagnosis starts the effect's quick refit from them (a start
+        value the signature check gives wins). Values are clipped into the bounds.
+    ``signature(ctx) -> Signature``
+        A ``classmethod``: how strongly the residual of a fit without the effect shows
+        its footprint (``ctx`` is a
+        :class:`~balancer_id.diagnostics.context.DiagnosisContext`; return a
+        :class:`~balancer_id.diagnostics.signatures.Signature` with a strength in
+        [0, 1], one line of evidence and start values). Built-in effects have theirs in
+        :data:`balancer_id.diagnostics.signatures.SIGNATURES` (a test checks each has
+        one); a user effect without one is ranked by its refit alone.
     """
 
     name: ClassVar[str] = ""
@@ -111,6 +144,25 @@ class Effect:
     replaces: ClassVar[tuple[str, ...]] = ()
     source: ClassVar[str] = ""
     example: ClassVar[dict[str, float]] = {}
+    needs_reference: ClassVar[bool | None] = None
+    #: Optional ``guess(trials, current)`` classmethod (see Notes); None: no guess.
+    guess: ClassVar[Any] = None
+    #: Optional ``signature(ctx)`` classmethod (see Notes); None: the built-in check.
+    signature: ClassVar[Any] = None
+
+    @classmethod
+    def needs_reference_move(cls) -> bool:
+        """Whether the effect needs the robot's reference move (see :attr:`needs_reference`).
+
+        Returns
+        -------
+        bool
+            The declared :attr:`needs_reference`, or, when undeclared, whether the effect
+            has an ``operating_force`` hook.
+        """
+        if cls.needs_reference is not None:
+            return bool(cls.needs_reference)
+        return "operating_force" in cls.hooks()
 
     @classmethod
     def hooks(cls) -> tuple[str, ...]:

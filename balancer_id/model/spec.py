@@ -56,6 +56,41 @@ class Model:
         """Names of :attr:`params`, in order."""
         return tuple(p.name for p in self.params)
 
+    @property
+    def needs_reference_move(self) -> bool:
+        """Whether an effect of the model needs the robot's reference move (``servo``)."""
+        return any(e.needs_reference_move() for e in self.effects)
+
+    @property
+    def drive_lag_names(self) -> tuple[str, ...]:
+        """Parameters declared as the drive's lag (``T_a``, or ``T_up`` and ``T_down``)."""
+        return tuple(p.name for p in self.params if p.drive_lag)
+
+    @property
+    def thrust_level_names(self) -> tuple[str, ...]:
+        """Parameters only identifiable from two or more thrust levels (``A``)."""
+        return tuple(p.name for p in self.params if p.needs_thrust_levels)
+
+    def drive_lag(self, values: dict[str, float], default: float = 0.3) -> float:
+        """The model's drive lag at ``values``: its first drive-lag parameter.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Parameter values (a fit's).
+        default : float
+            What to return when the model has no drive-lag parameter (s).
+
+        Returns
+        -------
+        float
+            ``T_a``, or ``T_up`` when an effect replaces it (s).
+        """
+        for name in self.drive_lag_names:
+            if name in values:
+                return float(values[name])
+        return default
+
     def param(self, name: str) -> Param:
         """Look up one parameter by name.
 

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from balancer_id.report.document import Cell, Paragraph, Plot, Section, Table, format_value
 
 if TYPE_CHECKING:
-    from balancer_id.diagnostics import Diagnosis, ImproveResult, ModelComparison
-    from balancer_id.simulation.inputs import Trapezoid
-    from balancer_id.trials import ReadOptions
+    from balancer_id.diagnostics.compare import ModelComparison
+    from balancer_id.diagnostics.diagnosis import Diagnosis
+    from balancer_id.diagnostics.improve import ImproveResult
+    from balancer_id.identify.result import FitResult
 
 
 def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
@@ -43,7 +44,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     Parameters
     ----------
     diagnosis : Diagnosis
-        What :func:`~balancer_id.diagnostics.diagnosis.diagnose_match` returned.
+        What :func:`~balancer_id.diagnostics.diagnosis.diagnose` returned.
 
     Returns
     -------
@@ -132,7 +133,7 @@ def improve_section(result: ImproveResult) -> Section:
     Parameters
     ----------
     result : ImproveResult
-        What :func:`~balancer_id.diagnostics.improve.improve_model` returned.
+        What :func:`~balancer_id.diagnostics.improve.improve` returned.
 
     Returns
     -------
@@ -163,17 +164,16 @@ def improve_section(result: ImproveResult) -> Section:
     return Section("Improving the model", blocks=blocks)
 
 
-def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequence[Path]) -> Path:
+def write_improve_report(result: ImproveResult, path: str | Path) -> Path:
     """The fit of the final model, the ladder and the final diagnosis.
 
     Parameters
     ----------
     result : ImproveResult
-        What :func:`~balancer_id.diagnostics.improve.improve_model` returned.
+        What :func:`~balancer_id.diagnostics.improve.improve` returned; the final rung's
+        fit is rendered as it is (with its per-trial fits and coupling).
     path : str or Path
         The report file; ``.html``/``.htm`` or ``.pdf``.
-    inputs : sequence of Path
-        The logs fitted; listed in the report and never overwritten by it.
 
     Returns
     -------
@@ -185,50 +185,29 @@ def write_improve_report(result: ImproveResult, path: str | Path, inputs: Sequen
     UsageError
         Another suffix, a missing directory, or ``path`` is one of the input logs.
     """
-    from balancer_id.identify.classic import paper_method
-    from balancer_id.identify.result import FitResult
     from balancer_id.report.document import write_fit_report
 
-    final = result.steps[-1].match
-    fit_result = FitResult(
-        match=final, classic=paper_method(final.data.trials), sources=[str(p) for p in inputs]
-    )
     return write_fit_report(
-        fit_result, path, extra_sections=[improve_section(result), diagnosis_section(result.final)]
+        result.steps[-1].fit,
+        path,
+        extra_sections=[improve_section(result), diagnosis_section(result.final)],
     )
 
 
-def write_full_report(
-    logs: Sequence[Path],
-    out: str | Path,
-    *,
-    model: str | None = None,
-    fixed: Mapping[str, float] | None = None,
-    options: ReadOptions | None = None,
-    effects_files: Sequence[str | Path] = (),
-    trajectory: Trapezoid | None = None,
-) -> Path:
-    """Identify, diagnose and write everything in one report (``balancer-id report``).
+def write_full_report(fit: FitResult, diagnosis: Diagnosis, out: str | Path) -> Path:
+    """The full report (``balancer-id report``): the fit's sections and the diagnosis.
 
-    The fit includes the per-trial fits; the report holds the fit's sections and the
-    diagnosis.
+    Nothing is computed here: the fit (with its per-trial fits) and its diagnosis are
+    rendered as they are.
 
     Parameters
     ----------
-    logs : sequence of Path
-        The logs to identify from; their trials are fitted together.
+    fit : FitResult
+        The identification.
+    diagnosis : Diagnosis
+        Its diagnosis.
     out : str or Path
-        The report file; ``.html``/``.htm`` or ``.pdf``. It is checked before any fitting.
-    model : str, optional
-        Model spec; None uses the default (``variable_viscosity``).
-    fixed : mapping of str to float, optional
-        Parameters held at the given values instead of fitted (SI units).
-    options : ReadOptions, optional
-        How the logs are read and segmented; None uses the defaults.
-    effects_files : sequence of str or Path
-        Python files with user effects.
-    trajectory : Trapezoid, optional
-        The robot's reference move, when a robot held the load (``servo``).
+        The report file; ``.html``/``.htm`` or ``.pdf``.
 
     Returns
     -------
@@ -239,20 +218,7 @@ def write_full_report(
     ------
     UsageError
         A bad report path (suffix, directory, or one of the logs).
-    IdentificationError
-        When the logs hold no step trial or the fit does not converge.
     """
-    from balancer_id.diagnostics.api import fit_and_diagnose
-    from balancer_id.report.document import check_report_path, write_fit_report
+    from balancer_id.report.document import write_fit_report
 
-    check_report_path(out, logs)
-    result, diagnosis = fit_and_diagnose(
-        logs,
-        model=model,
-        fixed=fixed,
-        options=options,
-        effects_files=effects_files,
-        trajectory=trajectory,
-        per_trial=True,
-    )
-    return write_fit_report(result, out, extra_sections=[diagnosis_section(diagnosis)])
+    return write_fit_report(fit, out, extra_sections=[diagnosis_section(diagnosis)])

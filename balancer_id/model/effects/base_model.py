@@ -24,5 +24,8 @@ class Base(Effect):
     example = {"m_a": 15.1, "T_a": 0.33}
     parameters = (
         Param("m_a", 15.0, 0.5, 500.0, "kg", "virtual equivalent mass"),
-        Param("T_a", 0.3, 0.005, 5.0, "s", "time constant of the drive's first-order lag"),
+        Param(
+            "T_a", 0.3, 0.005, 5.0, "s", "time constant of the drive's first-order lag",
+            drive_lag=True,
+        ),
     )

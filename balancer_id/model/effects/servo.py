@@ -20,6 +20,7 @@ class Servo(Effect):
     summary = "robot servo spring k_r and damper c_r tracking its reference (section IV)"
     source = "paper IV, Figs. 14-16"
     example = {"k_r": 400.0, "c_r": 180.0}
+    needs_reference = True
     parameters = (
         Param("k_r", 300.0, 0.0, 1e6, "N/m", "servo stiffness of the robot"),
         Param("c_r", 150.0, 0.0, 1e5, "N s/m", "servo damping of the robot"),

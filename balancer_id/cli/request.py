@@ -1,0 +1,67 @@
+"""A ``fit`` request, typed, and the result-cache key derived from all of it."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from balancer_id.trials import ReadOptions
+
+
+@dataclass(frozen=True)
+class FitRequest:
+    """Everything a ``balancer-id fit`` result depends on.
+
+    Attributes
+    ----------
+    logs : tuple of str
+        The logs, in order.
+    model : str or None
+        The model spec (None: the default).
+    fixed : dict of str to float
+        ``--fix`` values.
+    options : ReadOptions
+        How the logs are read.
+    per_trial : bool
+        ``--per-trial``.
+    starts : int
+        ``--starts``.
+    trajectory : str or None
+        ``--trajectory`` as given.
+    effects_files : tuple of str
+        ``--effects-file`` paths.
+    """
+
+    logs: tuple[str, ...]
+    model: str | None = None
+    fixed: dict[str, float] = field(default_factory=dict)
+    options: ReadOptions = field(default_factory=ReadOptions)
+    per_trial: bool = False
+    starts: int = 1
+    trajectory: str | None = None
+    effects_files: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every field, JSON-ready (no field can be left out: they are walked)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, ReadOptions):
+                value = value.to_dict()
+            elif isinstance(value, tuple):
+                value = list(value)
+            out[f.name] = value
+        return out
+
+    def cache_key(self) -> str | None:
+        """The result-cache key: the request and the bytes of every file it reads.
+
+        Returns
+        -------
+        str or None
+            None when a file cannot be read (the result is then not cached).
+        """
+        from balancer_id import cache
+
+        return cache.result_key("fit", [*self.logs, *self.effects_files], self.to_dict())

@@ -1,0 +1,243 @@
+"""The house rules: one door, results computed once, printed commands that reproduce,
+a cache key from the whole request, public functions that stay functions."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import json
+import re
+import shlex
+from collections import Counter
+
+import pytest
+from conftest import REPO, SAMPLE_LOGS
+
+import balancer_id
+from balancer_id.errors import UsageError
+from balancer_id.trials import ReadOptions, TrialSet, load_trials
+
+THRUSTS = "2.45,-4.9,7.35"
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory):
+    """Three simulated trials (short), written by the simulate command."""
+    from typer.testing import CliRunner
+
+    from balancer_id.cli import app
+
+    path = tmp_path_factory.mktemp("arch") / "small.csv"
+    res = CliRunner().invoke(
+        app,
+        ["simulate", "--thrust", THRUSTS, "--out", str(path), "--duration", "4", "--seed", "7"],
+    )
+    assert res.exit_code == 0, res.stderr
+    return path
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"g": 0.0}, "--g"),
+        ({"g": float("nan")}, "--g"),
+        ({"g": float("inf")}, "--g"),
+        ({"vertical": "w"}, "--vertical"),
+        ({"force_sign": 2}, "--force-sign"),
+        ({"accel_unit": "furlong"}, "accel_unit"),
+        ({"columns": {"time": "t", "speed": "v"}}, "speed"),
+        ({"thrusts": [2.45, float("nan")]}, "--thrust"),
+    ],
+)
+def test_read_options_refuse_bad_values_when_made(kwargs, message):
+    with pytest.raises(UsageError, match=re.escape(message)):
+        ReadOptions(**kwargs)
+
+
+def test_read_options_round_trip_through_their_command_line_spelling():
+    opts = ReadOptions.from_text(
+        thrust="2.45,-4.9", force_sign=-1, vertical="z", columns="time=t,ax=a1", g=9.81,
+        accel_unit="g",
+    )
+    args = opts.cli_args()
+    given = dict(zip(args[::2], args[1::2], strict=True))
+    again = ReadOptions.from_text(
+        thrust=given["--thrust"],
+        force_sign=int(given["--force-sign"]),
+        vertical=given["--vertical"],
+        columns=given["--columns"],
+        g=float(given["--g"]),
+        accel_unit=given["--accel-unit"],
+    )
+    assert again == opts
+    assert ReadOptions().cli_args() == []
+
+
+def test_load_trials_takes_one_path_as_a_plain_str(small_log):
+    ts = load_trials(str(small_log))
+    assert isinstance(ts, TrialSet)
+    assert ts.paths == [str(small_log)]
+    assert [t.index for t in ts.trials] == [0, 1, 2]
+    assert ts.options == ReadOptions()
+
+
+def test_no_subpackage_shadows_a_public_function():
+    for name in balancer_id.__all__:
+        assert importlib.util.find_spec(f"balancer_id.{name}") is None, name
+
+
+def test_every_builtin_effect_has_a_signature_check():
+    from balancer_id.diagnostics.signatures import SIGNATURES
+    from balancer_id.model.effects import BUILTIN_EFFECTS
+
+    for effect in BUILTIN_EFFECTS.values():
+        assert effect.name in SIGNATURES or callable(effect.signature), effect.name
+
+
+def test_what_an_effect_needs_is_declared_on_it():
+    from balancer_id.model import parse_model
+
+    model = parse_model("variable_viscosity+asymmetric_lag+servo")
+    assert model.drive_lag_names == ("T_up", "T_down")
+    assert model.thrust_level_names == ("A",)
+    assert model.needs_reference_move
+    assert model.drive_lag({"T_up": 0.4, "T_down": 0.5}) == 0.4
+    assert not parse_model("viscous").needs_reference_move
+
+
+def _request_variants():
+    from balancer_id.cli.request import FitRequest
+
+    base = FitRequest(logs=("a.csv",))
+    changed = {
+        "logs": ("b.csv",),
+        "model": "viscous",
+        "fixed": {"m_a": 15.0},
+        "per_trial": True,
+        "starts": 4,
+        "trajectory": "trapezoid:distance=0.2,speed=0.1,accel=0.5",
+        "effects_files": ("hose.py",),
+    }
+    option_changes = {
+        "columns": {"time": "t", "force": "F"},
+        "thrusts": [2.45],
+        "force_sign": -1,
+        "vertical": "z",
+        "g": 9.81,
+        "accel_unit": "g",
+    }
+    fields = {f.name for f in dataclasses.fields(FitRequest)} - {"options"}
+    assert fields == set(changed), "a new request field needs a variant here"
+    assert {f.name for f in dataclasses.fields(ReadOptions)} == set(option_changes)
+    yield from (
+        (name, dataclasses.replace(base, **{name: value})) for name, value in changed.items()
+    )
+    for name, value in option_changes.items():
+        options = dataclasses.replace(ReadOptions(), **{name: value})
+        yield name, dataclasses.replace(base, options=options)
+
+
+def test_the_cache_key_changes_with_every_option(tmp_path, monkeypatch):
+    from balancer_id.cli.request import FitRequest
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("a.csv", "b.csv", "hose.py"):
+        (tmp_path / name).write_text("x")
+    base = FitRequest(logs=("a.csv",)).cache_key()
+    assert base is not None
+    keys = {base}
+    for name, request in _request_variants():
+        key = request.cache_key()
+        assert key not in keys, f"changing {name} does not change the cache key"
+        keys.add(key)
+
+
+def test_a_cached_fit_is_not_returned_for_another_accel_unit(cli, small_log, tmp_path, monkeypatch):
+    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "0")
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    code, out, err = cli("fit", small_log, "--json")
+    assert code == 0, err
+    m_si = json.loads(out)["parameters"]["m_a"]["value"]
+    code, out, err = cli("fit", small_log, "--json", "--accel-unit", "g")
+    assert code == 0, err
+    m_g = json.loads(out)["parameters"]["m_a"]["value"]
+    # read as g the accelerations are 9.8 times larger, so the mass 9.8 times smaller
+    assert m_g == pytest.approx(m_si / 9.8, rel=0.05)
+
+
+def test_a_printed_command_reproduces_what_it_says(cli, small_log):
+    from balancer_id.diagnostics.diagnosis import diagnose
+    from balancer_id.identify.api import fit
+
+    options = ReadOptions(g=9.81, accel_unit="m/s^2")
+    result = fit(load_trials(str(small_log), options), fixed={"A": 0.4})
+    own = shlex.split(result.command())
+    assert own[:3] == ["balancer-id", "fit", str(small_log)]
+    for pair in (["--g", "9.81"], ["--accel-unit", "m/s^2"], ["--fix", "A=0.4"]):
+        assert any(own[i : i + 2] == pair for i in range(len(own))), pair
+    code, out, err = cli(*own[1:], "--json", "--no-cache")
+    assert code == 0, err
+    again = json.loads(out)
+    assert again["parameters"]["m_a"]["value"] == pytest.approx(result.values["m_a"], rel=1e-6)
+    assert again["parameters"]["A"]["value"] == 0.4
+
+    suggestion = diagnose(result).suggestions[0]
+    argv = shlex.split(suggestion.command)
+    assert ["--g", "9.81"] == argv[argv.index("--g") : argv.index("--g") + 2]
+    code, out, err = cli(*argv[1:], "--json", "--no-cache")
+    assert code == 0, err
+    assert json.loads(out)["model"] == suggestion.model
+
+
+def _count_calls(monkeypatch):
+    """Count every simulation-matching fit and every run of the paper's method."""
+    from balancer_id.diagnostics import candidates, improve
+    from balancer_id.identify import api, classic, matching, per_trial, result
+
+    fits: Counter = Counter()
+    papers: list[int] = []
+
+    def counted_match(model, trials, **kw):
+        start = tuple(sorted((kw.get("start") or {}).items()))
+        fits[(model.spec, tuple(t.index for t in trials), start)] += 1
+        return matching.match_trials(model, trials, **kw)
+
+    def counted_paper(trials, *a, **kw):
+        papers.append(len(trials))
+        return classic.paper_method(trials, *a, **kw)
+
+    for module in (api, per_trial, candidates, improve):
+        monkeypatch.setattr(module, "match_trials", counted_match, raising=False)
+    for module in (api, result):
+        monkeypatch.setattr(module, "paper_method", counted_paper)
+    return fits, papers
+
+
+def test_the_report_command_runs_each_fit_once(cli, monkeypatch, tmp_path):
+    fits, papers = _count_calls(monkeypatch)
+    log = SAMPLE_LOGS / "paper_balancer.csv"
+    code, _, err = cli("report", log, "--out", tmp_path / "r.html")
+    assert code == 0, err
+    assert fits, "no fit was counted: the counter is not wired to the fitting code"
+    repeated = {k: n for k, n in fits.items() if n > 1}
+    assert not repeated, f"fits run more than once: {repeated}"
+    n_trials = len(load_trials(log).trials)
+    per_trial = [k for k in fits if k[0] == "variable_viscosity" and len(k[1]) == 1]
+    assert sorted(k[1][0] for k in per_trial) == list(range(n_trials))
+    assert papers == [n_trials]
+
+
+def _readme_api_code() -> str:
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Python API") :]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
+    monkeypatch.chdir(REPO)
+    code = _readme_api_code()
+    for _ in range(2):
+        exec(compile(code, "README.md", "exec"), {})
+        assert callable(balancer_id.fit) and callable(balancer_id.diagnose)
+    out = capsys.readouterr().out
+    assert out.count("m_a") >= 2
