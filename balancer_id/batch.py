@@ -455,9 +455,10 @@ def _prepare_model(
             f"--fix {', '.join(unknown)}: not a parameter of '{mdl.spec}' "
             f"(its parameters: {', '.join(mdl.param_names)})"
         )
-    if mdl.has("servo"):
+    if mdl.needs_reference_move:
+        names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
         raise UsageError(
-            "a model with 'servo' needs the robot's reference move, which batch does not "
+            f"a model with '{names}' needs the robot's reference move, which batch does not "
             "take; fit such logs one by one with 'balancer-id fit --trajectory ...'"
         )
     warm_kernel(mdl)

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from balancer_id.errors import BalancerIdError, ModelSpecError
+from balancer_id.identify.classic import ClassicResult
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.model.effect import Effect
@@ -31,16 +32,16 @@ class Candidate:
 def candidates(model: Model, *, with_trajectory: bool = False) -> list[Candidate]:
     """Every model that adds one registered effect to ``model`` (or swaps an exclusive one).
 
-    Effects that need a robot reference (an ``operating_force`` hook) are only tried when
-    a trajectory is known.
+    Effects that need a robot reference (:meth:`Effect.needs_reference_move`, ``servo``)
+    are only tried when a trajectory is known.
 
     Parameters
     ----------
     model : Model
         The current model; the candidates come from its registry.
     with_trajectory : bool
-        Whether a robot reference is known. False leaves out effects with an
-        ``operating_force`` hook (``servo``).
+        Whether a robot reference is known. False leaves out effects that need one
+        (``servo``).
 
     Returns
     -------
@@ -53,7 +54,7 @@ def candidates(model: Model, *, with_trajectory: bool = False) -> list[Candidate
     for effect in model.registry:
         if effect.name in present:
             continue
-        if "operating_force" in effect.hooks() and not with_trajectory:
+        if effect.needs_reference_move() and not with_trajectory:
             continue
         clash = [n for n in effect.excludes if n in present]
         base = model
@@ -85,15 +86,19 @@ def quick_refit(
     current: MatchResult,
     start: dict[str, float],
     fixed: dict[str, float] | None = None,
-    fresh: dict[str, float] | None = None,
+    classic: ClassicResult | None = None,
 ) -> Refit:
     """Fit a candidate model from the current fit and from a fresh start; keep the better.
 
-    The first start is the current fit plus the signature's start values; the second
-    (when ``fresh`` is given: the paper's method's ``m_a`` and ``T_a``) uses the effects'
-    default start values, because a fit without the effect may have bent its parameters
-    into a corner the effect's fit cannot leave. A user effect that raises or produces
-    NaN gives a Refit with ``error`` set, naming the effect, instead of stopping the others.
+    The first start is the current fit, then the effect's ``guess`` from the data (when
+    it has one), then the signature's start values; a drive-lag parameter the current
+    model lacks (``T_up`` added over ``T_a``) starts at the current drive lag. The second
+    (when ``classic`` is given) starts from the paper's method
+    (:meth:`~balancer_id.identify.classic.ClassicResult.start_values` of the candidate)
+    and the effects' default start values, because a fit without the effect may have
+    bent its parameters into a corner the effect's fit cannot leave. A user effect that
+    raises or produces NaN gives a Refit with ``error`` set, naming the effect, instead
+    of stopping the others.
 
     Parameters
     ----------
@@ -108,41 +113,48 @@ def quick_refit(
         override the current values. Values are clipped into the parameters' bounds.
     fixed : dict of str to float, optional
         Parameters held in the original fit; those the candidate has are held here too.
-    fresh : dict of str to float, optional
-        A second start independent of the current fit (the paper's method's ``m_a`` in
-        kg and ``T_a`` in s); None or empty refits from the current fit only.
+    classic : ClassicResult, optional
+        The paper's method on the same trials, for the second start; None refits from
+        the current fit only.
 
     Returns
     -------
     Refit
         The refit with the lower RMSE, or one with ``match=None`` and ``error`` set.
     """
-    names = candidate.model.param_names
+    model = candidate.model
+    names = model.param_names
 
     def clipped(values: dict[str, float]) -> dict[str, float]:
         out = {}
         for name, value in values.items():
             if name in names:
-                p = candidate.model.param(name)
+                p = model.param(name)
                 out[name] = min(max(value, p.min), p.max)
         return out
 
-    first = clipped({**current.values(), **start})
-    if "T_up" in names and "T_a" in current.values():
-        first.setdefault("T_up", current.values()["T_a"])
-        first.setdefault("T_down", current.values()["T_a"])
+    now = current.values()
+    guessed: dict[str, float] = {}
+    guess = candidate.effect.guess
+    if callable(guess):
+        try:
+            guessed = {k: float(v) for k, v in dict(guess(trials, now)).items()}
+        except Exception as exc:  # a user's guess must not stop the diagnosis
+            return Refit(candidate, None, f"guess of '{candidate.effect.name}' failed: {exc!r}")
+    first = clipped({**now, **guessed, **start})
+    if current.model.drive_lag_names:
+        for name in model.drive_lag_names:
+            first.setdefault(name, current.model.drive_lag(now))
     starts = [first]
-    if fresh:
-        second = clipped({**fresh, **start})
-        if "T_up" in names and "T_a" in fresh:
-            second.setdefault("T_up", fresh["T_a"])
-            second.setdefault("T_down", fresh["T_a"])
-        starts.append(second)
+    if classic is not None:
+        fresh = classic.start_values(model)
+        if fresh:
+            starts.append(clipped({**fresh, **start}))
     fixed = {k: v for k, v in (fixed or {}).items() if k in names}
     best: MatchResult | None = None
     for values in starts:
         try:
-            match = match_trials(candidate.model, trials, start=values, fixed=fixed, max_nfev=400)
+            match = match_trials(model, trials, start=values, fixed=fixed, max_nfev=400)
         except BalancerIdError as exc:
             return Refit(candidate, None, f"{candidate.effect.name}: {exc}")
         except Exception as exc:  # a user's effect must not stop the diagnosis

@@ -221,7 +221,6 @@ def diagnose(fit: FitResult) -> Diagnosis:
         },
         parameter_drift=parameter_drift(fit),
     )
-    fresh = classic.start_values(match.model)
     suggestions: list[Suggestion] = []
     failures: list[str] = []
     with_trajectory = fit.trial_set.trajectory is not None
@@ -231,7 +230,7 @@ def diagnose(fit: FitResult) -> Diagnosis:
         except Exception as exc:  # a user's check must not stop the others
             failures.append(f"signature check of '{cand.effect.name}' failed: {exc!r}")
             sig = Signature(0.0, "signature check failed")
-        refit: Refit = quick_refit(cand, trials, match, sig.start, fixed, fresh)
+        refit: Refit = quick_refit(cand, trials, match, sig.start, fixed, classic)
         if refit.match is None:
             failures.append(refit.error or cand.effect.name)
             continue

@@ -462,7 +462,9 @@ def _paper_section(result: FitResult) -> Section:
             [
                 "T_a, median over trials",
                 format_value(c.T_a, 3),
-                format_value(v.get("T_a", v.get("T_up"))),
+                format_value(
+                    result.spec_model.drive_lag(v) if result.spec_model.drive_lag_names else None
+                ),
                 "s",
             ],
         ],
