@@ -241,3 +241,51 @@ def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
         assert callable(balancer_id.fit) and callable(balancer_id.diagnose)
     out = capsys.readouterr().out
     assert out.count("m_a") >= 2
+
+
+def test_an_effects_guess_hook_starts_its_refit_and_a_failing_one_is_named(small_log):
+    from balancer_id import Effect, Param
+    from balancer_id.diagnostics.diagnosis import diagnose
+    from balancer_id.identify.api import fit
+    from balancer_id.model import Registry
+
+    seen: list[dict[str, float]] = []
+
+    class Offset(Effect):
+        """A constant force ``F += k_g`` whose start comes from the data."""
+
+        name = "offset_guessed"
+        summary = "constant force"
+        parameters = (Param("k_g", 0.0, -5.0, 5.0, "N", "constant force"),)
+
+        @classmethod
+        def guess(cls, trials, current):
+            seen.append(dict(current))
+            return {"k_g": 0.25}
+
+        @staticmethod
+        def force(f, v, z, h, k_g):
+            return k_g
+
+    class BadGuess(Offset):
+        """Its guess raises."""
+
+        name = "bad_guess"
+        parameters = (Param("k_b", 0.0, -5.0, 5.0, "N", "constant force"),)
+
+        @classmethod
+        def guess(cls, trials, current):
+            raise RuntimeError("no idea")
+
+        @staticmethod
+        def force(f, v, z, h, k_b):
+            return k_b
+
+    registry = Registry()
+    registry.add(Offset)
+    registry.add(BadGuess)
+    result = fit(str(small_log), model="viscous", registry=registry)
+    diagnosis = diagnose(result)
+    assert seen and set(seen[0]) == set(result.values)
+    assert any(s.effect == "offset_guessed" for s in diagnosis.suggestions)
+    assert any("guess of 'bad_guess' failed" in f for f in diagnosis.failures)
