@@ -261,6 +261,20 @@ def _trajectory(text: str | None):
         raise UsageError(str(exc)) from None
 
 
+def _printable(obj: Any) -> Any:
+    """``obj`` with control characters in every string made visible (``\x1b``), so a run
+    or file name holding terminal escape sequences cannot drive the user's terminal."""
+    if isinstance(obj, str):
+        if obj.isprintable():
+            return obj
+        return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
+    if isinstance(obj, dict):
+        return {k: _printable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_printable(v) for v in obj]
+    return obj
+
+
 def _emit_json(obj: object) -> None:
     sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
 
@@ -311,7 +325,7 @@ def inspect(
         print_inspection = __import__(
             "balancer_id.report.terminal", fromlist=["print_inspection"]
         ).print_inspection
-        print_inspection(_console(), info)
+        print_inspection(_console(), _printable(info))
     if problem is not None:
         typer.echo(f"balancer-id: error: {_one_line(problem)}", err=True)
         raise typer.Exit(problem.exit_code)
@@ -392,7 +406,7 @@ def fit(
     else:
         from balancer_id.report.terminal import print_fit
 
-        print_fit(_console(), out)
+        print_fit(_console(), _printable(out))
 
 
 @app.command()
@@ -542,7 +556,7 @@ def compare(
     else:
         from balancer_id.report.terminal import print_compare
 
-        print_compare(_console(), out)
+        print_compare(_console(), _printable(out))
 
 
 @app.command()
@@ -578,7 +592,7 @@ def diagnose(
     else:
         from balancer_id.report.terminal import print_diagnosis
 
-        print_diagnosis(_console(), out)
+        print_diagnosis(_console(), _printable(out))
 
 
 @app.command()
@@ -639,7 +653,7 @@ def improve(
     else:
         from balancer_id.report.terminal import print_improve
 
-        print_improve(_console(), out)
+        print_improve(_console(), _printable(out))
 
 
 @app.command()
@@ -749,7 +763,7 @@ def effects(
     else:
         from balancer_id.report.terminal import print_effects
 
-        print_effects(_console(), items)
+        print_effects(_console(), _printable(items))
 
 
 def main() -> None:

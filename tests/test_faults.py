@@ -274,3 +274,10 @@ def test_a_stopped_batch_leaves_no_process_and_resumes(tmp_path, how):
     assert resumed.returncode == 0, resumed.stderr
     assert f"{done_before} of 12 log(s) already done" in resumed.stderr
     assert (out / "summary.csv").read_text().count(",ok,") == 12
+
+
+def test_escape_sequences_from_a_log_are_shown_escaped(cli, tmp_path):
+    from balancer_id.cli import _printable
+
+    shown = _printable({"runs": [{"name": "Run \x1b[2J#1"}], "n": 3})
+    assert shown == {"runs": [{"name": "Run \\x1b[2J#1"}], "n": 3}
