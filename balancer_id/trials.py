@@ -72,7 +72,7 @@ class ReadOptions:
         except (TypeError, ValueError):
             raise UsageError(f"--g {self.g!r}: give gravity in m/s^2, e.g. 9.81") from None
         if not (math.isfinite(g) and g > 0):
-            raise UsageError(f"--g {self.g!r}: gravity must be a positive, finite m/s^2 value")
+            raise UsageError(f"--g {self.g}: gravity must be a positive number of m/s^2, e.g. 9.81")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
         if self.thrusts is not None:

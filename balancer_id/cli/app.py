@@ -8,7 +8,7 @@ once in :mod:`balancer_id.cli.options`.
 
 from __future__ import annotations
 
-import json
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -21,10 +21,18 @@ from balancer_id.cli.options import (
     JsonOpt,
     LogsArg,
     ModelOpt,
+    OverwriteOpt,
     TrajectoryOpt,
     assignments,
+    at_least,
+    check_outputs,
+    emit_json,
+    error_record,
     floats,
     guarded,
+    inputs_of,
+    one_line,
+    printable,
     read_options,
     trajectory,
 )
@@ -58,10 +66,6 @@ def _main(
     """Identify a passive balancer's dynamics from force/acceleration step logs."""
 
 
-def _emit_json(obj: object) -> None:
-    sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
-
-
 def _console():
     from rich.console import Console
 
@@ -82,12 +86,14 @@ def inspect(
     log: Annotated[Path, typer.Argument(help="The log to read.")],
     json_out: JsonOpt = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
+    check_outputs({"--plot": plot}, [log], overwrite)
     data = read(log, options)
     try:
         trials = segment(data, options)
@@ -95,18 +101,21 @@ def inspect(
     except NoTrialError as exc:
         trials, problem = [], exc
     info = describe_log(data, trials)
+    if problem is not None:
+        info["error"] = error_record(one_line(problem), problem.exit_code, problem)
     if plot is not None:
         from balancer_id.report.inspect_plot import plot_inspection
 
         plot_inspection(data, trials, plot, g=options.g, vertical=options.vertical)
     if json_out:
-        _emit_json(info)
+        emit_json(info)
     else:
         from balancer_id.report.terminal import print_inspection
 
-        print_inspection(_console(), info)
+        print_inspection(_console(), printable(info))
     if problem is not None:
-        raise problem
+        typer.echo(f"balancer-id: error: {one_line(problem)}", err=True)
+        raise typer.Exit(problem.exit_code)
 
 
 @app.command()
@@ -129,10 +138,14 @@ def fit(
     ] = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id.cli.request import FitRequest
+
+    at_least(starts, 1, "--starts")
+    check_outputs({"--report": report}, inputs_of(logs, effects_file, trajectory_text), overwrite)
 
     request = FitRequest(
         logs=tuple(str(p) for p in logs),
@@ -170,11 +183,11 @@ def fit(
 
             write_fit_report(result, report)
     if json_out:
-        _emit_json(out)
+        emit_json(out)
     else:
         from balancer_id.report.terminal import print_fit
 
-        print_fit(_console(), out)
+        print_fit(_console(), printable(out))
 
 
 @app.command()
@@ -205,9 +218,7 @@ def simulate(
     ] = 8.0,
     force_sign: Annotated[int, typer.Option("--force-sign", help="Sign of the force channel.")] = 1,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
-    overwrite: Annotated[
-        bool, typer.Option("--overwrite", help="Replace an existing file.")
-    ] = False,
+    overwrite: OverwriteOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
@@ -230,6 +241,17 @@ def simulate(
         raise UsageError("--force-sign must be +1 or -1")
     if not 0.0 <= noise_correlation < 1.0:
         raise UsageError("--noise-correlation must be in [0, 1)")
+    if not (math.isfinite(rate) and rate > 0):
+        raise UsageError(f"--rate {rate}: give a sample rate > 0 Hz, e.g. 200")
+    for option, value in (("--noise", noise), ("--force-noise", force_noise), ("--rest", rest)):
+        at_least(value, 0.0, option)
+    if not (math.isfinite(duration) and duration > 0):
+        raise UsageError(f"--duration {duration}: give the motion's length in s (> 0)")
+    if not (math.isfinite(drop) and 0.0 <= drop < 1.0):
+        raise UsageError(f"--drop {drop}: give the fraction of samples dropped, in [0, 1)")
+    if not math.isfinite(tilt):
+        raise UsageError(f"--tilt {tilt}: give the sensor's tilt in degrees")
+    check_outputs({"--out": out}, inputs_of([], effects_file, trajectory_text), overwrite)
     sensor = SensorSettings(
         rate_hz=rate,
         accel_noise=noise,
@@ -260,7 +282,7 @@ def simulate(
         "seed": seed,
     }
     if json_out:
-        _emit_json(info)
+        emit_json(info)
     else:
         typer.echo(f"wrote {out}: {len(recs)} runs of model {mdl.spec}", err=True)
 
@@ -278,12 +300,17 @@ def compare(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails."""
     from balancer_id.diagnostics.api import compare as run_compare
+    from balancer_id.errors import UsageError
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
+    if not specs:
+        raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
+    check_outputs({"--plot": plot}, inputs_of(logs, effects_file, trajectory_text), overwrite)
     results = run_compare(
         _load(logs, options, trajectory_text),
         specs,
@@ -298,11 +325,11 @@ def compare(
     if json_out:
         from balancer_id.jsonsafe import json_ready
 
-        _emit_json(json_ready(out))
+        emit_json(json_ready(out))
     else:
         from balancer_id.report.terminal import print_compare
 
-        print_compare(_console(), out)
+        print_compare(_console(), printable(out))
 
 
 def _fit(
@@ -355,11 +382,11 @@ def diagnose(
     )
     out = result.to_dict()
     if json_out:
-        _emit_json(out)
+        emit_json(out)
     else:
         from balancer_id.report.terminal import print_diagnosis
 
-        print_diagnosis(_console(), out)
+        print_diagnosis(_console(), printable(out))
 
 
 @app.command()
@@ -378,11 +405,22 @@ def improve(
     plot: Annotated[Path | None, typer.Option("--plot", help="The error ladder as PNG.")] = None,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve."""
     from balancer_id.diagnostics.improve import improve as run_improve
 
+    at_least(max_steps, 0, "--max-steps")
+    check_outputs(
+        {"--report": report, "--plot": plot},
+        inputs_of(logs, effects_file, trajectory_text),
+        overwrite,
+    )
+    if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
+        from balancer_id.errors import UsageError
+
+        raise UsageError("--report and --plot name the same file; give two names")
     if report is not None:
         from balancer_id.report.document import check_report_path
 
@@ -408,11 +446,11 @@ def improve(
 
         write_improve_report(result, report)
     if json_out:
-        _emit_json(out)
+        emit_json(out)
     else:
         from balancer_id.report.terminal import print_improve
 
-        print_improve(_console(), out)
+        print_improve(_console(), printable(out))
 
 
 @app.command()
@@ -425,6 +463,7 @@ def report(
     fix: FixOpt = None,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots."""
@@ -432,6 +471,7 @@ def report(
     from balancer_id.report.document import check_report_path
     from balancer_id.report.sections import write_full_report
 
+    check_outputs({"--out": out}, inputs_of(logs, effects_file, trajectory_text), overwrite)
     check_report_path(out, logs)
     result = _fit(
         logs,
@@ -464,6 +504,11 @@ def batch(
     ] = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
+    resume: Annotated[
+        bool,
+        typer.Option("--resume", help="Keep results already in OUT for unchanged logs."),
+    ] = False,
+    overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
@@ -478,10 +523,12 @@ def batch(
         effects_files=effects_file or (),
         jobs=jobs,
         scheduler=scheduler,
-        progress=lambda msg: typer.echo(msg, err=True),
+        progress=lambda msg: typer.echo(one_line(msg), err=True),
+        resume=resume,
+        overwrite=overwrite,
     )
     if json_out:
-        _emit_json(result.to_dict())
+        emit_json(result.to_dict())
     else:
         typer.echo(
             f"{result.n_ok} identified, {result.n_failed} failed; summary in {result.summary_path}",
@@ -505,16 +552,35 @@ def effects(
     items = [{**Base.describe(), "origin": "built-in (always present)"}]
     items += [{**cls.describe(), "origin": registry.origin(cls.name)} for cls in registry]
     if json_out:
-        _emit_json({"effects": items})
+        emit_json({"effects": items})
     else:
         from balancer_id.report.terminal import print_effects
 
-        print_effects(_console(), items)
+        print_effects(_console(), printable(items))
 
 
 def main() -> None:
-    """Entry point of the ``balancer-id`` console script."""
-    app()
+    """Entry point of the ``balancer-id`` console script.
+
+    Usage errors (unknown option, a value of the wrong type) are one line on stderr with
+    exit 2, like every other error, instead of click's framed box.
+    """
+    try:
+        code = app(standalone_mode=False)
+    except typer.Abort:
+        typer.echo("balancer-id: error: interrupted", err=True)
+        code = 130
+    except Exception as exc:  # click's usage errors (typer vendors click in recent versions)
+        if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
+            raise
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            typer.echo(ctx.get_help(), err=True)
+        else:
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            typer.echo(f"balancer-id: error: {one_line(exc.format_message())}{hint}", err=True)
+        code = exc.exit_code
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":

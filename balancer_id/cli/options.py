@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import functools
 import inspect
+import json
+import math
 import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -49,6 +52,10 @@ AccelUnitOpt = Annotated[
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 FixOpt = Annotated[
     list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
+]
+OverwriteOpt = Annotated[
+    bool,
+    typer.Option("--overwrite", help="Replace output files that exist (never an input)."),
 ]
 TrajectoryOpt = Annotated[
     str | None,
@@ -126,8 +133,64 @@ def _evaluated(annotation: Any, func: Callable[..., Any]) -> Any:
     return annotation
 
 
-def fail(message: str, code: int) -> None:
-    """Print one error line and exit with ``code``.
+def one_line(text: object) -> str:
+    """``text`` on one line, with control characters (terminal escapes) made visible.
+
+    Parameters
+    ----------
+    text : object
+        A message.
+
+    Returns
+    -------
+    str
+    """
+    flat = " ".join(str(text).split())
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)
+
+
+def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:
+    """The ``error`` object of ``--json`` output: kind, message, exit code, where.
+
+    Parameters
+    ----------
+    line : str
+        The one-line message.
+    code : int
+        The exit code.
+    exc : BaseException or None
+        The error (its ``file``, ``line`` and ``column`` when it has them).
+
+    Returns
+    -------
+    dict
+    """
+    file = getattr(exc, "file", None)
+    return {
+        "kind": type(exc).__name__ if exc is not None else "Error",
+        "message": line,
+        "exit_code": code,
+        "file": None if file is None else str(file),
+        "line": getattr(exc, "line", None),
+        "column": getattr(exc, "column", None),
+    }
+
+
+def emit_json(obj: object) -> None:
+    """Print one JSON object on stdout.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-ready data.
+    """
+    sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
+
+
+def fail(
+    message: str, code: int, exc: BaseException | None = None, json_out: bool = False
+) -> None:
+    """Print one error line (and the ``--json`` error object) and exit with ``code``.
 
     Parameters
     ----------
@@ -135,8 +198,15 @@ def fail(message: str, code: int) -> None:
         What went wrong (whitespace is folded onto one line).
     code : int
         The CONTRACT.md exit code.
+    exc : BaseException, optional
+        The error, for the ``--json`` record.
+    json_out : bool
+        Also print ``{"error": ...}`` on stdout.
     """
-    typer.echo(f"balancer-id: error: {' '.join(str(message).split())}", err=True)
+    line = one_line(message)
+    typer.echo(f"balancer-id: error: {line}", err=True)
+    if json_out:
+        emit_json({"error": error_record(line, code, exc)})
     raise typer.Exit(code)
 
 
@@ -159,14 +229,28 @@ def guarded(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         from balancer_id.errors import BalancerIdError
 
+        json_out = bool(kwargs.get("json_out"))
         try:
             return func(*args, **kwargs)
         except (typer.Exit, typer.Abort):
             raise
         except BalancerIdError as exc:
-            fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            fail("interrupted", 130)
+            fail(str(exc), exc.exit_code, exc, json_out)
+        except KeyboardInterrupt as exc:
+            fail("interrupted", 130, exc, json_out)
+        except SystemExit as exc:  # sys.exit() inside a user's effects file
+            fail(
+                f"a user effects file called sys.exit({exc.code!r}) while loading or running; "
+                "effects must not exit: remove the call",
+                2,
+                exc,
+                json_out,
+            )
+        except MemoryError as exc:
+            fail("out of memory: the input is too large for this machine", 3, exc, json_out)
+        except OSError as exc:
+            name = f" '{exc.filename}'" if exc.filename else ""
+            fail(f"cannot access{name}: {exc.strerror or exc}", 3, exc, json_out)
         except Exception as exc:  # never a traceback for the user
             if os.environ.get("BALANCER_ID_DEBUG"):
                 raise
@@ -174,9 +258,105 @@ def guarded(func: F) -> F:
                 f"internal error {type(exc).__name__}: {exc} "
                 "(rerun with BALANCER_ID_DEBUG=1 and report it)",
                 1,
+                exc,
+                json_out,
             )
 
     return wrapper  # type: ignore[return-value]
+
+
+def check_outputs(
+    outputs: dict[str, Path | None], inputs: list[Path | str], overwrite: bool
+) -> None:
+    """Refuse, before any work, outputs that are inputs, exist (without --overwrite) or are
+    read-only.
+
+    Parameters
+    ----------
+    outputs : dict of str to Path or None
+        Option name -> the file it names (None: not given).
+    inputs : list of Path or str
+        Every file the command reads.
+    overwrite : bool
+        ``--overwrite``.
+    """
+    from balancer_id.files import check_output
+
+    for option, path in outputs.items():
+        if path is not None:
+            check_output(path, inputs=inputs, overwrite=overwrite, option=option)
+
+
+def inputs_of(
+    logs: list[Path], effects_file: list[Path] | None, trajectory_text: str | None = None
+) -> list[Path | str]:
+    """Every file a command reads (an output may be none of them).
+
+    Parameters
+    ----------
+    logs : list of Path
+        The logs.
+    effects_file : list of Path or None
+        ``--effects-file`` paths.
+    trajectory_text : str, optional
+        ``--trajectory`` (a file unless it is a ``trapezoid:`` spec).
+
+    Returns
+    -------
+    list of Path or str
+    """
+    files: list[Path | str] = [*logs, *(effects_file or ())]
+    if trajectory_text and not trajectory_text.strip().startswith("trapezoid:"):
+        files.append(trajectory_text)
+    return files
+
+
+def at_least(value: int | float, low: int | float, option: str) -> None:
+    """Refuse a number below ``low`` (or not finite).
+
+    Parameters
+    ----------
+    value : int or float
+        The option's value.
+    low : int or float
+        The smallest value allowed.
+    option : str
+        The option's name, for the message.
+
+    Raises
+    ------
+    UsageError
+        When ``value`` is below ``low`` or not finite.
+    """
+    from balancer_id.errors import UsageError
+
+    if not (isinstance(value, int) or math.isfinite(value)) or value < low:
+        raise UsageError(f"{option} {value}: give a number >= {low}")
+
+
+def printable(obj: Any) -> Any:
+    """``obj`` with control characters in every string made visible (``\\x1b``), so a run
+    or file name holding terminal escape sequences cannot drive the user's terminal.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-like data.
+
+    Returns
+    -------
+    object
+        The same structure, strings escaped.
+    """
+    if isinstance(obj, str):
+        if obj.isprintable():
+            return obj
+        return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
+    if isinstance(obj, dict):
+        return {k: printable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [printable(v) for v in obj]
+    return obj
 
 
 def floats(text: str | None, what: str) -> list[float] | None:

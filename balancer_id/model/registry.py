@@ -9,13 +9,12 @@ defined in that file. Callers (and tests) may build their own registry.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
-import sys
 from collections.abc import Iterable, Iterator
 from importlib.metadata import entry_points
 from pathlib import Path
 
 from balancer_id.errors import EffectError, ModelSpecError
+from balancer_id.files import import_path
 from balancer_id.model.effect import Effect
 
 ENTRY_POINT_GROUP = "balancer_id.effects"
@@ -218,20 +217,14 @@ def import_file_module(file: Path):
     EffectError
         When the file cannot be imported; it is then not left in ``sys.modules``.
     """
-    name = module_name_for(file)
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, file)
-    if spec is None or spec.loader is None:
-        raise EffectError(f"{file}: cannot be imported as a Python module")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
     try:
-        spec.loader.exec_module(module)
-    except Exception as exc:
-        del sys.modules[name]
+        return import_path(module_name_for(file), file)
+    except ImportError as exc:
+        if "cannot be imported as a Python module" in str(exc):
+            raise EffectError(f"{file}: cannot be imported as a Python module") from None
         raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
-    return module
+    except Exception as exc:
+        raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
 
 
 def default_registry(effects_files: Iterable[str | Path] = ()) -> Registry:
