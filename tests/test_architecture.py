@@ -292,3 +292,14 @@ def test_an_effects_guess_hook_starts_its_refit_and_a_failing_one_is_named(small
     assert seen and set(seen[0]) == set(result.values)
     assert any(s.effect == "offset_guessed" for s in diagnosis.suggestions)
     assert any("guess of 'bad_guess' failed" in f for f in diagnosis.failures)
+
+
+def test_python_dash_m_runs_the_command():
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "balancer_id", "--version"], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"balancer-id {balancer_id.__version__}"

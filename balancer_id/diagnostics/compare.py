@@ -5,8 +5,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 from balancer_id.diagnostics.context import build_context
 from balancer_id.diagnostics.residual_tests import worst_windows
 from balancer_id.identify.classic import paper_method
@@ -72,14 +70,9 @@ def compare_models(
         In the order given.
     """
     classic = paper_method(trials)
-    start = {
-        k: float(v)
-        for k, v in (("m_a", classic.m_a), ("T_a", classic.T_a))
-        if np.isfinite(v) and v > 0
-    }
     out = []
     for model in models:
-        s = {k: v for k, v in start.items() if k in model.param_names}
+        s = classic.start_values(model)
         fx = {k: v for k, v in (fixed or {}).items() if k in model.param_names}
         match = match_trials(model, trials, start=s, fixed=fx)
         out.append(ModelComparison(match, worst_windows(build_context(match))))

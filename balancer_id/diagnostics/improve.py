@@ -65,6 +65,7 @@ class ImproveStep:
             "cv_rmse": self.cv_rmse,
             "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
             "evidence": self.evidence,
+            "command": self.fit.command(),
         }
 
 

@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from balancer_id.constants import G_DEFAULT
+from balancer_id.files import atomic_write
 from balancer_id.read.recording import Log, Recording
-from balancer_id.report.plots import atomic_write, figure_png
+from balancer_id.report.plots import figure_png
 from balancer_id.segment.gravity import vertical_motion
 from balancer_id.segment.trial import Trial
 

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from balancer_id.report.document import Cell, Paragraph, Plot, Section, Table, format_value
+from balancer_id.report.blocks import Cell, Paragraph, Plot, Section, Table, format_value
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.compare import ModelComparison
