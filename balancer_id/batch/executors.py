@@ -1,0 +1,333 @@
+"""Where the logs are fitted: a pool of worker processes with crash isolation, or Dask.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+from balancer_id.batch.rows import Payload, _crashed, _internal
+from balancer_id.errors import UsageError
+
+if TYPE_CHECKING:
+    pass
+
+#: Modules a forkserver imports once, so forked workers start with them loaded.
+_PRELOAD = (
+    "balancer_id.batch.worker",
+    "balancer_id.identify.api",
+    "balancer_id.read",
+    "balancer_id.segment",
+    "lmfit",
+)
+
+
+#: Each worker process runs one BLAS/OpenMP thread: the pool is the parallelism (and
+#: the fits' small matrices run faster on one thread anyway). A value the user set wins.
+_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+_DASK_HINT = "pip install 'balancer-id[dask]'"
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Within, SIGTERM (and SIGHUP) stops the batch as Ctrl-C does (main thread only)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"stopped by signal {signum}")
+
+    saved = {}
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            saved[sig] = signal.signal(sig, stop)
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def available_cpus() -> int:
+    """CPUs this process may run on (``os.cpu_count()`` narrowed by CPU affinity).
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    counter = getattr(os, "process_cpu_count", None)  # Python 3.13
+    if counter is not None:
+        return counter() or 1
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+@contextmanager
+def _one_thread_env() -> Iterator[None]:
+    """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)."""
+    added = [name for name in _THREAD_ENV if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
+def _mp_context() -> Any:
+    """``forkserver`` with the fitting code preloaded where available, else ``spawn``.
+
+    The fork server is launched now (when not running yet), so it imports the fitting
+    code while this process does other work; it then serves every later pool.
+    """
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    from multiprocessing import forkserver
+
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(_PRELOAD))
+    try:
+        with _one_thread_env():
+            forkserver.ensure_running()
+    except OSError:  # the pool will try again, and report
+        pass
+    return ctx
+
+
+def run_in_processes(
+    func: Callable[[Any], Payload],
+    items: Sequence[tuple[int, Any]],
+    record: Callable[[int, Payload], None],
+    jobs: int,
+    *,
+    context: Any = None,
+    notify: Callable[[str], None] | None = None,
+) -> None:
+    """Call ``func(arg)`` for each ``(key, arg)`` in a process pool; ``record`` each result.
+
+    A worker that dies (killed, out of memory, a crash in native code) breaks the whole
+    pool. Results that arrived are kept; the items that did not finish run again, each
+    in a process of its own (``jobs`` at a time), so a crash fails only its own item.
+
+    Parameters
+    ----------
+    func : callable
+        A picklable function returning a payload (``{"status": ...}``).
+    items : sequence of (key, argument)
+        The work.
+    record : callable
+        ``record(key, payload)``, called in this process as each result arrives.
+    jobs : int
+        Worker processes.
+    context : multiprocessing context, optional
+        How workers start (default: see :func:`_mp_context`).
+    notify : callable, optional
+        Told, in one line, when a worker died and the rest run one process each.
+    """
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    ctx = context or _mp_context()
+    retry: list[tuple[int, Any]] = []
+    pool = ProcessPoolExecutor(
+        max_workers=min(jobs, len(items)),
+        mp_context=ctx,
+        initializer=_die_with_parent,
+        initargs=(os.getpid(),),
+    )
+    try:
+        futures = {}
+        with _one_thread_env():  # workers start on submit
+            for n, (key, arg) in enumerate(items):
+                try:
+                    futures[pool.submit(func, arg)] = (key, arg)
+                except BrokenProcessPool:
+                    retry += items[n:]
+                    break
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                key, arg = futures[fut]
+                try:
+                    payload = fut.result()
+                except BrokenProcessPool:
+                    retry.append((key, arg))
+                    continue
+                except Exception as exc:  # e.g. a result that cannot be pickled
+                    payload = _internal(exc)
+                record(key, payload)
+    except BaseException:
+        _stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    if retry:
+        if notify is not None:
+            notify(
+                f"a worker process died; {len(retry)} unfinished item(s) run again, "
+                "one process each"
+            )
+        _run_isolated(func, sorted(retry, key=lambda item: item[0]), record, jobs, ctx)
+
+
+def _run_isolated(
+    func: Callable[[Any], Payload],
+    items: Sequence[tuple[int, Any]],
+    record: Callable[[int, Payload], None],
+    jobs: int,
+    ctx: Any,
+) -> None:
+    """One single-worker pool per item, ``jobs`` at a time: a crash fails one item."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    queue = deque(items)
+    active: dict[Any, tuple[int, ProcessPoolExecutor]] = {}
+    try:
+        while queue or active:
+            while queue and len(active) < jobs:
+                key, arg = queue.popleft()
+                pool = ProcessPoolExecutor(
+                    max_workers=1,
+                    mp_context=ctx,
+                    initializer=_die_with_parent,
+                    initargs=(os.getpid(),),
+                )
+                with _one_thread_env():
+                    active[pool.submit(func, arg)] = (key, pool)
+            done, _ = wait(list(active), return_when=FIRST_COMPLETED)
+            for fut in done:
+                key, pool = active.pop(fut)
+                try:
+                    payload = fut.result()
+                except BrokenProcessPool:
+                    payload = _crashed("the worker process died while on this item")
+                except Exception as exc:
+                    payload = _internal(exc)
+                pool.shutdown(wait=True)
+                record(key, payload)
+    except BaseException:
+        for _, pool in active.values():
+            _stop_workers(pool)
+        raise
+    finally:
+        for _, pool in active.values():
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(batch_pid: int) -> None:
+    """Worker initializer: the worker ends when the batch process is gone.
+
+    A forkserver's workers are children of the fork server, which itself only exits when
+    the workers have, so neither notices a batch killed with SIGKILL. Each worker therefore
+    watches the batch's process id from a daemon thread (twice a second) and exits when it
+    is gone; on Linux it also asks for SIGKILL when its own parent dies.
+
+    Parameters
+    ----------
+    batch_pid : int
+        Process id of the batch that started the pool.
+    """
+    import threading
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            try:
+                os.kill(batch_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except OSError:
+                pass
+
+    threading.Thread(target=watch, name="balancer-id-watch-batch", daemon=True).start()
+
+
+def _stop_workers(pool: Any) -> None:
+    """Terminate a pool's worker processes now (an interrupted batch must not wait)."""
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError):
+            pass
+
+
+def _dask() -> Any:
+    try:
+        import dask.distributed as distributed
+    except ImportError:
+        raise UsageError(f"--scheduler needs Dask: {_DASK_HINT}") from None
+    return distributed
+
+
+def _run_dask(
+    func: Callable[[Any], Payload],
+    items: Sequence[tuple[int, Any]],
+    record: Callable[[int, Payload], None],
+    scheduler: str,
+    n_workers: int,
+    say: Callable[[str], None],
+) -> None:
+    """Run the items on a Dask cluster (``"local"``: a LocalCluster of ``n_workers``)."""
+    distributed = _dask()
+    cluster = None
+    try:
+        if scheduler == "local":
+            cluster = distributed.LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = distributed.Client(cluster)
+            where = f"a local Dask cluster of {n_workers} workers"
+        else:
+            client = distributed.Client(scheduler)
+            where = f"the Dask cluster at {scheduler}"
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise UsageError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+    try:
+        say(f"identifying {len(items)} logs on {where}")
+        futures = {client.submit(func, arg, pure=False): key for key, arg in items}
+        for fut in distributed.as_completed(futures):
+            key = futures[fut]
+            try:
+                payload = fut.result()
+            except Exception as exc:  # KilledWorker, lost scheduler, ...
+                payload = _crashed(f"the Dask task failed: {type(exc).__name__}: {exc}")
+            record(key, payload)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
