@@ -59,7 +59,9 @@ FixOpt = Annotated[
 TrajectoryOpt = Annotated[
     str | None,
     typer.Option(
-        "--trajectory", help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..'."
+        "--trajectory",
+        help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..[,start=..]' or a "
+        "CSV of time,position.",
     ),
 ]
 
@@ -179,6 +181,10 @@ def _trajectory(text: str | None):
 
     if text is None:
         return None
+    if not text.startswith("trapezoid"):  # a CSV of time,position (issue 9)
+        from balancer_id.segment.move import read_trajectory_csv
+
+        return read_trajectory_csv(text)
     try:
         return parse_trajectory(text)
     except ValueError as exc:
@@ -208,15 +214,16 @@ def inspect(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    trajectory: TrajectoryOpt = None,
 ) -> None:
-    """Show what was read from LOG and the step trials found in it."""
+    """Show what was read from LOG and the step trials (or the robot move) found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.pipeline import describe_log, read, segment
 
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     data = read(log, options)
     try:
-        trials = segment(data, options)
+        trials = segment(data, options, _trajectory(trajectory))
         problem = None
     except NoTrialError as exc:
         trials, problem = [], exc

@@ -79,7 +79,7 @@ def trial_data(
     data: list[TrialData] = []
     names: list[str] = []
     if paths:
-        for item in load_trials(paths, options):
+        for item in load_trials(paths, options, trajectory):
             names.append(str(item.log.path))
             data.extend(TrialData.from_trial(t, trajectory=trajectory) for t in item.trials)
     for s in sources:
@@ -151,7 +151,7 @@ def fit(
     trials, names = trial_data(sources, options, trajectory)
     if not trials:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
-    classic = paper_method(trials)
+    classic = paper_method([t for t in trials if t.thrust_N != 0])  # moves: no step
     start: dict[str, float] = {}
     for name in ("m_a", "T_a"):
         value = getattr(classic, name)
