@@ -106,7 +106,8 @@ def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None
         from balancer_id.segment.move import find_moves
 
         o = options
-        return list(find_moves(log, trajectory, force_sign=o.force_sign, vertical=o.vertical, g=o.g))
+        moves = find_moves(log, trajectory, force_sign=o.force_sign, vertical=o.vertical, g=o.g)
+        return list(moves)
     return find_trials(
         log,
         thrusts=options.thrusts,
