@@ -268,11 +268,19 @@ def fit(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
+    ] = None,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id import cache
 
     fixed = _assignments(fix, "--fix")
+    if params is not None:  # issue 9: hold an earlier fit's values; --fix wins
+        from balancer_id.fit.params_file import held_for_model
+
+        fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
     key_options = {
         "model": model,
         "thrust": thrust,
@@ -304,6 +312,11 @@ def fit(
             n_starts=starts,
         )
         out = result.to_dict()
+        if result.coupling is not None:  # issue 9: advice for the robot-balancer pair
+            from balancer_id.diagnose.advice import advise_fit
+
+            moves = [t.input for t in result.match.data.trials]
+            out["advice"] = advise_fit(result.match.model, result.values, moves).to_dict()
         cache.store(key, out)
         if report is not None:
             from balancer_id.report.document import write_fit_report

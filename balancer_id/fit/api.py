@@ -7,7 +7,7 @@ from pathlib import Path
 
 from balancer_id.errors import IdentificationError
 from balancer_id.fit.classic import paper_method
-from balancer_id.fit.coupling import coupling
+from balancer_id.fit.coupling import coupling_of
 from balancer_id.fit.data import TrialData
 from balancer_id.fit.matching import match_trials
 from balancer_id.fit.result import FitResult, PerTrialFit
@@ -169,10 +169,7 @@ def fit(
         )
     result = FitResult(match=match, classic=classic, sources=names)
     if mdl.has("servo"):
-        v = match.values()
-        result.coupling = coupling(
-            v["m_a"], v.get("T_a", v.get("T_up", 0.3)), v.get("D0", 0.0), v["k_r"], v["c_r"]
-        )
+        result.coupling = coupling_of(match.values())
     if per_trial:
         result.per_trial = fit_each_trial(mdl, trials, match.values(), fixed)
     return result
