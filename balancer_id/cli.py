@@ -425,6 +425,10 @@ def compare(
         str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
     ] = "viscous,variable_viscosity",
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
+    vibration_plot: Annotated[
+        Path | None,
+        typer.Option("--vibration-plot", help="With --trajectory: the moves' vibration PNG."),
+    ] = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     thrust: ThrustOpt = None,
@@ -436,7 +440,11 @@ def compare(
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
 ) -> None:
-    """Measured vs simulated for several models: errors per trial and where each fails."""
+    """Measured vs simulated for several models: errors per trial and where each fails.
+
+    With --trajectory it also sets the vibration of each log's move side by side
+    (human against robot: band power around the coupled mode).
+    """
     from balancer_id.diagnose import compare as run_compare
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
@@ -449,6 +457,16 @@ def compare(
         trajectory=_trajectory(trajectory),
     )
     out = {"models": [r.to_dict() for r in results]}
+    if trajectory is not None:  # issue 9: the vibration of each move, side by side
+        from balancer_id.diagnose.vibration import vibration_of_logs
+
+        opts = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+        vib = vibration_of_logs(logs, opts, _trajectory(trajectory))
+        out["vibration"] = vib.to_dict()
+        if vibration_plot is not None:
+            from balancer_id.report.vibration_plot import plot_vibration
+
+            plot_vibration(vib, vibration_plot)
     if plot is not None:
         from balancer_id.report.sections import plot_comparison
 

@@ -156,6 +156,11 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
         :meth:`ModelComparison.to_dict` per model, all on the same trials.
     """
     models = result["models"]
+    if result.get("vibration"):  # issue 9: human against robot
+        from balancer_id.diagnose.vibration import vibration_lines
+
+        for line in vibration_lines(result["vibration"]):
+            console.print(line)
     table = Table(title="models compared on the same trials")
     for col in ("model", "RMSE (m/s^2)", "fit %", "AIC", "BIC", "worst window"):
         table.add_column(col)
