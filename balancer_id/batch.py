@@ -228,6 +228,7 @@ def run_batch(
     jobs: int | None = None,
     scheduler: str | None = None,
     progress: Callable[[str], None] | None = None,
+    trajectory: Any = None,
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -259,6 +260,9 @@ def run_batch(
         absolute paths.
     progress : callable, optional
         Called with a one-line message as each log finishes.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move, the same for every log (``servo``); its start is
+        found in each log unless given.
 
     Returns
     -------
@@ -288,7 +292,7 @@ def run_batch(
     pooled = scheduler is None and n_workers > 1
     context = _mp_context() if pooled else None  # the fork server starts while we compile
     extra = tuple(str(Path(f).resolve()) for f in effects_files)
-    mdl = _prepare_model(model, fixed, extra)
+    mdl = _prepare_model(model, fixed, extra, trajectory is not None)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -303,6 +307,7 @@ def run_batch(
         fixed=dict(fixed or {}),
         options=options,
         effects_files=extra,
+        trajectory=trajectory,
     )
     rows: list[BatchRow | None] = [None] * len(tasks)
 
@@ -443,7 +448,10 @@ def _check_out_dir(out: Path, given: Sequence[str | Path], logs: Sequence[Path])
 
 
 def _prepare_model(
-    model: str | None, fixed: Mapping[str, float] | None, extra: Sequence[str]
+    model: str | None,
+    fixed: Mapping[str, float] | None,
+    extra: Sequence[str],
+    with_trajectory: bool = False,
 ) -> Model:
     """Resolve the model, check ``fixed`` against it and warm the kernel's disk cache."""
     from balancer_id.fit.api import resolve_model
@@ -455,10 +463,10 @@ def _prepare_model(
             f"--fix {', '.join(unknown)}: not a parameter of '{mdl.spec}' "
             f"(its parameters: {', '.join(mdl.param_names)})"
         )
-    if mdl.has("servo"):
+    if mdl.has("servo") and not with_trajectory:
         raise UsageError(
-            "a model with 'servo' needs the robot's reference move, which batch does not "
-            "take; fit such logs one by one with 'balancer-id fit --trajectory ...'"
+            "a model with 'servo' needs the robot's reference move: give --trajectory "
+            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
     warm_kernel(mdl)
     return mdl
@@ -512,6 +520,7 @@ def _identify(
     fixed: Mapping[str, float],
     options: ReadOptions | None,
     effects_files: Sequence[str],
+    trajectory: Any = None,
 ) -> Payload:
     """Fit one log; never raises an ``Exception`` (a failure is a payload too).
 
@@ -526,7 +535,12 @@ def _identify(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             result = fit(
-                [path], model=model, fixed=fixed, options=options, effects_files=effects_files
+                [path],
+                model=model,
+                fixed=fixed,
+                options=options,
+                effects_files=effects_files,
+                trajectory=trajectory,
             )
             data: dict[str, Any] = dict(result.to_dict())
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]

@@ -621,6 +621,7 @@ def batch(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    trajectory: TrajectoryOpt = None,
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
     from balancer_id.batch import run_batch
@@ -635,6 +636,7 @@ def batch(
         jobs=jobs,
         scheduler=scheduler,
         progress=lambda msg: typer.echo(msg, err=True),
+        trajectory=_trajectory(trajectory),
     )
     if json_out:
         _emit_json(result.to_dict())
