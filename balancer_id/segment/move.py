@@ -482,6 +482,7 @@ def _find_in_run(
     time = np.asarray(rec.time, dtype=float)
     accel = np.asarray(motion.accel, dtype=float)
     sign = 1.0
+    caveat = ""
     if given:
         start = float(reference.start)
         if not time[0] <= start < time[-1]:
@@ -497,6 +498,12 @@ def _find_in_run(
             return None, "the motion runs opposite to the reference move"
         if rec.force is not None and np.isfinite(rec.force).sum() > 10:
             start, _, _ = align_start_by_force(time, accel, rec.force, reference, start)
+        else:
+            caveat = (
+                "move start aligned on the motion alone (no force channel): the closed "
+                "loop's oscillation can shift it by a few tenths of a second, which biases "
+                "k_r and c_r; give the start with 'start=SECONDS' if it is known"
+            )
     ref = dataclasses.replace(reference, start=start)
     end_move = move_end(ref)
     rate = rate_of(time)
@@ -523,6 +530,7 @@ def _find_in_run(
     notes = [
         "move found in the log" if not given else "move start as given",
         f"move from {start:.3f} s to {end_move:.3f} s",
+        *([caveat] if caveat else []),
     ]
     trial = MoveTrial(
         index=0,
