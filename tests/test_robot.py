@@ -77,6 +77,11 @@ def test_move_without_force_channel_is_found_from_motion(robot_log):
     assert abs(tr.t_step - 2.0) < 0.4
     assert tr.force is None
     assert any("no force channel" in n for n in tr.notes)
+    # the fit refines the start (maximum likelihood) and finds the servo all the same
+    result = fit([tr], model=SERVO_MODEL, fixed=PAPER, trajectory=MOVE_NO_START)
+    assert result.values["k_r"] == pytest.approx(ROBOT["k_r"], rel=0.10)
+    assert result.values["c_r"] == pytest.approx(ROBOT["c_r"], rel=0.10)
+    assert result.match.data.trials[0].t_step == pytest.approx(2.0, abs=0.02)
 
 
 def test_no_motion_is_no_move(tmp_path):

@@ -10,10 +10,12 @@ from balancer_id.fit.classic import paper_method
 from balancer_id.fit.coupling import coupling_of
 from balancer_id.fit.data import TrialData
 from balancer_id.fit.matching import match_trials
+from balancer_id.fit.move_start import refine_move_start
 from balancer_id.fit.result import FitResult, PerTrialFit
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
 from balancer_id.pipeline import ReadOptions, load_trials
+from balancer_id.segment.move import start_given
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.inputs import Trapezoid
 
@@ -158,6 +160,10 @@ def fit(
         spec_param = mdl.param(name) if name in mdl.param_names else None
         if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
             start[name] = float(value)
+    notes = []
+    if mdl.has("servo") and not start_given(trajectory):  # issue 9: the move's start by fit
+        trials, shift = refine_move_start(mdl, trials, start, fixed)
+        notes.append(f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)")
     match = match_trials(
         mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed, max_nfev=max_nfev
     )
@@ -167,7 +173,7 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
-    result = FitResult(match=match, classic=classic, sources=names)
+    result = FitResult(match=match, classic=classic, sources=names, warnings=notes)
     if mdl.has("servo"):
         result.coupling = coupling_of(match.values())
     if per_trial:

@@ -75,6 +75,7 @@ class MoveTrial(Trial):
         out["move_start"] = round(float(self.t_step), 6)
         out["move_end"] = round(float(move_end(self.reference)), 6)
         out["start_found"] = self.start_found
+        out["notes"] = list(self.notes)
         return out
 
 
