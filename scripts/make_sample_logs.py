@@ -56,7 +56,7 @@ SAMPLES = [
         "seed": 3,
     },
     {
-        "file": "human_assist.csv",
+        "file": "robot/human_assist.csv",
         "about": "a person guides the load through the 200 mm move: a soft, well damped "
         "'servo' (the person's arm impedance) tracking the same reference as the robot",
         "model": "variable_viscosity+servo",
@@ -68,7 +68,7 @@ SAMPLES = [
         "seed": 4,
     },
     {
-        "file": "robot_assist.csv",
+        "file": "robot/robot_assist.csv",
         "about": "a position-controlled robot makes the same 200 mm move through its servo "
         "(stiff, lightly damped): the coupled mode vibrates",
         "model": "variable_viscosity+servo",
@@ -88,6 +88,7 @@ def main() -> None:
     for sample in SAMPLES:
         files = [ROOT / sample["effects_file"]] if "effects_file" in sample else []
         model = resolve_model(sample["model"], files)
+        (OUT / sample["file"]).parent.mkdir(exist_ok=True)
         write_synthetic_log(
             OUT / sample["file"],
             model,

@@ -161,7 +161,7 @@ def fit(
         if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
             start[name] = float(value)
     notes = []
-    if mdl.has("servo") and not start_given(trajectory):  # issue 9: the move's start by fit
+    if mdl.has("servo") and trajectory and not start_given(trajectory):  # issue 9: by fit
         trials, shift = refine_move_start(mdl, trials, start, fixed)
         notes.append(f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)")
     match = match_trials(

@@ -46,7 +46,10 @@ SEARCH_AFTER_S = 0.5
 class Reference(Protocol):
     """A reference move: position and velocity at given times, and a start time."""
 
-    start: float
+    @property
+    def start(self) -> float:
+        """Start time of the move (s)."""
+        ...  # pragma: no cover
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (m) and velocity (m/s) at times ``t`` (s)."""
@@ -177,6 +180,11 @@ def read_trajectory_csv(path: str | Path) -> TabulatedMove:
     return TabulatedMove(table[:, 0] - t0, table[:, 1] - table[0, 1], start=t0)
 
 
+def _started(reference: Reference, start: float) -> Reference:
+    """The same reference move, starting at ``start`` (s)."""
+    return dataclasses.replace(reference, start=float(start))  # type: ignore[type-var]
+
+
 def move_duration(reference: Reference) -> float:
     """Length of the move (s): from its start to the last instant it moves.
 
@@ -192,7 +200,7 @@ def move_duration(reference: Reference) -> float:
     """
     if isinstance(reference, TabulatedMove):
         return float(reference.time[-1])
-    base = dataclasses.replace(reference, start=0.0)
+    base = _started(reference, 0.0)
     horizon = 60.0
     t = np.linspace(0.0, horizon, 60001)
     z, v = base.evaluate(t)
@@ -322,7 +330,7 @@ def align_start(
     grid = np.arange(lo, t_on + SEARCH_AFTER_S + dt / 2, dt)
     costs = np.empty((2, grid.size))
     for k, s in enumerate(grid):
-        _, vr = dataclasses.replace(reference, start=float(s)).evaluate(ts)
+        _, vr = _started(reference, float(s)).evaluate(ts)
         costs[0, k] = np.sum((vs - vr) ** 2)
         costs[1, k] = np.sum((vs + vr) ** 2)
     row = int(np.argmin(costs.min(axis=1)))
@@ -393,7 +401,7 @@ def align_start_by_force(
     costs = np.empty(grid.size)
     coefs = np.empty((grid.size, 2))
     for k, s in enumerate(grid):
-        zr, vr = dataclasses.replace(reference, start=float(s)).evaluate(t)
+        zr, vr = _started(reference, float(s)).evaluate(t)
         X = np.column_stack([zr - z, vr - v, np.ones_like(t), tau, tau**2])
         beta, *_ = np.linalg.lstsq(X, f, rcond=None)
         r = f - X @ beta
@@ -505,7 +513,7 @@ def _find_in_run(
                 "loop's oscillation can shift it by a few tenths of a second, which biases "
                 "k_r and c_r; give the start with 'start=SECONDS' if it is known"
             )
-    ref = dataclasses.replace(reference, start=start)
+    ref = _started(reference, start)
     end_move = move_end(ref)
     rate = rate_of(time)
     a = smooth(fill_nan(accel), n_samples(0.1, rate, minimum=3))
