@@ -52,7 +52,18 @@ class Reference(Protocol):
         ...  # pragma: no cover
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reference position (m) and velocity (m/s) at times ``t`` (s)."""
+        """Reference position (m) and velocity (m/s) at times ``t`` (s).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Times (s) on the log's clock.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Position and velocity.
+        """
         ...  # pragma: no cover
 
 
