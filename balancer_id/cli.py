@@ -181,7 +181,7 @@ def _trajectory(text: str | None):
 
     if text is None:
         return None
-    if not text.startswith("trapezoid"):  # a CSV of time,position (issue 9)
+    if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
         from balancer_id.segment.move import read_trajectory_csv
 
         return read_trajectory_csv(text)

@@ -290,3 +290,12 @@ def test_synthetic_recordings_pair_share_the_move():
     log = Log(path="human.csv", format="pasco-capstone", recordings=recs)  # type: ignore[arg-type]
     tr = find_moves(log, MOVE)[0]
     assert tr.t_step == 2.0 and not tr.start_found
+
+
+def test_trajectory_option_errors(cli, robot_log, tmp_path):
+    code, _, err = cli("fit", robot_log, "--model", SERVO_MODEL, "--trajectory", "nowhere.csv")
+    assert code == 2 and "trapezoid:distance=D" in err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("0,0\n0.5,0.05\nx,y\n")
+    code, _, err = cli("fit", robot_log, "--model", SERVO_MODEL, "--trajectory", bad)
+    assert code == 3 and "line 3" in err
