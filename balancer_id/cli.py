@@ -12,6 +12,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -125,7 +126,11 @@ def guarded(func: F) -> F:
 
         json_out = bool(kwargs.get("json_out"))
         try:
-            return func(*args, **kwargs)
+            with warnings.catch_warnings():
+                # numpy's floating-point RuntimeWarnings mean nothing to a user; what matters
+                # is said as findings and warnings of the results
+                warnings.filterwarnings("ignore", category=RuntimeWarning)
+                return func(*args, **kwargs)
         except (typer.Exit, typer.Abort):
             raise
         except BalancerIdError as exc:
