@@ -3,7 +3,6 @@ stay inside the physical bounds where it is not."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from test_fit import step_trials
 
