@@ -13,7 +13,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import NoTrialError, UsageError
@@ -21,7 +21,7 @@ from balancer_id.read.recording import Log
 from balancer_id.segment.trial import Trial
 
 if TYPE_CHECKING:
-    from balancer_id.simulation.inputs import Trapezoid
+    pass
 
 #: Values of ``vertical``.
 VERTICAL_AXES = ("auto", "x", "y", "z")
@@ -187,21 +187,24 @@ class ReadOptions:
         return args
 
 
-def trajectory_text(trajectory: Trapezoid) -> str:
-    """The ``--trajectory`` spelling of a reference move.
+def trajectory_text(trajectory: Any) -> str | None:
+    """The ``--trajectory`` spelling of a reference move, when it has one.
 
     Parameters
     ----------
-    trajectory : Trapezoid
+    trajectory : Trapezoid or TabulatedMove
         The robot's reference move.
 
     Returns
     -------
-    str
-        ``"trapezoid:distance=D,speed=V,accel=A,start=T"`` (round-trips through
-        :func:`~balancer_id.simulation.inputs.parse_trajectory`).
+    str or None
+        ``"trapezoid:distance=D,speed=V,accel=A,start=T"`` for a trapezoid (round-trips
+        through :func:`~balancer_id.simulation.inputs.parse_trajectory`; ``start=0`` means
+        "find it in the log" there too); None for a table, which is named by its file.
     """
     t = trajectory
+    if not all(hasattr(t, k) for k in ("distance", "speed", "accel")):
+        return None
     return (
         f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},"
         f"start={t.start!r}"
@@ -226,17 +229,20 @@ class TrialSet:
         The logs read, each with its trials (``Trial.index`` counts over all of them).
     options : ReadOptions
         How the logs were read and segmented.
-    trajectory : Trapezoid or None
+    trajectory : Trapezoid, TabulatedMove or None
         The robot's reference move, when a robot held the load (``servo``).
     loose : list
         Trials given ready-made (segmented :class:`Trial` objects or the fitters'
         ``TrialData``), after those of the logs.
+    trajectory_source : str or None
+        ``--trajectory`` as given (a spec or a CSV file), for printed commands.
     """
 
     logs: list[LoadedLog] = field(default_factory=list)
     options: ReadOptions = field(default_factory=ReadOptions)
-    trajectory: Trapezoid | None = None
+    trajectory: Any = None
     loose: list[object] = field(default_factory=list)
+    trajectory_source: str | None = None
 
     @property
     def paths(self) -> list[str]:
@@ -262,7 +268,9 @@ class TrialSet:
         """
         args = self.options.cli_args()
         if self.trajectory is not None:
-            args += ["--trajectory", trajectory_text(self.trajectory)]
+            text = self.trajectory_source or trajectory_text(self.trajectory)
+            if text is not None:
+                args += ["--trajectory", text]
         return args
 
 
@@ -291,7 +299,7 @@ def read(path: str | Path, options: ReadOptions | None = None) -> Log:
     return read_log(path, columns=options.columns, g=options.g, accel_unit=options.accel_unit)
 
 
-def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
+def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None) -> list[Trial]:
     """Find the trials of a log (raises NoTrialError when there is none).
 
     Parameters
@@ -300,6 +308,9 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
         A log from :func:`read`.
     options : ReadOptions, optional
         Thrusts, force sign, vertical axis and gravity; None uses the defaults.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move: one move window per run instead of step trials
+        (:func:`balancer_id.segment.move.find_moves`).
 
     Returns
     -------
@@ -314,6 +325,12 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     from balancer_id.segment import find_trials
 
     options = options or ReadOptions()
+    if trajectory is not None:  # robot move (issue 9)
+        from balancer_id.segment.move import find_moves
+
+        o = options
+        moves = find_moves(log, trajectory, force_sign=o.force_sign, vertical=o.vertical, g=o.g)
+        return list(moves)
     return find_trials(
         log,
         thrusts=options.thrusts,
@@ -323,7 +340,9 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     )
 
 
-def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
+def load_log(
+    path: str | Path, options: ReadOptions | None = None, trajectory: Any = None
+) -> LoadedLog:
     """Read one log and find its trials (raises NoTrialError when there is none).
 
     Parameters
@@ -332,6 +351,8 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
         The CSV log.
     options : ReadOptions, optional
         How the log is read and segmented; None uses the defaults.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move (see :func:`segment`).
 
     Returns
     -------
@@ -345,13 +366,14 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
         When no step trial is found.
     """
     log = read(path, options)
-    return LoadedLog(log, segment(log, options))
+    return LoadedLog(log, segment(log, options, trajectory))
 
 
 def load_trials(
     paths: str | Path | Sequence[str | Path],
     options: ReadOptions | None = None,
-    trajectory: Trapezoid | None = None,
+    trajectory: Any = None,
+    trajectory_source: str | None = None,
 ) -> TrialSet:
     """Read and segment logs into one :class:`TrialSet`; trials are renumbered across logs.
 
@@ -364,8 +386,11 @@ def load_trials(
     options : ReadOptions, optional
         How the logs are read and segmented; None uses the defaults. ``thrusts`` may only
         be given with a single log.
-    trajectory : Trapezoid, optional
-        The robot's reference move, when a robot held the load (``servo``).
+    trajectory : Trapezoid or TabulatedMove, optional
+        The robot's reference move, when a robot held the load (``servo``): each log
+        then holds move windows instead of step trials.
+    trajectory_source : str, optional
+        ``--trajectory`` as the user gave it (kept for printed commands).
 
     Returns
     -------
@@ -391,7 +416,7 @@ def load_trials(
     problems = []
     for path in paths:
         try:
-            loaded.append(load_log(path, options))
+            loaded.append(load_log(path, options, trajectory))
         except NoTrialError as exc:
             if len(paths) == 1:
                 raise
@@ -403,13 +428,13 @@ def load_trials(
         for trial in item.trials:
             trial.index = k
             k += 1
-    return TrialSet(loaded, options, trajectory)
+    return TrialSet(loaded, options, trajectory, trajectory_source=trajectory_source)
 
 
 def as_trial_set(
     sources: TrialSet | str | Path | Sequence[object],
     options: ReadOptions | None = None,
-    trajectory: Trapezoid | None = None,
+    trajectory: Any = None,
 ) -> TrialSet:
     """What the public functions accept, as a :class:`TrialSet`.
 
@@ -421,7 +446,7 @@ def as_trial_set(
         trials of the logs come first.
     options : ReadOptions, optional
         How the logs are read; None uses the defaults. Not allowed with a ready set.
-    trajectory : Trapezoid, optional
+    trajectory : Trapezoid or TabulatedMove, optional
         The robot's reference move; not allowed with a ready set (it carries its own).
 
     Returns

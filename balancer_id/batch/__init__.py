@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from balancer_id.batch.executors import (
     _dask,
@@ -105,6 +105,7 @@ def run_batch(
     progress: Callable[[str], None] | None = None,
     resume: bool = False,
     overwrite: bool = False,
+    trajectory: Any = None,
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -149,6 +150,9 @@ def run_batch(
     overwrite : bool
         Allow replacing the results of an earlier batch in ``out_dir`` (without
         ``resume`` or ``overwrite``, a folder holding a ``summary.csv`` is refused).
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move, the same for every log (``servo``); its start is
+        found in each log unless given.
 
     Returns
     -------
@@ -179,7 +183,7 @@ def run_batch(
     pooled = scheduler is None and n_workers > 1
     context = _mp_context() if pooled else None  # the fork server starts while we compile
     extra = tuple(str(Path(f).resolve()) for f in effects_files)
-    mdl = _prepare_model(model, fixed, extra)
+    mdl = _prepare_model(model, fixed, extra, trajectory is not None)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -200,10 +204,11 @@ def run_batch(
             fixed=dict(fixed or {}),
             options=options,
             effects_files=extra,
+            trajectory=trajectory,
         )
         rows: list[BatchRow | None] = [None] * len(tasks)
         keys = [
-            request_key(task.path, mdl.spec, fixed, options, extra) for task in tasks
+            request_key(task.path, mdl.spec, fixed, options, extra, trajectory) for task in tasks
         ]
 
         def record(index: int, payload: Payload) -> None:

@@ -10,7 +10,7 @@ import stat
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from balancer_id.batch.rows import INTERNAL_EXIT_CODE, METRIC_COLUMNS, BatchRow, _Task
 from balancer_id.errors import UsageError
@@ -28,6 +28,7 @@ def request_key(
     fixed: Mapping[str, float] | None,
     options: ReadOptions | None,
     effects_files: Sequence[str],
+    trajectory: Any = None,
 ) -> str | None:
     """What one log's result depends on: its bytes, the model, the options, the effects.
 
@@ -43,6 +44,8 @@ def request_key(
         Reading and segmentation options.
     effects_files : sequence of str
         User effect files (their bytes count too).
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move (counts when given).
 
     Returns
     -------
@@ -52,11 +55,10 @@ def request_key(
     """
     from balancer_id.cache import result_key
 
-    return result_key(
-        "batch",
-        [path, *effects_files],
-        {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)},
-    )
+    request = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
+    if trajectory is not None:
+        request["trajectory"] = repr(trajectory)
+    return result_key("batch", [path, *effects_files], request)
 
 
 def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:

@@ -17,7 +17,10 @@ if TYPE_CHECKING:
 
 
 def _prepare_model(
-    model: str | None, fixed: Mapping[str, float] | None, extra: Sequence[str]
+    model: str | None,
+    fixed: Mapping[str, float] | None,
+    extra: Sequence[str],
+    with_trajectory: bool = False,
 ) -> Model:
     """Resolve the model, check ``fixed`` against it and warm the kernel's disk cache."""
     from balancer_id.identify.api import resolve_model
@@ -29,11 +32,11 @@ def _prepare_model(
             f"--fix {', '.join(unknown)}: not a parameter of '{mdl.spec}' "
             f"(its parameters: {', '.join(mdl.param_names)})"
         )
-    if mdl.needs_reference_move:
+    if mdl.needs_reference_move and not with_trajectory:
         names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
         raise UsageError(
-            f"a model with '{names}' needs the robot's reference move, which batch does not "
-            "take; fit such logs one by one with 'balancer-id fit --trajectory ...'"
+            f"a model with '{names}' needs the robot's reference move: give --trajectory "
+            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
     warm_kernel(mdl)
     return mdl
@@ -73,6 +76,7 @@ def _identify(
     fixed: Mapping[str, float],
     options: ReadOptions | None,
     effects_files: Sequence[str],
+    trajectory: Any = None,
 ) -> Payload:
     """Fit one log; never raises an ``Exception`` (a failure is a payload too).
 
@@ -87,7 +91,12 @@ def _identify(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             result = fit(
-                [path], model=model, fixed=fixed, options=options, effects_files=effects_files
+                [path],
+                model=model,
+                fixed=fixed,
+                options=options,
+                effects_files=effects_files,
+                trajectory=trajectory,
             )
             data: dict[str, Any] = dict(result.to_dict())
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]

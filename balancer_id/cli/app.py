@@ -75,7 +75,7 @@ def _console():
 def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
     from balancer_id.trials import load_trials
 
-    return load_trials(logs, options, trajectory(trajectory_text))
+    return load_trials(logs, options, trajectory(trajectory_text), trajectory_text)
 
 
 # Commands -----------------------------------------------------------------------------
@@ -86,17 +86,18 @@ def inspect(
     log: Annotated[Path, typer.Argument(help="The log to read.")],
     json_out: JsonOpt = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
+    trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Show what was read from LOG and the step trials found in it."""
+    """Show what was read from LOG and the step trials (or the robot move) found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
     check_outputs({"--plot": plot}, [log], overwrite)
     data = read(log, options)
     try:
-        trials = segment(data, options)
+        trials = segment(data, options, trajectory(trajectory_text))
         problem = None
     except NoTrialError as exc:
         trials, problem = [], exc
@@ -138,11 +139,21 @@ def fit(
     ] = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id.cli.request import FitRequest
+
+    fixed = assignments(fix, "--fix")
+    if params is not None:  # issue 9: hold an earlier fit's values; --fix wins
+        from balancer_id.identify.params_file import held_for_model
+
+        fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
     at_least(starts, 1, "--starts")
     check_outputs({"--report": report}, inputs_of(logs, effects_file, trajectory_text), overwrite)
@@ -150,7 +161,7 @@ def fit(
     request = FitRequest(
         logs=tuple(str(p) for p in logs),
         model=model,
-        fixed=assignments(fix, "--fix"),
+        fixed=fixed,
         options=options,
         per_trial=per_trial,
         starts=starts,
@@ -177,6 +188,11 @@ def fit(
             n_starts=starts,
         )
         out = result.to_dict()
+        if result.coupling is not None:  # issue 9: advice for the robot-balancer pair
+            from balancer_id.diagnostics.advice import advise_fit
+
+            moves = [t.input for t in result.match.data.trials]
+            out["advice"] = advise_fit(result.match.model, result.values, moves).to_dict()
         cache.store(key, out)
         if report is not None:
             from balancer_id.report.document import write_fit_report
@@ -296,6 +312,10 @@ def compare(
         str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
     ] = "viscous,variable_viscosity",
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
+    vibration_plot: Annotated[
+        Path | None,
+        typer.Option("--vibration-plot", help="With --trajectory: the moves' vibration PNG."),
+    ] = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
@@ -303,21 +323,39 @@ def compare(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Measured vs simulated for several models: errors per trial and where each fails."""
+    """Measured vs simulated for several models: errors per trial and where each fails.
+
+    With --trajectory it also sets the vibration of each log's move side by side
+    (human against robot: band power around the coupled mode).
+    """
     from balancer_id.diagnostics.api import compare as run_compare
     from balancer_id.errors import UsageError
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
     if not specs:
         raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
-    check_outputs({"--plot": plot}, inputs_of(logs, effects_file, trajectory_text), overwrite)
+    check_outputs(
+        {"--plot": plot, "--vibration-plot": vibration_plot},
+        inputs_of(logs, effects_file, trajectory_text),
+        overwrite,
+    )
+    trials = _load(logs, options, trajectory_text)
     results = run_compare(
-        _load(logs, options, trajectory_text),
+        trials,
         specs,
         fixed=assignments(fix, "--fix"),
         effects_files=effects_file or (),
     )
     out = {"models": [r.to_dict() for r in results]}
+    if trajectory_text is not None:  # issue 9: the vibration of each move, side by side
+        from balancer_id.diagnostics.vibration import compare_vibration
+
+        vib = compare_vibration(trials.trials)  # the moves read once, above
+        out["vibration"] = vib.to_dict()
+        if vibration_plot is not None:
+            from balancer_id.report.vibration_plot import plot_vibration
+
+            plot_vibration(vib, vibration_plot)
     if plot is not None:
         from balancer_id.report.sections import plot_comparison
 
@@ -504,6 +542,7 @@ def batch(
     ] = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
+    trajectory_text: TrajectoryOpt = None,
     resume: Annotated[
         bool,
         typer.Option("--resume", help="Keep results already in OUT for unchanged logs."),
@@ -526,6 +565,7 @@ def batch(
         progress=lambda msg: typer.echo(one_line(msg), err=True),
         resume=resume,
         overwrite=overwrite,
+        trajectory=trajectory(trajectory_text),
     )
     if json_out:
         emit_json(result.to_dict())

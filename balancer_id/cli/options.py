@@ -14,6 +14,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -60,7 +61,9 @@ OverwriteOpt = Annotated[
 TrajectoryOpt = Annotated[
     str | None,
     typer.Option(
-        "--trajectory", help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..'."
+        "--trajectory",
+        help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..[,start=..]' or a "
+        "CSV of time,position.",
     ),
 ]
 LogsArg = Annotated[list[Path], typer.Argument(help="One or more logs.")]
@@ -231,7 +234,11 @@ def guarded(func: F) -> F:
 
         json_out = bool(kwargs.get("json_out"))
         try:
-            return func(*args, **kwargs)
+            with warnings.catch_warnings():
+                # numpy's floating-point RuntimeWarnings mean nothing to a user; what matters
+                # is said as findings and warnings of the results
+                warnings.filterwarnings("ignore", category=RuntimeWarning)
+                return func(*args, **kwargs)
         except (typer.Exit, typer.Abort):
             raise
         except BalancerIdError as exc:
@@ -431,7 +438,7 @@ def trajectory(text: str | None) -> Any:
 
     Returns
     -------
-    Trapezoid or None
+    Trapezoid, TabulatedMove or None
 
     Raises
     ------
@@ -443,6 +450,10 @@ def trajectory(text: str | None) -> Any:
 
     if text is None:
         return None
+    if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
+        from balancer_id.segment.move import read_trajectory_csv
+
+        return read_trajectory_csv(text)
     try:
         return parse_trajectory(text)
     except ValueError as exc:

@@ -9,8 +9,9 @@ from balancer_id.errors import IdentificationError
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
+from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
-from balancer_id.identify.result import FitResult, coupling_of, fit_match
+from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
 from balancer_id.segment.trial import Trial
@@ -19,11 +20,11 @@ from balancer_id.trials import ReadOptions, TrialSet, as_trial_set
 
 __all__ = [
     "PerTrialFit",
-    "coupling_of",
     "fit",
     "fit_each_trial",
     "fit_match",
     "resolve_model",
+    "robot_coupling",
     "trial_data",
 ]
 
@@ -143,21 +144,30 @@ def fit(
         No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
-    ts = as_trial_set(trials, options, trajectory)
-    if mdl.needs_reference_move and ts.trajectory is None:
+    given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
+    if mdl.needs_reference_move and given is None:  # before any log is read
         raise IdentificationError(
             f"a model with '{'+'.join(e.name for e in mdl.effects if e.needs_reference_move())}'"
             " needs the robot's reference move: give --trajectory "
             "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
+    ts = as_trial_set(trials, options, trajectory)
     data = trial_data(ts)
     if not data:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
-    classic = paper_method(data)
+    classic = paper_method([t for t in data if t.thrust_N != 0])  # moves: no step
+    start = classic.start_values(mdl)
+    notes: list[str] = []
+    if mdl.needs_reference_move and ts.trajectory is not None:
+        from balancer_id.segment.move import start_given
+
+        if not start_given(ts.trajectory):  # the move's start, refined by the fit
+            data, shift = refine_move_start(mdl, data, start, fixed)
+            notes.append(f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)")
     match = match_trials(
         mdl,
         data,
-        start=classic.start_values(mdl),
+        start=start,
         fixed=fixed,
         n_starts=n_starts,
         seed=seed,
@@ -169,9 +179,8 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
-    result = fit_match(
-        match, ts, classic=classic, fixed=fixed, effects_files=effects_files
-    )
+    result = fit_match(match, ts, classic=classic, fixed=fixed, effects_files=effects_files)
+    result.warnings = notes
     if per_trial:
         result.include_per_trial = True
         result.per_trial_fits()

@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from balancer_id.identify.classic import ClassicResult, paper_method
-from balancer_id.identify.coupling import Coupling, coupling
+from balancer_id.identify.coupling import Coupling, coupling_of
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.trials import TrialSet
 
-__all__ = ["FitResult", "PerTrialFit", "coupling_of", "fit_match"]
+__all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
 
 @dataclass
@@ -182,7 +182,7 @@ class FitResult:
         return json_ready(out)
 
 
-def coupling_of(model: Model, values: Mapping[str, float]) -> Coupling | None:
+def robot_coupling(model: Model, values: Mapping[str, float]) -> Coupling | None:
     """Robot-balancer loop figures of a fitted model that needs a reference move.
 
     Parameters
@@ -195,12 +195,12 @@ def coupling_of(model: Model, values: Mapping[str, float]) -> Coupling | None:
     Returns
     -------
     Coupling or None
-        None when the model needs no reference move (no robot in the loop).
+        None when the model needs no reference move (no robot in the loop); else
+        :func:`~balancer_id.identify.coupling.coupling_of` of the values.
     """
     if not model.needs_reference_move:
         return None
-    v = dict(values)
-    return coupling(v["m_a"], model.drive_lag(v), v.get("D0", 0.0), v["k_r"], v["c_r"])
+    return coupling_of(dict(values))
 
 
 def fit_match(
@@ -240,5 +240,5 @@ def fit_match(
         trial_set=trials if trials is not None else TrialSet(),
         fixed=dict(fixed or {}),
         effects_files=[str(f) for f in effects_files],
-        coupling=coupling_of(match.model, match.values()),
+        coupling=robot_coupling(match.model, match.values()),
     )
