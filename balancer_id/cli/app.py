@@ -72,6 +72,13 @@ def _console():
     return Console(width=max(100, Console().width))
 
 
+def _advised(result):
+    """The fit's robot-balancer advice, computed once and kept on it (None without a robot)."""
+    from balancer_id.diagnostics.advice import attach_advice
+
+    return attach_advice(result)
+
+
 def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
     from balancer_id.trials import load_trials
 
@@ -188,11 +195,9 @@ def fit(
             n_starts=starts,
         )
         out = result.to_dict()
-        if result.coupling is not None:  # issue 9: advice for the robot-balancer pair
-            from balancer_id.diagnostics.advice import advise_fit
-
-            moves = [t.input for t in result.match.data.trials]
-            out["advice"] = advise_fit(result.match.model, result.values, moves).to_dict()
+        advice = _advised(result)
+        if advice is not None:  # issue 9: advice for the robot-balancer pair
+            out["advice"] = advice.to_dict()
         cache.store(key, out)
         if report is not None:
             from balancer_id.report.document import write_fit_report
@@ -482,6 +487,7 @@ def improve(
     if report is not None:
         from balancer_id.report.sections import write_improve_report
 
+        _advised(result.steps[-1].fit)
         write_improve_report(result, report)
     if json_out:
         emit_json(out)
@@ -520,6 +526,7 @@ def report(
         trajectory_text=trajectory_text,
         per_trial=True,
     )
+    _advised(result)
     write_full_report(result, run_diagnose(result), out)
     typer.echo(f"wrote {out}", err=True)
 

@@ -12,6 +12,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from balancer_id.identify.classic import ClassicResult, paper_method
 from balancer_id.identify.coupling import Coupling, coupling_of
@@ -50,6 +51,10 @@ class FitResult:
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
     warnings : list of str
         What the user should know (fixed parameters, poorly determined ones, ...).
+    advice : object or None
+        Settings advice for a robot-balancer pair
+        (:class:`~balancer_id.diagnostics.advice.Advice`), attached by whoever computed
+        it (:func:`~balancer_id.diagnostics.advice.attach_advice`); reports render it.
     """
 
     match: MatchResult
@@ -61,6 +66,7 @@ class FitResult:
     per_trial: list[PerTrialFit] = field(default_factory=list)
     include_per_trial: bool = False
     warnings: list[str] = field(default_factory=list)
+    advice: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
 
     @property

@@ -480,14 +480,11 @@ def _coupling_section(result: FitResult) -> Section:
 
 
 def _advice_blocks(result: FitResult) -> list[Paragraph]:
-    """The stability condition's dominant terms and the advice (issue 9)."""
-    from balancer_id.diagnostics.advice import advise_fit
-
-    moves = [t.input for t in result.match.data.trials]
-    advice = advise_fit(result.match.model, result.values, moves)
+    """The stability condition's dominant terms and the advice the fit carries (issue 9)."""
     dominant = result.coupling.dominant if result.coupling is not None else ""
+    lines = result.advice.lines() if result.advice is not None else []
     return [Paragraph(f"Dominant terms: {dominant}.")] + [
-        Paragraph(line.strip()) for line in advice.lines()
+        Paragraph(line.strip()) for line in lines
     ]
 
 
