@@ -36,7 +36,11 @@ def test_10khz_trial_is_decimated_without_alias_or_delay():
     trial = _trial(10000.0, alias_amp=0.5)
     before = trial.accel.copy()
     out, info = decimate_trial(trial)
-    assert (info.factor, info.rate_in_hz, info.rate_out_hz) == (50, pytest.approx(1e4), pytest.approx(200.0))
+    assert (info.factor, info.rate_in_hz, info.rate_out_hz) == (
+        50,
+        pytest.approx(1e4),
+        pytest.approx(200.0),
+    )
     assert "200 Hz" in info.reason and out.notes[-1] == info.reason
     np.testing.assert_array_equal(out.time, trial.time[::50])  # the log's own sample times
     np.testing.assert_array_equal(trial.accel, before)  # the input is left alone

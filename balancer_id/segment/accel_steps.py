@@ -209,9 +209,7 @@ def rise_onset(time: np.ndarray, accel: np.ndarray, lo: int, hi: int, peak: int,
     return k
 
 
-def _best_rise(
-    t: np.ndarray, y: np.ndarray, t0: np.ndarray, taus: np.ndarray
-) -> tuple[int, int]:
+def _best_rise(t: np.ndarray, y: np.ndarray, t0: np.ndarray, taus: np.ndarray) -> tuple[int, int]:
     """Index of the onset ``t0`` and of the time constant with the least squared error."""
     lag = np.clip(t[None, :] - t0[:, None], 0.0, None)
     best = (np.inf, 0, 0)

@@ -125,7 +125,7 @@ def decimate_trial(trial: Trial, min_rate_hz: float = MIN_RATE_HZ) -> tuple[Tria
 
 
 def _lowpass_decimate(signal: object, x: np.ndarray, q: int) -> np.ndarray:
-    """Anti-aliased decimation by ``q``; the ends are point-reflected so they keep level and slope."""
+    """Anti-aliased decimation by ``q``; ends point-reflected to keep their level and slope."""
     pad = min(10 * q, x.size - 1)  # resample_poly's filter reaches 10 q samples either side
     pad -= pad % q  # whole output samples, so the kept samples stay on the log's times
     left = 2.0 * x[:q].mean() - x[pad:0:-1]
