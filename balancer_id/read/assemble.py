@@ -79,6 +79,7 @@ def build_recordings(
     """
     recordings: list[Recording] = []
     warnings: list[str] = []
+    warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
         warnings.append(
             f"column '{header[col]}' ignored: non-numeric value {cell.strip()[:40]!r} "
