@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from balancer_id.constants import ACCEL_RANGE_G, FORCE_RANGE_N, G_DEFAULT
+from balancer_id.errors import LogReadError
 from balancer_id.read import read_log
 from balancer_id.read.header import classify, split_name
 from balancer_id.read.sniff import sniff
@@ -120,10 +121,10 @@ def test_values_in_g_auto_and_forced_units(tmp_path: Path) -> None:
     assert auto.recordings[0].accel is not None
     assert auto.recordings[0].accel[0, 2] == pytest.approx(1.0 * G_DEFAULT)
     assert any("looks like g" in w for w in auto.warnings)
-    kept = read_log(path, accel_unit="m/s^2")
-    assert kept.recordings[0].accel is not None
-    assert kept.recordings[0].accel[0, 2] == pytest.approx(1.0)
-    assert kept.warnings == []
+    # forced to m/s^2, an accelerometer with gravity resting at 1.0 contradicts the unit
+    with pytest.raises(LogReadError, match=r"rests at a magnitude of 1\.01 m/s\^2") as err:
+        read_log(path, accel_unit="m/s^2")
+    assert err.value.exit_code == 3 and "--accel-unit g or auto" in str(err.value)
     custom = read_log(path, accel_unit="g", g=9.81)
     assert custom.recordings[0].accel is not None
     assert custom.recordings[0].accel[0, 2] == pytest.approx(9.81)

@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from balancer_id.constants import FORCE_RANGE_N
+from balancer_id.errors import LogReadError
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
-from balancer_id.read.units import resolve_accel
+from balancer_id.read.units import UnitMismatch, resolve_accel
 from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
@@ -75,7 +76,8 @@ def build_recordings(
     Raises
     ------
     LogReadError
-        Time going backwards or repeating (from :func:`check_time`).
+        Time going backwards or repeating (from :func:`check_time`), or a resting
+        acceleration that contradicts the unit the user forced or ``g``.
     """
     recordings: list[Recording] = []
     warnings: list[str] = []
@@ -192,13 +194,18 @@ def _build_one(
     includes_gravity = True
     if chosen.accel and plan.accel:
         raw = np.column_stack([table.columns[c][idx] for c in plan.accel])
-        accel, includes_gravity, note = resolve_accel(
-            raw,
-            header_unit=plan.accel_unit,
-            includes_gravity=plan.includes_gravity,
-            accel_unit=accel_unit,
-            g=g,
-        )
+        try:
+            accel, includes_gravity, note = resolve_accel(
+                raw,
+                header_unit=plan.accel_unit,
+                includes_gravity=plan.includes_gravity,
+                accel_unit=accel_unit,
+                g=g,
+            )
+        except UnitMismatch as exc:
+            raise LogReadError(
+                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=exc.hint
+            ) from None
         if note:
             warnings.append(f"{name}: {note}")
     extra = {
@@ -207,10 +214,18 @@ def _build_one(
     gaps = find_gaps(time)
     if gaps:
         longest = max(gap.t_after - gap.t_before for gap in gaps)
-        warnings.append(
-            f"{name}: {len(gaps)} gap(s) in the time column, {sum(gp.n_missing for gp in gaps)} "
-            f"sample(s) missing, longest {longest:.3g} s (kept as gaps, not interpolated)"
-        )
+        missing = sum(gp.n_missing for gp in gaps)
+        if missing > 10 * time.size:  # not dropped samples: a clock jump or a damaged time
+            warnings.append(
+                f"{name}: the time jumps by up to {longest:.3g} s ({len(gaps)} jump(s)), far "
+                "longer than the run's samples span: the clock restarted or the time column "
+                "is damaged (kept as gaps, not interpolated)"
+            )
+        else:
+            warnings.append(
+                f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) missing, "
+                f"longest {longest:.3g} s (kept as gaps, not interpolated)"
+            )
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
