@@ -171,10 +171,10 @@ def _finish(sniffed: Sniffed, table: Table, limits: dict[int, float]) -> Table:
         table.columns = {c: v[:-1] for c, v in table.columns.items()}
         table.n_rows -= 1
         table.notes.append(
-            f"the last line ({line}) has no line end and looks cut "
+            f"line {line}, the last, has no line end and looks cut "
             f"({sniffed.cut_last.strip()[:40]!r}); dropped"
         )
-    for col, values in table.columns.items():
+    for col, values in list(table.columns.items()):
         bound = limits.get(col, DEFAULT_BOUND)
         with np.errstate(invalid="ignore"):
             bad = np.abs(values) > bound  # NaN compares False; inf is beyond any bound
@@ -186,7 +186,9 @@ def _finish(sniffed: Sniffed, table: Table, limits: dict[int, float]) -> Table:
                 f"±{bound:g} (first {values[first]:g} on line {table.line_of(first)}) "
                 "treated as missing samples"
             )
+            values = values.copy()  # pandas' arrays may be read-only
             values[bad] = np.nan
+            table.columns[col] = values
     return table
 
 
