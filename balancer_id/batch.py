@@ -24,6 +24,7 @@ import io
 import json
 import logging
 import os
+import stat
 import tempfile
 import time
 import warnings
@@ -423,6 +424,8 @@ def _expand(folder: Path, skip: Path | None) -> list[Path]:
 def _is_summary(path: Path) -> bool:
     """Whether a CSV is the ``summary.csv`` of an earlier batch (not a log)."""
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO would block: the reader refuses it
+            return False
         with path.open(encoding="utf-8", errors="replace") as handle:
             head = handle.readline(200)
     except OSError:

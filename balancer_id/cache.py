@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 from collections.abc import Iterable
 from functools import lru_cache
 from pathlib import Path
@@ -68,8 +69,11 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
     h.update(_package_fingerprint().encode())
     h.update(json.dumps(options, sort_keys=True, default=str).encode())
     for f in files:
-        try:
-            h.update(Path(f).read_bytes())
+        try:  # a FIFO or a device is never opened here (it could block); the reader refuses it
+            if not stat.S_ISREG(os.stat(f).st_mode):
+                return None
+            with open(f, "rb") as handle:  # streamed: the file is never whole in memory
+                h.update(hashlib.file_digest(handle, "sha256").digest())
         except OSError:
             return None
     return h.hexdigest()
