@@ -165,16 +165,20 @@ def _build_one(
     force_time: np.ndarray,
 ) -> tuple[Recording | None, list[str]]:
     warnings: list[str] = []
-    idx = np.flatnonzero(chosen.rows)
+    count = int(np.count_nonzero(chosen.rows))
     name = chosen.name
-    if idx.size < 2:
-        warnings.append(f"{name}: only {idx.size} sample(s); run skipped")
+    if count < 2:
+        warnings.append(f"{name}: only {count} sample(s); run skipped")
         return None, warnings
-    time = time_all[idx]
-    check_time(path, time, lambda i: table.line_of(idx[i]), header[plan.time])
-    force = table.columns[plan.force][idx] if chosen.force and plan.force is not None else None
+    # every row: views of the parsed columns, not copies (big files)
+    full = count == table.n_rows and chosen.force_rows is None
+    idx = np.arange(0) if full else np.flatnonzero(chosen.rows)
+    rows: np.ndarray | slice = slice(None) if full else idx
+    time = time_all[rows]
+    check_time(path, time, lambda i: table.line_of(i if full else idx[i]), header[plan.time])
+    force = table.columns[plan.force][rows] if chosen.force and plan.force is not None else None
     if chosen.force_rows is not None and plan.force is not None:
-        force, idx, note = _force_onto_accel(
+        force, rows, note = _force_onto_accel(
             path,
             plan,
             table.columns[plan.force],
@@ -186,14 +190,14 @@ def _build_one(
             time_all,
         )
         warnings.append(f"{name}: {note}")
-        if idx.size < 2:
-            warnings.append(f"{name}: only {idx.size} sample(s) with force; run skipped")
+        if rows.size < 2:
+            warnings.append(f"{name}: only {rows.size} sample(s) with force; run skipped")
             return None, warnings
-        time = time_all[idx]
+        time = time_all[rows]
     accel = None
     includes_gravity = True
     if chosen.accel and plan.accel:
-        raw = np.column_stack([table.columns[c][idx] for c in plan.accel])
+        raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
         try:
             accel, includes_gravity, note = resolve_accel(
                 raw,
@@ -209,7 +213,7 @@ def _build_one(
         if note:
             warnings.append(f"{name}: {note}")
     extra = {
-        label: table.columns[col][idx] for label, col in plan.extra.items() if col in table.columns
+        label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
     }
     gaps = find_gaps(time)
     if gaps:

@@ -8,6 +8,7 @@ the error can name its line and column. Empty cells and ``NaN`` become NaN.
 from __future__ import annotations
 
 import io
+import os
 import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -71,7 +72,14 @@ class Table:
         return self.first_line + int(row)
 
 
-def _read(sniffed: Sniffed, usecols: list[int], dtype: object, encoding: str) -> pd.DataFrame:
+#: Rows per chunk when a big file is parsed from disk.
+CHUNK_ROWS = 1 << 18
+
+
+def _read(
+    sniffed: Sniffed, usecols: list[int], dtype: object, encoding: str
+) -> pd.DataFrame | dict[int, np.ndarray]:
+    """Parse; float64 columns come back as a dict (a streamed file read in chunks)."""
     import pandas as pd  # lazy: importing balancer_id.read stays cheap
 
     kwargs: dict[str, object] = {
@@ -93,14 +101,60 @@ def _read(sniffed: Sniffed, usecols: list[int], dtype: object, encoding: str) ->
     if not sniffed.stream:
         buffer = io.BytesIO(sniffed.data)
         buffer.seek(sniffed.data_start)
-        return pd.read_csv(buffer, **kwargs)
+        frame = pd.read_csv(buffer, **kwargs)
+        if dtype is str:
+            return frame
+        return {c: frame[c].to_numpy(dtype=np.float64) for c in usecols}
     # streamed from disk: never the whole file in memory; the limit counts bytes read
     raw = BoundedReader(open_regular(sniffed.path), sniffed.limit, sniffed.raw_offset)
     with io.BufferedReader(raw, buffer_size=1 << 20) as stream:
-        return pd.read_csv(stream, **kwargs)
+        if dtype is str:
+            return pd.read_csv(stream, **kwargs)
+        # chunk by chunk into columns allocated once for the rows the file size promises
+        # (grown if it promised too few): the peak is the numbers once plus one chunk
+        size = max(16, int(_expected_rows(sniffed) * 1.03) + 16)
+        columns = {c: np.empty(size) for c in usecols}
+        n = 0
+        with pd.read_csv(stream, chunksize=CHUNK_ROWS, **kwargs) as chunks:
+            for chunk in chunks:
+                k = len(chunk)
+                if n + k > size:
+                    size = max(n + k, size + size // 4)
+                    for c in usecols:
+                        columns[c] = _grown(columns[c], size)
+                for c in usecols:
+                    columns[c][n : n + k] = chunk[c].to_numpy(dtype=np.float64)
+                n += k
+                del chunk
+    for c in usecols:
+        columns[c] = _grown(columns[c], n)
+    return columns
 
 
-def _read_any(sniffed: Sniffed, usecols: list[int], dtype: object) -> pd.DataFrame:
+def _expected_rows(sniffed: Sniffed) -> int:
+    """Rows the file holds if its lines are as long as those of its head."""
+    head = sniffed.data[sniffed.data_start :]
+    lines = max(1, head.count(b"\n"))
+    per_line = max(1.0, len(head) / lines)
+    try:
+        size = os.stat(sniffed.path).st_size
+    except OSError:
+        return lines
+    return int((size - sniffed.raw_offset) / per_line) + 1
+
+
+def _grown(values: np.ndarray, size: int) -> np.ndarray:
+    """``values`` resized to ``size`` in place when it can be, else as a copy."""
+    try:
+        values.resize(size, refcheck=False)
+    except ValueError:
+        values = np.resize(values, size)
+    return values
+
+
+def _read_any(
+    sniffed: Sniffed, usecols: list[int], dtype: object
+) -> pd.DataFrame | dict[int, np.ndarray]:
     """Read; a streamed UTF-8 file with other bytes further on is read again as cp1252."""
     encoding = sniffed.read_encoding if sniffed.stream else "utf-8"
     try:
@@ -150,7 +204,7 @@ def read_table(
     usecols = sorted(set(wanted))
     first_line = sniffed.header_line + 1
     try:
-        frame = _read_any(sniffed, usecols, np.float64)
+        columns = _read_any(sniffed, usecols, np.float64)
     except ValueError as exc:  # a cell that is not a number (or a malformed row): slow path
         if isinstance(exc, UnicodeDecodeError):
             raise _parser_error(sniffed, exc, first_line) from None
@@ -158,8 +212,8 @@ def read_table(
     except Exception as exc:  # never a traceback: pandas' other errors become LogReadError
         raise _parser_error(sniffed, exc, first_line) from None
     else:
-        columns = {c: frame[c].to_numpy(dtype=np.float64) for c in usecols}
-        del frame
+        if not isinstance(columns, dict):  # pragma: no cover - numbers come back as a dict
+            raise TypeError("numeric columns expected")
         table = Table(columns, len(columns[usecols[0]]) if usecols else 0, first_line)
     return _finish(sniffed, table, limits or {})
 
@@ -200,6 +254,8 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
         frame = _read_any(sniffed, usecols, str)
     except Exception as exc:  # ParserError, UnicodeDecodeError, MemoryError, ...
         raise _parser_error(sniffed, exc, first_line) from None
+    if isinstance(frame, dict):  # pragma: no cover - text is always read as a frame
+        raise TypeError("text columns expected")
     columns: dict[int, np.ndarray] = {}
     dropped: dict[int, tuple[int, str]] = {}
     bad_required: tuple[int, int, str] | None = None

@@ -127,10 +127,11 @@ def resolve_accel(
     """
     if accel.size == 0:
         return accel, bool(includes_gravity) if includes_gravity is not None else True, None
+    sub = accel[:: max(1, accel.shape[0] // 1_000_000)]  # a million samples tell the level
     if accel.shape[1] == 1:
-        level = float(np.abs(np.median(accel[:, 0])))
+        level = float(np.abs(np.median(sub[:, 0])))
     else:
-        level = float(np.median(np.sqrt(np.einsum("ij,ij->i", accel, accel))))
+        level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
     if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
         if accel_unit == "g":
