@@ -268,3 +268,13 @@ def test_quoted_decimal_comma_with_comma_delimiter(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.time, [0.0, 0.05, 0.1])
     assert rec.force is not None
     np.testing.assert_allclose(rec.force, [1.5, -7.1e-15, 2.0])
+
+
+def test_force_on_its_own_time_column_without_acceleration_keeps_its_times(tmp_path: Path) -> None:
+    header = "Time (s) Run #1,Acceleration z (m/s²) Run #1,Time (s) Run #1,Force (N) Run #1\n"
+    rows = [f"{i / 100:.2f},,{i / 500:.4f},{i * 0.1:.1f}" for i in range(50)]
+    log = read_log(_write(tmp_path, "f.csv", header + "\n".join(rows) + "\n"))
+    (run,) = log.recordings
+    assert run.accel is None and run.force is not None
+    np.testing.assert_allclose(run.time, np.arange(50) / 500)
+    assert any("acceleration column is empty" in w for w in log.warnings)

@@ -98,13 +98,14 @@ def build_recordings(
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
         for chosen in sets:
+            force_only = chosen.force and not chosen.accel and plan.force_time is not None
             rec, rec_warnings = _build_one(
                 path,
                 plan,
                 chosen,
                 table,
                 header,
-                time,
+                force_time if force_only else time,
                 accel_unit=accel_unit,
                 g=g,
                 force_time=force_time,
