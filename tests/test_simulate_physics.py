@@ -146,3 +146,23 @@ def test_halving_the_internal_step_changes_little(spec):
     two = simulate(model, params, t, Thrust.step(0.5, 7.35), substeps=2, **kw)
     assert np.max(np.abs(one.accel - two.accel)) < 1e-4 * np.max(np.abs(two.accel))
     assert np.max(np.abs(one.position - two.position)) < 1e-4 * np.max(np.abs(two.position))
+
+
+def test_starts_from_a_given_state():
+    """From v0 with no thrust and constant viscosity: the drive force decays with T_a and
+    the velocity obeys m v' = f - D v, solved in closed form."""
+    m, T, D, f0, v0 = 15.1, 0.33, 6.0, 3.0, 0.2
+    t = np.arange(0.0, 4.0, 0.005)
+    sim = simulate(
+        parse_model("viscous"),
+        {"m_a": m, "T_a": T, "D0": D},
+        t,
+        Thrust.step(0.0, 0.0),
+        x0=(f0, v0, 0.1),
+    )
+    # v(t) = v0 e^{-k t} + f0 / (m (k - 1/T)) (e^{-t/T} - e^{-k t}), k = D / m
+    k = D / m
+    v = v0 * np.exp(-k * t) + f0 / (m * (k - 1 / T)) * (np.exp(-t / T) - np.exp(-k * t))
+    np.testing.assert_allclose(sim.velocity, v, atol=1e-6)
+    np.testing.assert_allclose(sim.drive_force, f0 * np.exp(-t / T), atol=1e-6)
+    assert sim.position[0] == pytest.approx(0.1)

@@ -62,17 +62,22 @@ class TrialInput:
     Attributes
     ----------
     time : numpy.ndarray
-        Output sample times (s); the state is at rest at ``time[0]``.
+        Output sample times (s); the state is ``x0`` at ``time[0]``.
     thrust : Thrust
         The operating thrust.
     z_ref, v_ref : numpy.ndarray or None
         A robot's reference position (m) and velocity (m/s) at ``time`` (``servo`` only).
+    x0 : tuple of float or None
+        The state at ``time[0]``: drive force ``f`` (N), velocity ``v`` (m/s) and position
+        ``z`` (m); None is rest (all zero). A window that starts in motion (a session
+        continued after a gap) starts from its estimated state.
     """
 
     time: np.ndarray
     thrust: Thrust
     z_ref: np.ndarray | None = None
     v_ref: np.ndarray | None = None
+    x0: tuple[float, float, float] | None = None
 
 
 def _param_vector(model: Model, params: Mapping[str, float] | Sequence[float]) -> np.ndarray:
@@ -92,6 +97,7 @@ def simulate(
     *,
     z_ref: np.ndarray | None = None,
     v_ref: np.ndarray | None = None,
+    x0: tuple[float, float, float] | None = None,
     substeps: int = DEFAULT_SUBSTEPS,
 ) -> Simulation:
     """Simulate one trial of ``model``.
@@ -104,11 +110,13 @@ def simulate(
         Parameter values by name (missing ones take their defaults) or a vector in
         ``model.param_names`` order.
     time : numpy.ndarray
-        Output sample times (s), increasing; the state is at rest at ``time[0]``.
+        Output sample times (s), increasing; the state is ``x0`` at ``time[0]``.
     thrust : Thrust
         The operating thrust (a step or a measured series).
     z_ref, v_ref : numpy.ndarray, optional
         A robot's reference position and velocity at ``time`` (for ``servo``).
+    x0 : tuple of float, optional
+        Drive force (N), velocity (m/s) and position (m) at ``time[0]``; None is rest.
     substeps : int
         RK4 steps per sample interval.
 
@@ -119,7 +127,7 @@ def simulate(
     out = simulate_many(
         model,
         params,
-        [TrialInput(np.asarray(time, dtype=float), thrust, z_ref, v_ref)],
+        [TrialInput(np.asarray(time, dtype=float), thrust, z_ref, v_ref, x0)],
         substeps=substeps,
     )
     return out[0]
@@ -136,6 +144,7 @@ class PackedTrials:
     boffsets: np.ndarray
     zr_all: np.ndarray
     vr_all: np.ndarray
+    x0_all: np.ndarray
 
     @classmethod
     def pack(cls, trials: Sequence[TrialInput]) -> PackedTrials:
@@ -150,7 +159,8 @@ class PackedTrials:
         -------
         PackedTrials
             Sample times, thrust breakpoints and values, and the robot references, each
-            concatenated, with the offsets of each trial.
+            concatenated, with the offsets of each trial, and the initial states as an
+            ``(n_trials, 3)`` array (rest where a trial has no ``x0``).
         """
         times = [np.ascontiguousarray(tr.time, dtype=float) for tr in trials]
         zeros = [np.zeros_like(t) for t in times]
@@ -172,6 +182,9 @@ class PackedTrials:
             ).astype(np.int64),
             zr_all=np.concatenate(zr),
             vr_all=np.concatenate(vr),
+            x0_all=np.array(
+                [(0.0, 0.0, 0.0) if tr.x0 is None else tr.x0 for tr in trials], dtype=float
+            ).reshape(len(trials), 3),
         )
 
     def run(self, model: Model, pvec: np.ndarray, substeps: int = DEFAULT_SUBSTEPS) -> np.ndarray:
@@ -201,6 +214,7 @@ class PackedTrials:
             self.boffsets,
             self.zr_all,
             self.vr_all,
+            self.x0_all,
             pvec,
             substeps,
             out,

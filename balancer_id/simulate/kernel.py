@@ -31,7 +31,7 @@ from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulate.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "13"
+KERNEL_VERSION = "14"
 
 #: Columns of the kernel's output array. ``h`` is the operating force as the force sensor
 #: sees it: with the thrust undelayed (the dead time acts between sensor and drive).
@@ -94,13 +94,13 @@ def step(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p):
 
 
 @jit(cache={cache})
-def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out):
+def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0):
     n = t_out.shape[0]
     delay = {delay_expr}
     nb = bt.shape[0]
-    f = 0.0
-    v = 0.0
-    z = 0.0
+    f = f0
+    v = v0
+    z = z0
     u = 0.0
     k = 0
     while k < nb and bt[k] + delay <= t_out[0]:
@@ -148,7 +148,8 @@ def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out):
 
 
 @jit(cache={cache})
-def simulate_batch(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, p, n_sub, out):
+def simulate_batch(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, x0_all, p, n_sub,
+                   out):
     for j in range(offsets.shape[0] - 1):
         a0 = offsets[j]
         a1 = offsets[j + 1]
@@ -156,7 +157,7 @@ def simulate_batch(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, p, 
         b1 = boffsets[j + 1]
         simulate_trial(
             t_all[a0:a1], bt_all[b0:b1], bu_all[b0:b1], zr_all[a0:a1], vr_all[a0:a1], p, n_sub,
-            out[a0:a1],
+            out[a0:a1], x0_all[j, 0], x0_all[j, 1], x0_all[j, 2],
         )
 """
 
@@ -395,6 +396,7 @@ def _compile_now(model: Model, kernel: Kernel) -> None:
             np.array([0, 1]),
             z,
             z,
+            np.zeros((1, 3)),
             pvec,
             1,
             out,
