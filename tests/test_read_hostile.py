@@ -283,3 +283,18 @@ def test_g_setting_that_contradicts_the_rest_is_refused(tmp_path, g):
         read_log(path, g=g)
     _one_line_exit_3(exc)
     assert read_log(path, g=9.81).recordings[0].accel is not None
+
+
+def test_cli_refuses_special_and_unreadable_files_with_exit_3(tmp_path, monkeypatch, cli):
+    if hasattr(os, "mkfifo"):
+        os.mkfifo(tmp_path / "pipe.csv")
+        code, _, err = cli("inspect", tmp_path / "pipe.csv")
+        assert code == 3 and "FIFO" in err and len(err.strip().splitlines()) == 1
+    locked = _write(tmp_path, "locked.csv", _steps_csv(400))
+
+    def denied(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(sniff_module.os, "open", denied)
+    code, _, err = cli("inspect", locked)
+    assert code == 3 and "permission denied" in err and len(err.strip().splitlines()) == 1
