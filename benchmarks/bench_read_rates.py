@@ -9,7 +9,8 @@ from rest, each caught by hand, sensor noise and a tilted sensor), then
   time and peak RSS (the whole command: interpreter start and imports included).
 
 Targets (issue 8): 10 kHz x 14 s through ``inspect`` in < 2 s and < 500 MB, and the
-in-process time per sample flat over the rates.
+in-process time per sample flat over the rates. On a shared machine the wall time of the
+command grows with the load; its CPU time (user + system) is printed too.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ import resource, subprocess, sys, time
 start = time.perf_counter()
 done = subprocess.run(sys.argv[1:], capture_output=True)
 wall = time.perf_counter() - start
-rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-print(wall, rss, done.returncode)
+use = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(wall, use.ru_maxrss / 1024, done.returncode, use.ru_utime + use.ru_stime)
 """
 
 
@@ -99,8 +100,8 @@ def in_process(path: Path) -> tuple[float, int, int]:
     return best, n, found
 
 
-def inspect_child(path: Path) -> tuple[float, float, int]:
-    """Wall time (s), peak RSS (MB) and exit code of ``balancer-id inspect`` on ``path``."""
+def inspect_child(path: Path) -> tuple[float, float, int, float]:
+    """Wall time (s), peak RSS (MB), exit code and CPU time (s) of ``inspect`` on ``path``."""
     exe = Path(sys.executable).with_name("balancer-id")
     cmd = [
         str(exe),
@@ -111,8 +112,8 @@ def inspect_child(path: Path) -> tuple[float, float, int]:
         ",".join(f"{f:g}" for f in THRUSTS),
     ]
     out = subprocess.run([sys.executable, "-c", _CHILD, *cmd], capture_output=True, text=True)
-    wall, rss, code = out.stdout.split()
-    return float(wall), float(rss), int(code)
+    wall, rss, code, cpu = out.stdout.split()
+    return float(wall), float(rss), int(code), float(cpu)
 
 
 def main() -> int:
@@ -131,11 +132,12 @@ def main() -> int:
                 )
         for kind in ("force", "accel"):
             path = Path(folder) / f"{kind}_{RATES_HZ[-1]:g}Hz.csv"
-            wall, rss, code = inspect_child(path)
+            wall, rss, code, cpu = inspect_child(path)
             good = wall < TARGET_S and rss < TARGET_MB and code == 0
             ok &= good
             print(
-                f"inspect {path.name}: {wall:.2f} s, peak RSS {rss:.0f} MB, exit {code} "
+                f"inspect {path.name}: {wall:.2f} s wall ({cpu:.2f} s CPU), "
+                f"peak RSS {rss:.0f} MB, exit {code} "
                 f"(target < {TARGET_S:g} s, < {TARGET_MB:g} MB) {'OK' if good else 'MISSED'}"
             )
     print(json.dumps({"rows": rows}))
