@@ -90,6 +90,7 @@ class TrialData:
             )
         time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
+        trajectory = getattr(trial, "reference", None) or trajectory  # a robot move's own
         if trajectory is not None:
             z_ref, v_ref = trajectory.evaluate(time)
         return cls(
