@@ -26,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from balancer_id.pipeline import ReadOptions, read, segment
+from balancer_id.trials import ReadOptions, read, segment
 
 RATES_HZ = (20.0, 200.0, 1000.0, 5000.0, 10000.0)
 DURATION_S = 14.0
