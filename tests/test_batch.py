@@ -226,3 +226,20 @@ def test_dask_local_cluster(logs: Path, tmp_path: Path) -> None:
     assert result.rows[0].parameters["m_a"]["value"] == pytest.approx(GOOD["c.csv"], rel=0.03)
     assert result.exit_code == 3
     assert (tmp_path / "dask" / "summary.csv").is_file()
+    # the same results as the local run: every value, error and message
+    local = run_batch(
+        [logs / "c.csv", logs / "garbage.csv", logs / "rest.csv"], tmp_path / "local", jobs=1
+    )
+    for d, ll in zip(result.rows, local.rows, strict=True):
+        assert (d.file, d.status, d.exit_code, d.error) == (
+            ll.file,
+            ll.status,
+            ll.exit_code,
+            ll.error,
+        )
+        assert d.parameters.keys() == ll.parameters.keys()
+        for name, p in d.parameters.items():
+            assert p["value"] == pytest.approx(ll.parameters[name]["value"], rel=1e-9)
+            assert p["stderr"] == pytest.approx(ll.parameters[name]["stderr"], rel=1e-6)
+        for name, v in d.metrics.items():
+            assert v == pytest.approx(ll.metrics[name], rel=1e-9)

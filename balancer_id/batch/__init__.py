@@ -106,6 +106,8 @@ def run_batch(
     resume: bool = False,
     overwrite: bool = False,
     trajectory: Any = None,
+    diagnose: bool = False,
+    tick: Callable[[int, int], None] | None = None,
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -153,6 +155,13 @@ def run_batch(
     trajectory : Trapezoid or TabulatedMove, optional
         A robot's reference move, the same for every log (``servo``); its start is
         found in each log unless given.
+    diagnose : bool
+        Diagnose each fit too (what ``balancer-id diagnose`` does): the per-log JSON then
+        holds ``diagnosis`` (verdict, summary, first three suggestions), which the fleet
+        report (:mod:`balancer_id.report.fleet`) lists.
+    tick : callable, optional
+        Called as ``tick(done, total)`` when a log is settled (fitted, failed or kept by
+        ``resume``): what a progress bar follows.
 
     Returns
     -------
@@ -205,10 +214,12 @@ def run_batch(
             options=options,
             effects_files=extra,
             trajectory=trajectory,
+            diagnose=diagnose,
         )
         rows: list[BatchRow | None] = [None] * len(tasks)
         keys = [
-            request_key(task.path, mdl.spec, fixed, options, extra, trajectory) for task in tasks
+            request_key(task.path, mdl.spec, fixed, options, extra, trajectory, diagnose)
+            for task in tasks
         ]
 
         def record(index: int, payload: Payload) -> None:
@@ -216,6 +227,8 @@ def run_batch(
             rows[index] = row
             done = sum(r is not None for r in rows)
             say(f"[{done}/{len(tasks)}] {_describe(row)}")
+            if tick is not None:
+                tick(done, len(tasks))
 
         items = []
         for k, task in enumerate(tasks):
@@ -226,6 +239,8 @@ def run_batch(
                 record(k, _failure(_irregular(task.display), 3))
             else:
                 items.append((k, task.path))
+        if tick is not None:
+            tick(sum(r is not None for r in rows), len(tasks))
         if resume:
             say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
         try:

@@ -29,6 +29,7 @@ def request_key(
     options: ReadOptions | None,
     effects_files: Sequence[str],
     trajectory: Any = None,
+    diagnose: bool = False,
 ) -> str | None:
     """What one log's result depends on: its bytes, the model, the options, the effects.
 
@@ -46,6 +47,8 @@ def request_key(
         User effect files (their bytes count too).
     trajectory : Trapezoid or TabulatedMove, optional
         A robot's reference move (counts when given).
+    diagnose : bool
+        Whether the result holds a diagnosis (counts when true).
 
     Returns
     -------
@@ -58,6 +61,8 @@ def request_key(
     request = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
     if trajectory is not None:
         request["trajectory"] = repr(trajectory)
+    if diagnose:
+        request["diagnose"] = True
     return result_key("batch", [path, *effects_files], request)
 
 

@@ -1,8 +1,9 @@
-"""The work of one log, run in a worker process: read, fit, return a JSON-ready payload.
-"""
+"""The work of one log, run in a worker process: read, fit, return a JSON-ready payload."""
 
 from __future__ import annotations
 
+import os
+import re
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -77,11 +78,14 @@ def _identify(
     options: ReadOptions | None,
     effects_files: Sequence[str],
     trajectory: Any = None,
+    diagnose: bool = False,
 ) -> Payload:
     """Fit one log; never raises an ``Exception`` (a failure is a payload too).
 
     Warnings raised by the fit go into the result's ``warnings`` list rather than to
-    the worker's stderr (or, under a strict warnings filter, failing the log).
+    the worker's stderr (or, under a strict warnings filter, failing the log). The
+    result carries when the log was recorded (:func:`recording_time`) and, with
+    ``diagnose``, the diagnosis's verdict, summary and first three suggestions.
     """
     start = time.perf_counter()
     try:
@@ -99,6 +103,16 @@ def _identify(
                 trajectory=trajectory,
             )
             data: dict[str, Any] = dict(result.to_dict())
+            if diagnose:
+                from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
+
+                found = diagnose_fit(result)
+                data["diagnosis"] = {
+                    "verdict": found.verdict,
+                    "summary": found.summary,
+                    "suggestions": [s.to_dict() for s in found.suggestions[:3]],
+                }
+        data["recorded"] = recording_time(path)
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]
         data["warnings"] = list(dict.fromkeys([*data.get("warnings", []), *notes]))
         return {"status": "ok", "result": data, "seconds": time.perf_counter() - start}
@@ -110,3 +124,72 @@ def _identify(
             INTERNAL_EXIT_CODE,
             time.perf_counter() - start,
         )
+
+
+_DATETIME_HEADER = re.compile(
+    r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I
+)
+
+
+def recording_time(path: str) -> dict[str, str | None]:
+    """When a log was recorded: the export's first date-time cell, else the file's time.
+
+    Exports that carry a wall-clock column (Capstone's "Date and Time", a generic
+    ``datetime`` column) give the recording's start; other logs fall back to the file's
+    modification time, which a copy may have changed. ``source`` says which.
+
+    Parameters
+    ----------
+    path : str
+        The log.
+
+    Returns
+    -------
+    dict
+        ``{"time": ISO 8601 or None, "source": "export" | "file time" | None}``.
+    """
+    import csv
+    from datetime import UTC, datetime
+
+    try:
+        with open(path, newline="", encoding="utf-8", errors="replace") as handle:
+            head = [row for _, row in zip(range(40), csv.reader(handle), strict=False)]
+    except OSError:
+        head = []
+    except csv.Error:
+        head = []
+    for k, row in enumerate(head):
+        cols = [j for j, cell in enumerate(row) if _DATETIME_HEADER.match(cell.strip())]
+        if not cols:
+            continue
+        for later in head[k + 1 :]:
+            for j in cols:
+                stamp = _parse_stamp(later[j] if j < len(later) else "")
+                if stamp is not None:
+                    return {"time": stamp, "source": "export"}
+        break
+    try:
+        mtime = os.stat(path).st_mtime
+    except OSError:
+        return {"time": None, "source": None}
+    stamp = datetime.fromtimestamp(mtime, tz=UTC).isoformat(timespec="seconds")
+    return {"time": stamp, "source": "file time"}
+
+
+def _parse_stamp(text: str) -> str | None:
+    """An ISO 8601 string of a date-time cell, or None when it is not one."""
+    from datetime import datetime
+
+    text = text.strip()
+    if not text:
+        return None
+    try:
+        return datetime.fromisoformat(text.replace("/", "-")).isoformat(timespec="seconds")
+    except ValueError:
+        pass
+    for fmt in ("%m-%d-%Y %H:%M:%S", "%d.%m.%Y %H:%M:%S", "%m-%d-%Y %I:%M:%S %p"):
+        try:
+            return datetime.strptime(text.replace("/", "-"), fmt).isoformat(timespec="seconds")
+        except ValueError:
+            continue
+    return None

@@ -555,25 +555,49 @@ def batch(
         typer.Option("--resume", help="Keep results already in OUT for unchanged logs."),
     ] = False,
     overwrite: OverwriteOpt = False,
+    diagnose_logs: Annotated[
+        bool,
+        typer.Option("--diagnose", help="Diagnose each fit too (the fleet report lists them)."),
+    ] = False,
+    fleet_report: Annotated[
+        Path | None,
+        typer.Option("--report", help="FILE.html or FILE.pdf: the fleet view of the logs."),
+    ] = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
     from balancer_id.batch import run_batch
+    from balancer_id.cli.progress import batch_progress
 
-    result = run_batch(
-        paths,
-        out,
-        model=model,
-        fixed=assignments(fix, "--fix"),
-        options=options,
-        effects_files=effects_file or (),
-        jobs=jobs,
-        scheduler=scheduler,
-        progress=lambda msg: typer.echo(one_line(msg), err=True),
-        resume=resume,
-        overwrite=overwrite,
-        trajectory=trajectory(trajectory_text),
-    )
+    if fleet_report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(fleet_report)
+        check_outputs(
+            {"--report": fleet_report}, inputs_of(paths, effects_file, trajectory_text), overwrite
+        )
+    with batch_progress(lambda msg: typer.echo(one_line(msg), err=True)) as (say, tick):
+        result = run_batch(
+            paths,
+            out,
+            model=model,
+            fixed=assignments(fix, "--fix"),
+            options=options,
+            effects_files=effects_file or (),
+            jobs=jobs,
+            scheduler=scheduler,
+            progress=say,
+            resume=resume,
+            overwrite=overwrite,
+            trajectory=trajectory(trajectory_text),
+            diagnose=diagnose_logs,
+            tick=tick,
+        )
+    if fleet_report is not None:
+        from balancer_id.report.fleet import write_fleet_report
+
+        write_fleet_report(result.rows, fleet_report)
+        typer.echo(f"fleet report: {fleet_report}", err=True)
     if json_out:
         emit_json(result.to_dict())
     else:

@@ -1,0 +1,75 @@
+"""A batch's progress on stderr: a bar with the rate and the time left, on a terminal only."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+
+@contextmanager
+def batch_progress(
+    echo: Callable[[str], None],
+) -> Iterator[tuple[Callable[[str], None], Callable[[int, int], None] | None]]:
+    """A ``(say, tick)`` pair for :func:`balancer_id.batch.run_batch`.
+
+    On a terminal, ``tick`` drives a rich progress bar (logs done, rate in logs per
+    second, time left) and ``say`` prints each line above it. When stderr is not a
+    terminal (a pipe, a file, CI) there is no bar: ``say`` is ``echo`` and ``tick`` None.
+
+    Parameters
+    ----------
+    echo : callable
+        Prints one line on stderr (used when there is no bar).
+
+    Yields
+    ------
+    tuple
+        ``(say, tick)``.
+    """
+    if not sys.stderr.isatty():
+        yield echo, None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        ProgressColumn,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class _Rate(ProgressColumn):
+        def render(self, task: Any) -> Text:
+            speed = task.finished_speed or task.speed
+            return Text("" if speed is None else f"{speed:.1f} logs/s")
+
+    progress = Progress(
+        TextColumn("logs"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        _Rate(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+    task = progress.add_task("batch", total=None)
+    started = [False]
+
+    def tick(done: int, total: int) -> None:
+        if not started[0]:  # logs kept by --resume do not count in the rate
+            started[0] = True
+            progress.update(task, total=total, completed=done)
+            progress.reset(task, total=total, completed=done)
+        else:
+            progress.update(task, total=total, completed=done)
+
+    def say(message: str) -> None:
+        progress.console.print(message, markup=False, highlight=False, soft_wrap=True)
+
+    with progress:
+        yield say, tick

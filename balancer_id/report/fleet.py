@@ -1,0 +1,314 @@
+"""The fleet view of a batch: each parameter across a plant's logs (``batch --report``).
+
+Built from the rows of a batch and the per-log JSON it wrote (no log is read again):
+a table of the logs, for each parameter its distribution with the outliers flagged, its
+trend against the time each log was recorded (the export's own clock when it has one,
+else the file's time: the report says which), and the logs whose diagnosis says an
+effect is missing, each with its top suggestion (``batch --diagnose``).
+
+Outliers follow a robust rule: a value more than 3.5 scaled median absolute deviations
+from the fleet's median (the modified z-score of Iglewicz and Hoaglin); it needs at
+least five logs.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from balancer_id.report.blocks import Cell, Paragraph, Plot, Section, Table, format_value
+
+#: A batch's row (:class:`balancer_id.batch.BatchRow`; the batch layer sits above this one).
+BatchRow = Any
+#: Modified z-score above which a log's value is flagged (Iglewicz and Hoaglin).
+OUTLIER_Z = 3.5
+#: Fewest logs for which outliers are flagged.
+MIN_LOGS_FOR_OUTLIERS = 5
+_MISSING = "effect missing"
+
+
+def robust_outliers(values: Sequence[float]) -> np.ndarray:
+    """Which values lie more than :data:`OUTLIER_Z` scaled MADs from the median.
+
+    Parameters
+    ----------
+    values : sequence of float
+        One value per log (NaN for a log without one: never flagged).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True for an outlier; all False with fewer than :data:`MIN_LOGS_FOR_OUTLIERS`
+        finite values, or when more than half of them are equal (no spread to measure).
+    """
+    x = np.asarray(values, dtype=float)
+    flags = np.zeros(x.shape, dtype=bool)
+    ok = np.isfinite(x)
+    if ok.sum() < MIN_LOGS_FOR_OUTLIERS:
+        return flags
+    med = float(np.median(x[ok]))
+    mad = float(np.median(np.abs(x[ok] - med)))
+    if mad <= 0.0:
+        return flags
+    z = 0.6745 * (x - med) / mad
+    flags[ok] = np.abs(z[ok]) > OUTLIER_Z
+    return flags
+
+
+def _load(row: BatchRow) -> dict[str, Any]:
+    if not row.json:
+        return {}
+    try:
+        doc = json.loads(Path(row.json).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def _when(doc: dict[str, Any]) -> tuple[datetime | None, str | None]:
+    rec = doc.get("recorded") or {}
+    text = rec.get("time") if isinstance(rec, dict) else None
+    if not text:
+        return None, None
+    try:
+        stamp = datetime.fromisoformat(str(text))
+    except ValueError:
+        return None, None
+    if stamp.tzinfo is not None:  # compare exports (local clock) and file times alike
+        stamp = stamp.astimezone().replace(tzinfo=None)
+    return stamp, rec.get("source")
+
+
+def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
+    """The sections of the fleet report of a batch's rows.
+
+    Parameters
+    ----------
+    rows : sequence of BatchRow
+        A batch's rows (:attr:`balancer_id.batch.BatchResult.rows`); their per-log JSON
+        supply the recording times and the diagnoses.
+
+    Returns
+    -------
+    list of Section
+    """
+    docs = [_load(r) for r in rows]
+    ok = [k for k, r in enumerate(rows) if r.ok]
+    names: list[str] = []
+    for k in ok:
+        names += [n for n in rows[k].parameters if n not in names]
+    values = {
+        n: np.array(
+            [
+                float(rows[k].parameters.get(n, {}).get("value") or np.nan)
+                if rows[k].parameters.get(n, {}).get("value") is not None
+                else np.nan
+                for k in ok
+            ]
+        )
+        for n in names
+    }
+    flagged = {n: robust_outliers(v) for n, v in values.items()}
+    times = [_when(docs[k]) for k in ok]
+    sources = {s for _, s in times if s}
+    diagnosed = [k for k in ok if isinstance(docs[k].get("diagnosis"), dict)]
+
+    failed = len(rows) - len(ok)
+    lead = (
+        f"{len(rows)} log(s): {len(ok)} identified, {failed} failed. "
+        + (
+            f"{len(diagnosed)} diagnosed; "
+            f"{sum(docs[k]['diagnosis'].get('verdict') == _MISSING for k in diagnosed)} "
+            "with an effect missing. "
+            if diagnosed
+            else "Not diagnosed (run batch with --diagnose to list missing effects). "
+        )
+        + f"Outliers: more than {OUTLIER_Z} scaled median absolute deviations from the "
+        f"fleet's median (modified z-score), flagged from {MIN_LOGS_FOR_OUTLIERS} logs on."
+    )
+    sections = [Section("Fleet", blocks=[Paragraph(lead), _summary_table(names, values, flagged)])]
+    sections.append(Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged)]))
+    if names and ok:
+        sections.append(
+            Section("Parameters across logs", blocks=_plots(names, values, flagged, times, sources))
+        )
+    if diagnosed:
+        sections.append(Section("Effect missing", blocks=_missing_blocks(rows, docs, diagnosed)))
+    return sections
+
+
+def _summary_table(
+    names: list[str], values: dict[str, np.ndarray], flagged: dict[str, np.ndarray]
+) -> Table:
+    body: list[list[str | Cell]] = []
+    for n in names:
+        v = values[n][np.isfinite(values[n])]
+        if v.size == 0:
+            body.append([n, "0", "-", "-", "-", "-"])
+            continue
+        q1, med, q3 = np.percentile(v, [25, 50, 75])
+        n_out = int(flagged[n].sum())
+        body.append(
+            [
+                n,
+                str(v.size),
+                format_value(float(med)),
+                f"{format_value(float(q1))} .. {format_value(float(q3))}",
+                f"{format_value(float(v.min()))} .. {format_value(float(v.max()))}",
+                Cell(str(n_out), "warn" if n_out else ""),
+            ]
+        )
+    return Table(
+        ["parameter", "logs", "median", "quartiles", "range", "outliers"],
+        body,
+        caption="Each parameter across the identified logs.",
+    )
+
+
+def _log_table(
+    rows: Sequence[BatchRow],
+    ok: list[int],
+    names: list[str],
+    values: dict[str, np.ndarray],
+    flagged: dict[str, np.ndarray],
+) -> Table:
+    pos = {k: j for j, k in enumerate(ok)}
+    body: list[list[str | Cell]] = []
+    for k, row in enumerate(rows):
+        if k not in pos:
+            body.append([row.file, Cell("failed", "bad"), *["-"] * len(names)])
+            continue
+        j = pos[k]
+        cells: list[str | Cell] = [row.file, "ok"]
+        for n in names:
+            x = values[n][j]
+            text = format_value(float(x)) if np.isfinite(x) else "-"
+            cells.append(Cell(text + " (outlier)", "warn") if flagged[n][j] else text)
+        body.append(cells)
+    return Table(["log", "status", *names], body, caption="Values flagged as outliers are marked.")
+
+
+def _plots(
+    names: list[str],
+    values: dict[str, np.ndarray],
+    flagged: dict[str, np.ndarray],
+    times: list[tuple[datetime | None, str | None]],
+    sources: set[str],
+) -> list[Any]:
+    from balancer_id.report.plots import _new_figure
+
+    have_time = [t is not None for t, _ in times]
+    if sources == {"export"}:
+        axis = "the time each log was recorded (from the export)"
+    elif sources == {"file time"}:
+        axis = "each log file's modification time (the exports carry no recording time)"
+    elif sources:
+        axis = "the recording time where the export has one, else the file's time"
+    else:
+        axis = ""
+    blocks: list[Any] = []
+    if axis:
+        blocks.append(Paragraph(f"Trends are plotted against {axis}."))
+    n = len(names)
+    fig = _new_figure(9.0, 2.2 * n + 0.6)
+    axes = fig.subplots(n, 2, squeeze=False)
+    stamps = np.array([t.timestamp() if t is not None else np.nan for t, _ in times])
+    for i, name in enumerate(names):
+        v, out = values[name], flagged[name]
+        finite = np.isfinite(v)
+        ax = axes[i][0]
+        ax.hist(v[finite], bins=max(5, min(30, int(np.sqrt(finite.sum())) + 1)), color="#4477aa")
+        if out.any():
+            ax.plot(v[out], np.zeros(out.sum()), "v", color="#cc3311", label="outlier")
+            ax.legend(fontsize=7)
+        ax.set_xlabel(name)
+        ax.set_ylabel("logs")
+        ax = axes[i][1]
+        when = finite & np.array(have_time, dtype=bool)
+        if when.any():
+            dates = [times[j][0] for j in np.flatnonzero(when)]
+            ax.plot(dates, v[when], "o", ms=3, color="#4477aa")
+            bad = when & out
+            if bad.any():
+                ax.plot(
+                    [times[j][0] for j in np.flatnonzero(bad)],
+                    v[bad],
+                    "o",
+                    ms=5,
+                    mfc="none",
+                    color="#cc3311",
+                )
+            if when.sum() >= 3 and np.ptp(stamps[when]) > 0:
+                slope, icept = np.polyfit(stamps[when], v[when], 1)
+                t_line = np.array([np.nanmin(stamps[when]), np.nanmax(stamps[when])])
+                ax.plot(
+                    [datetime.fromtimestamp(t) for t in t_line],
+                    slope * t_line + icept,
+                    "-",
+                    color="#228833",
+                    lw=1,
+                )
+            ax.tick_params(axis="x", labelrotation=30, labelsize=7)
+        ax.set_ylabel(name)
+    blocks.append(
+        Plot(
+            fig,
+            "Left: each parameter's distribution (outliers marked below the axis). "
+            "Right: against time, with a least-squares line (outliers circled).",
+        )
+    )
+    return blocks
+
+
+def _missing_blocks(
+    rows: Sequence[BatchRow], docs: list[dict[str, Any]], diagnosed: list[int]
+) -> list[Any]:
+    body: list[list[str | Cell]] = []
+    for k in diagnosed:
+        diag = docs[k]["diagnosis"]
+        if diag.get("verdict") != _MISSING:
+            continue
+        top = (diag.get("suggestions") or [None])[0]
+        if isinstance(top, dict):
+            suggestion = str(top.get("change") or top.get("effect") or "-")
+            command = str(top.get("command") or "-")
+        else:
+            suggestion, command = "no built-in effect explains the residual", "-"
+        body.append([rows[k].file, suggestion, command])
+    if not body:
+        return [Paragraph("No diagnosed log has an effect missing.")]
+    return [
+        Paragraph(f"{len(body)} log(s) whose diagnosis says an effect is missing."),
+        Table(["log", "top suggestion", "command"], body),
+    ]
+
+
+def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
+    """Write the fleet report of a batch as FILE.html (or FILE.pdf).
+
+    Parameters
+    ----------
+    rows : sequence of BatchRow
+        A batch's rows.
+    path : str or Path
+        The report file; written whole or not at all.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from balancer_id.report.document import write_report
+
+    return write_report(
+        "Fleet report",
+        fleet_sections(rows),
+        path,
+        inputs=[r.file for r in rows],
+        subtitle=f"{len(rows)} log(s) identified one by one",
+    )

@@ -1,0 +1,152 @@
+"""The fleet view of a batch (batch --diagnose --report) and the recording time of a log."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from balancer_id.batch import BatchRow, request_key, run_batch
+from balancer_id.batch.worker import recording_time
+from balancer_id.cli.app import app
+from balancer_id.model import parse_model
+from balancer_id.report.blocks import Table
+from balancer_id.report.fleet import fleet_sections, robust_outliers, write_fleet_report
+from balancer_id.simulation.synth import write_synthetic_log
+
+HOSE = Path(__file__).resolve().parents[1] / "sample_logs" / "hose_walkthrough.csv"
+
+
+def test_robust_outliers_flag_the_planted_value_only() -> None:
+    rng = np.random.default_rng(3)
+    x = 15.0 + rng.normal(0.0, 0.2, 40)
+    x[17] = 19.0  # 20 standard deviations out
+    flags = robust_outliers(x)
+    assert np.flatnonzero(flags).tolist() == [17]
+    assert not robust_outliers([1.0, 2.0, 100.0, 3.0]).any()  # too few logs to judge
+    assert not robust_outliers([5.0] * 9 + [6.0]).any()  # no spread to measure
+    with_nan = np.append(x, np.nan)
+    assert robust_outliers(with_nan)[17] and not robust_outliers(with_nan)[-1]
+
+
+def test_recording_time_from_the_export_else_the_file(tmp_path: Path) -> None:
+    stamped = tmp_path / "stamped.csv"
+    stamped.write_text(
+        "Date and Time,Time (s),Force (N)\n2024-03-05 08:15:02,0.0,1.0\n,0.005,1.0\n",
+        encoding="utf-8",
+    )
+    assert recording_time(str(stamped)) == {"time": "2024-03-05T08:15:02", "source": "export"}
+    plain = tmp_path / "plain.csv"
+    plain.write_text("Time (s),Force (N)\n0.0,1.0\n", encoding="utf-8")
+    os.utime(plain, (1_700_000_000, 1_700_000_000))
+    got = recording_time(str(plain))
+    assert got["source"] == "file time"
+    assert got["time"] == "2023-11-14T22:13:20+00:00"
+
+
+def _row(name: str, m_a: float, doc: dict, folder: Path) -> BatchRow:
+    path = folder / f"{name}.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    return BatchRow(
+        file=f"{name}.csv",
+        status="ok",
+        json=str(path),
+        model="variable_viscosity",
+        n_trials=6,
+        parameters={"m_a": {"value": m_a, "stderr": 0.1}, "T_a": {"value": 0.33, "stderr": 0.01}},
+        metrics={"rmse": 0.03},
+    )
+
+
+def test_fleet_sections_flag_outliers_and_list_missing_effects(tmp_path: Path) -> None:
+    masses = [15.0, 15.2, 14.9, 15.1, 14.8, 15.3, 22.0]
+    rows = []
+    for k, m_a in enumerate(masses):
+        verdict = "effect missing" if k == 3 else "adequate"
+        doc = {
+            "recorded": {"time": f"2024-03-0{k + 1}T08:00:00", "source": "export"},
+            "diagnosis": {
+                "verdict": verdict,
+                "suggestions": [{"change": "+karnopp", "command": f"balancer-id fit log{k}.csv"}],
+            },
+        }
+        rows.append(_row(f"log{k}", m_a, doc, tmp_path))
+    rows.append(BatchRow(file="bad.csv", status="failed", error="bad.csv: unreadable"))
+    sections = fleet_sections(rows)
+    titles = [s.title for s in sections]
+    assert titles == ["Fleet", "Logs", "Parameters across logs", "Effect missing"]
+    logs = next(b for b in sections[1].blocks if isinstance(b, Table))
+    marked = [r[0] for r in logs.rows if any("outlier" in getattr(c, "text", "") for c in r)]
+    assert marked == ["log6.csv"]
+    missing = next(b for b in sections[3].blocks if isinstance(b, Table))
+    assert missing.rows == [["log3.csv", "+karnopp", "balancer-id fit log3.csv"]]
+    text = " ".join(getattr(b, "text", "") for b in sections[2].blocks)
+    assert "recorded (from the export)" in text
+    out = write_fleet_report(rows, tmp_path / "fleet.html")
+    html = out.read_text(encoding="utf-8")
+    assert "log3.csv" in html and "Effect missing" in html and "data:image/png" in html
+
+
+def test_diagnose_changes_the_request_key(tmp_path: Path) -> None:
+    log = tmp_path / "x.csv"
+    log.write_text("t,F\n0,1\n", encoding="utf-8")
+    plain = request_key(str(log), "variable_viscosity", None, None, ())
+    assert plain == request_key(str(log), "variable_viscosity", None, None, (), None, False)
+    assert plain != request_key(str(log), "variable_viscosity", None, None, (), None, True)
+
+
+@pytest.fixture(scope="module")
+def two_logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("fleet") / "logs"
+    folder.mkdir()
+    model = parse_model("variable_viscosity")
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
+    for k, m_a in enumerate((12.0, 18.0)):
+        write_synthetic_log(
+            folder / f"run{k}.csv",
+            model,
+            {**truth, "m_a": m_a},
+            [2.45, -4.9],
+            seed=k,
+            duration_s=4,
+        )
+    return folder
+
+
+@pytest.mark.slow
+def test_batch_diagnose_lists_the_missing_effect(tmp_path: Path) -> None:
+    ticks: list[tuple[int, int]] = []
+    result = run_batch(
+        [HOSE], tmp_path / "out", jobs=1, diagnose=True, tick=lambda d, n: ticks.append((d, n))
+    )
+    assert ticks[-1] == (1, 1)
+    doc = json.loads(Path(result.rows[0].json or "").read_text(encoding="utf-8"))
+    assert doc["diagnosis"]["verdict"] == "effect missing"
+    assert doc["recorded"]["source"] in ("export", "file time")
+    sections = fleet_sections(result.rows)
+    missing = next(b for b in sections[-1].blocks if isinstance(b, Table))
+    assert [r[0] for r in missing.rows] == [result.rows[0].file]
+
+
+def test_cli_batch_report_and_progress_off_a_terminal(two_logs: Path, tmp_path: Path) -> None:
+    report = tmp_path / "fleet.html"
+    args = ["batch", str(two_logs), "--out", str(tmp_path / "out"), "--jobs", "1"]
+    res = CliRunner().invoke(app, [*args, "--report", str(report)])
+    assert res.exit_code == 0, res.output
+    html = report.read_text(encoding="utf-8")
+    assert "run0.csv" in html and "run1.csv" in html and "m_a" in html
+    assert "file&#x27;s modification time" in html or "file's modification time" in html
+    assert "\x1b[" not in res.output  # no bar drawn when stderr is not a terminal
+    assert re.search(r"\[2/2\]", res.output)
+    # the report is an output like any other: refused when it exists, without --overwrite
+    again = CliRunner().invoke(
+        app, ["batch", str(two_logs), "--out", str(tmp_path / "o2"), "--report", str(report)]
+    )
+    assert again.exit_code == 2
+    bad = CliRunner().invoke(app, [*args[:4], "--out", str(tmp_path / "o3"), "--report", "x.txt"])
+    assert bad.exit_code == 2 and "must end in .html or .pdf" in bad.output
