@@ -74,19 +74,56 @@ class MatchResult:
         return self.y - self.y_model
 
 
-def _residual_function(model: Model, data: FitData):
-    y = data.y
+@dataclass
+class _Outcome:
+    """One optimizer run: the point, its residual and Jacobian, and how it ended."""
 
-    def residual(params) -> np.ndarray:
-        vals = params.valuesdict()
-        pvec = np.array([vals[n] for n in model.param_names], dtype=float)
-        out = data.packed.run(model, pvec)
-        r = out[:, 0] - y
+    x: np.ndarray
+    residual: np.ndarray
+    jac: np.ndarray
+    success: bool
+    message: str
+    nfev: int
+
+    @property
+    def chisqr(self) -> float:
+        return float(self.residual @ self.residual)
+
+
+class _Problem:
+    """Residual and Jacobian of one fit, from one simulation with sensitivities.
+
+    ``fun`` runs the plain simulation (the optimizer tries points it may reject);
+    ``jac`` runs the simulation with forward sensitivities at the accepted point.
+    """
+
+    def __init__(self, model: Model, data: FitData, base: np.ndarray, free: list[int]):
+        self.model = model
+        self.data = data
+        self.base = base
+        self.free = free
+        self.nfev = 0
+        self.njev = 0
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        p = self.base.copy()
+        p[self.free] = x
+        return p
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        self.nfev += 1
+        r = self.data.packed.run(self.model, self.full(x))[:, 0] - self.data.y
         if not np.all(np.isfinite(r)):
             r = np.where(np.isfinite(r), r, 1e3)
         return r
 
-    return residual
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        self.njev += 1
+        out, sens = self.data.packed.run_sens(self.model, self.full(x), self.free)
+        bad = ~np.isfinite(out[:, 0]) | ~np.all(np.isfinite(sens), axis=1)
+        if np.any(bad):
+            sens[bad] = 0.0
+        return sens
 
 
 def match_trials(
@@ -120,10 +157,10 @@ def match_trials(
     max_nfev : int
         Budget of model evaluations per start.
     diff_step : float, optional
-        Relative step of the finite-difference Jacobian, passed to
-        :func:`scipy.optimize.least_squares` (the actual step is ``x * diff_step``);
-        None uses its default, the square root of the machine epsilon for the two-point
-        differences used here.
+        None (default) takes the Jacobian from the kernel's forward sensitivities (one
+        simulation gives the residual and its Jacobian); a value uses two-point finite
+        differences of relative step ``diff_step`` instead (see
+        :func:`scipy.optimize.least_squares`).
 
     Returns
     -------
@@ -134,7 +171,7 @@ def match_trials(
     IdentificationError
         No trial, or the optimizer failed on every start.
     """
-    import lmfit
+    from scipy.optimize import least_squares
 
     if not trials:
         raise IdentificationError("no trial to fit; check the log with 'balancer-id inspect'")
@@ -151,81 +188,118 @@ def match_trials(
             )
     values = dict(start or {})
     values.update(fixed)
-    params = model.lmfit_parameters(values, fixed=tuple(fixed))
+    full = model.resolve(values)
+    names = model.param_names
+    base = np.array([full[n] for n in names], dtype=float)
+    free = [i for i, n in enumerate(names) if n not in fixed]
+    lo = np.array([model.params[i].min for i in free], dtype=float)
+    hi = np.array([model.params[i].max for i in free], dtype=float)
     data = FitData.build(trials)
-    residual = _residual_function(model, data)
+    problem = _Problem(model, data, base, free)
 
-    start_vec = np.array([params[n].value for n in model.param_names], dtype=float)
-    if not np.all(np.isfinite(data.packed.run(model, start_vec)[:, 0])):
+    if not np.all(np.isfinite(data.packed.run(model, base)[:, 0])):
         raise IdentificationError(
             f"model '{model.spec}' gives a non-finite acceleration at its start values; "
             "check the effects' terms (a user effect returning NaN or inf?)"
         )
-    starts = [params]
+    starts = [base[free]]
     rng = np.random.default_rng(seed)
     for _ in range(max(n_starts, 1) - 1):
-        p2 = params.copy()
-        for p in p2.values():
-            if p.vary:
-                lo, hi = p.min, p.max
-                x = (
-                    p.value * float(np.exp(rng.normal(0.0, 0.5)))
-                    if p.value != 0
-                    else rng.normal(0.0, 0.1)
-                )
-                p.value = float(np.clip(x, lo, hi))
-        starts.append(p2)
+        x = base[free].copy()
+        for j in range(x.size):
+            x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else rng.normal(0.0, 0.1)
+        starts.append(np.clip(x, lo, hi))
 
     best = None
-    for p0 in starts:
+    if not free:
+        r = problem.fun(base[free])
+        best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
+    for x0 in starts if free else []:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                out = lmfit.minimize(
-                    residual,
-                    p0,
-                    method="least_squares",
-                    max_nfev=max_nfev,
+                ret = least_squares(
+                    problem.fun,
+                    x0,
+                    jac=problem.jac if diff_step is None else "2-point",
+                    bounds=(lo, hi),
+                    method="trf",
                     x_scale="jac",
+                    ftol=1e-8,
+                    xtol=1e-8,
+                    gtol=1e-8,
+                    max_nfev=max_nfev,
                     diff_step=diff_step,
                 )
-            except (ValueError, FloatingPointError) as exc:
+            except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
                 notes.append(f"a start failed: {exc}")
                 continue
-        if best is None or out.chisqr < best.chisqr:
-            best = out
+        outcome = _Outcome(
+            ret.x, problem.fun(ret.x), ret.jac, ret.status > 0, str(ret.message), ret.nfev
+        )
+        if best is None or outcome.chisqr < best.chisqr:
+            best = outcome
     if best is None:
         raise IdentificationError(
             f"fit of '{model.spec}' did not converge from any start; "
             "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
         )
-    return _collect(model, best, data, notes)
+    best.nfev = problem.nfev
+    return _collect(model, best, problem, data, notes)
 
 
-def _collect(model: Model, out, data: FitData, notes: list[str]) -> MatchResult:
+def _covariance(out: _Outcome) -> np.ndarray | None:
+    """Parameter covariance ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it)."""
+    n, k = out.jac.shape
+    if k == 0 or n <= k:
+        return None
+    try:
+        cov = np.linalg.inv(out.jac.T @ out.jac)
+    except np.linalg.LinAlgError:
+        return None
+    cov *= out.chisqr / (n - k)
+    return cov
+
+
+def _collect(
+    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[str]
+) -> MatchResult:
     y_model = data.y + out.residual
-    n_free = sum(1 for p in out.params.values() if p.vary)
+    values = problem.full(out.x)
+    free_names = [model.param_names[i] for i in problem.free]
+    n_free = len(free_names)
     metrics = error_metrics(data.y, y_model, n_free)
+    cov = _covariance(out)
+    sd = np.sqrt(np.abs(np.diag(cov))) if cov is not None else None
     estimates: dict[str, ParameterEstimate] = {}
     correlations: dict[str, dict[str, float]] = {}
-    for spec in model.params:
-        p = out.params[spec.name]
+    for i, spec in enumerate(model.params):
+        vary = i in problem.free
+        value = float(values[i])
         at_bound = None
-        if p.vary:
+        if vary:
             span = spec.max - spec.min
-            if p.value <= spec.min + 1e-6 * span:
+            if value <= spec.min + 1e-6 * span:
                 at_bound = "min"
-            elif p.value >= spec.max - 1e-6 * span:
+            elif value >= spec.max - 1e-6 * span:
                 at_bound = "max"
-        stderr = float(p.stderr) if (p.vary and p.stderr is not None) else None
+        stderr = None
+        if vary and sd is not None and cov is not None:
+            j = free_names.index(spec.name)
+            stderr = float(sd[j])
+            if n_free > 1:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    correlations[spec.name] = {
+                        other: float(cov[j, m] / (sd[j] * sd[m]))
+                        for m, other in enumerate(free_names)
+                        if m != j
+                    }
         estimates[spec.name] = ParameterEstimate(
-            spec.name, float(p.value), stderr, spec.unit, bool(p.vary), at_bound
+            spec.name, value, stderr, spec.unit, vary, at_bound
         )
-        if p.vary and p.correl:
-            correlations[spec.name] = {k: float(v) for k, v in p.correl.items()}
         if at_bound:
             notes.append(
-                f"{spec.name} stopped at its {at_bound}imum bound ({p.value:g} {spec.unit}): "
+                f"{spec.name} stopped at its {at_bound}imum bound ({value:g} {spec.unit}): "
                 "the data push it out of range or it is not in the data"
             )
     poorly = [
