@@ -21,7 +21,9 @@ import importlib.util
 import inspect
 import os
 import re
+import stat
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -636,31 +638,122 @@ def _effect_fingerprint(cls: type[Effect]) -> str:
         return repr([(h, getattr(cls, h).__code__.co_code) for h in cls.hooks()])
 
 
-def get_kernel(model: Model) -> Kernel:
+def note(message: str) -> None:
+    """Tell the user something on stderr (one line, never on stdout).
+
+    Parameters
+    ----------
+    message : str
+        The note, without the ``balancer-id:`` prefix.
+    """
+    sys.stderr.write(f"balancer-id: {message}\n")
+    sys.stderr.flush()
+
+
+def get_kernel(model: Model, *, quiet: bool = False) -> Kernel:
     """Return the compiled kernel of ``model`` (memoized per process, cached on disk).
+
+    A kernel whose cached files fail to load (a corrupted source, a stale or damaged
+    numba cache) is regenerated and compiled again, with a note on stderr; only when the
+    fresh kernel fails too are the model's effects blamed.
 
     Parameters
     ----------
     model : Model
         The model to simulate.
+    quiet : bool
+        Do not announce a compilation on stderr (the caller already did).
 
     Returns
     -------
     Kernel
+
+    Raises
+    ------
+    EffectError
+        When the model's hooks cannot be compiled or run.
     """
     key = (model.effects, model.param_names)
     kernel = _KERNELS.get(key)
     if kernel is None:
         kernel = _build(model)
-        _compile_now(model, kernel)
+        try:
+            _compile_now(model, kernel, quiet)
+        except EffectError:
+            if kernel.path is None:
+                raise
+            note(
+                f"the cached kernel of model '{model.spec}' in {kernel.path.parent} failed to "
+                "load; regenerating and compiling it again"
+            )
+            _purge(kernel.path)
+            kernel = _build(model)
+            _compile_now(model, kernel, quiet=True)
         _KERNELS[key] = kernel
     return kernel
 
 
-def _compile_now(model: Model, kernel: Kernel) -> None:
+def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> None:
+    """Compile (or load from the disk cache) the kernels of several models.
+
+    The first run after an install compiles the built-in models once; each kernel that
+    has to be compiled is announced on stderr with a count (``2/5``), so a long first
+    start is not mistaken for a hang.
+
+    Parameters
+    ----------
+    models : sequence of Model
+        The models whose kernels are needed.
+    sensitivities : bool
+        Also compile the sensitivity kernel (what a fit uses).
+    """
+    todo = [m for m in models if (m.effects, m.param_names) not in _KERNELS]
+    need = [m for m in todo if not _is_cached(m)]
+    for k, m in enumerate(need, 1):
+        if _VERBOSE_COMPILE:
+            note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+        _warm(m, get_kernel(m, quiet=True), sensitivities)
+    for m in todo:
+        _warm(m, get_kernel(m), sensitivities)
+
+
+def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
+    """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
+    import numpy as np
+
+    if not sensitivities:
+        return
+    t = np.array([0.0, 0.005])
+    z = np.zeros(2)
+    pvec = np.array([p.value for p in model.params])
+    cols = np.arange(pvec.size, dtype=np.int64)
+    kernel.simulate_batch_sens(
+        t,
+        np.array([0, 2]),
+        np.array([0.0]),
+        np.array([0.0]),
+        np.array([0, 1]),
+        z,
+        z,
+        np.zeros((1, 3)),
+        pvec,
+        1,
+        cols,
+        np.empty((2, len(OUT_COLUMNS))),
+        np.empty((2, cols.size)),
+    )
+
+
+def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     """Run the kernel once on a tiny input, so compile errors name the model's effects."""
     import numpy as np
 
+    if kernel.path is not None and not quiet and _VERBOSE_COMPILE:
+        if not _is_cached_path(kernel.path):
+            note(
+                f"compiling the simulation kernel of '{model.spec}' (once; cached in "
+                f"{kernel.path.parent})"
+            )
     t = np.array([0.0, 0.005])
     z = np.zeros(2)
     out = np.empty((2, len(OUT_COLUMNS)))
@@ -690,28 +783,115 @@ def _compile_now(model: Model, kernel: Kernel) -> None:
         ) from None
 
 
-def _build(model: Model) -> Kernel:
-    source, aliases = generate_source(model, cache=HAVE_NUMBA)
-    in_memory = any("(in memory)" in line for line in source.splitlines()[:40])
-    if in_memory or not HAVE_NUMBA:
-        source, aliases = generate_source(model, cache=False)
-        return _exec_in_memory(source, aliases)
-    fingerprint = "\n".join(_effect_fingerprint(c) for c in model.effects)
-    digest = hashlib.sha1(
-        (KERNEL_VERSION + source + fingerprint + _numba_version()).encode()
-    ).hexdigest()[:16]
-    folder = cache_dir()
-    name = f"bid_kernel_{digest}"
-    path = folder / f"{name}.py"
+#: Say on stderr when a kernel is compiled rather than loaded (off: ``BALANCER_ID_QUIET=1``).
+_VERBOSE_COMPILE = os.environ.get("BALANCER_ID_QUIET", "") in ("", "0")
+
+
+def _is_cached_path(path: Path) -> bool:
+    """Whether numba's cache already holds machine code for the kernel at ``path``."""
+    return path.exists() and any((path.parent / "__pycache__").glob(f"{path.stem}.*.nbi"))
+
+
+def _is_cached(model: Model) -> bool:
+    if not HAVE_NUMBA:
+        return True
+    path, _ = _kernel_path(model)
+    return path is None or _is_cached_path(path)
+
+
+def _purge(path: Path) -> None:
+    """Remove a kernel's source and every cached artefact of it (numba's and Python's)."""
+    sys.modules.pop(path.stem, None)
+    for f in [path, *(path.parent / "__pycache__").glob(f"{path.stem}.*")]:
+        try:
+            f.unlink()
+        except OSError:
+            pass
+
+
+def _private_dir(folder: Path) -> str | None:
+    """Create ``folder`` private (0700); the reason it cannot be trusted, or None.
+
+    A kernel is Python code run by import, and numba's cache holds pickles: a folder
+    that others can write would let them run code as the user.
+    """
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        if not path.exists():
-            tmp = path.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(source, encoding="utf-8")
-            os.replace(tmp, path)
-    except OSError:
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        st = os.lstat(folder)
+    except OSError as exc:
+        return f"cannot create {folder}: {exc.strerror or exc}"
+    if not stat.S_ISDIR(st.st_mode):
+        return f"{folder} is not a folder"
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return f"{folder} belongs to another user"
+    if st.st_mode & 0o022:
+        return f"{folder} is writable by others (chmod 700 it)"
+    return None
+
+
+def _kernel_path(model: Model) -> tuple[Path | None, str]:
+    """Where the model's kernel is cached (None: compiled in memory) and its source.
+
+    The name carries a SHA-256 of the source, the effects' code and the numba version;
+    the file is only imported when its content equals the source generated now.
+    """
+    source, _ = generate_source(model, cache=True)
+    if any("(in memory)" in line for line in source.splitlines()[:40]):
+        return None, source
+    fingerprint = "\n".join(_effect_fingerprint(c) for c in model.effects)
+    digest = hashlib.sha256(
+        (KERNEL_VERSION + source + fingerprint + _numba_version()).encode()
+    ).hexdigest()[:24]
+    return cache_dir() / f"bid_kernel_{digest}.py", source
+
+
+_REFUSED: set[str] = set()
+
+
+def _write_private(path: Path, text: str) -> None:
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def _build(model: Model) -> Kernel:
+    if not HAVE_NUMBA:
         return _exec_in_memory(*generate_source(model, cache=False))
-    module = _import_path(name, path)
+    path, source = _kernel_path(model)
+    if path is None:
+        return _exec_in_memory(*generate_source(model, cache=False))
+    problem = _private_dir(path.parent)
+    if problem is not None:
+        if str(path.parent) not in _REFUSED:
+            _REFUSED.add(str(path.parent))
+            note(f"kernel cache not used: {problem}; compiling in memory (slower start)")
+        return _exec_in_memory(*generate_source(model, cache=False))
+    try:
+        try:
+            current = path.read_text(encoding="utf-8")
+        except (FileNotFoundError, UnicodeDecodeError):
+            current = None
+        if current != source:
+            if path.exists():
+                note(f"cached kernel {path.name} did not match its model; rewriting it")
+                _purge(path)
+            _write_private(path, source)
+    except OSError as exc:
+        note(f"kernel cache not used ({exc.strerror or exc}); compiling in memory")
+        return _exec_in_memory(*generate_source(model, cache=False))
+    try:
+        module = _import_path(path.stem, path)
+    except Exception as exc:  # a damaged bytecode or numba cache: start over once
+        note(f"cached kernel {path.name} failed to load ({type(exc).__name__}); recompiling")
+        _purge(path)
+        try:
+            _write_private(path, source)
+            module = _import_path(path.stem, path)
+        except Exception:
+            sys.modules.pop(path.stem, None)
+            return _exec_in_memory(*generate_source(model, cache=False))
     return Kernel(
         module.simulate_trial,
         module.simulate_batch,
@@ -729,7 +909,11 @@ def _import_path(name: str, path: Path) -> Any:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
     return module
 
 
