@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from balancer_id.model.spec import Model
 from balancer_id.simulate.inputs import Thrust
 from balancer_id.simulate.kernel import OUT_COLUMNS, get_kernel
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Internal RK4 steps per sample interval.
 DEFAULT_SUBSTEPS = 1
@@ -43,6 +46,8 @@ class Simulation:
 
     def to_frame(self) -> pd.DataFrame:
         """The signals as a DataFrame indexed by time."""
+        import pandas as pd
+
         return pd.DataFrame(
             {
                 "accel": self.accel,
