@@ -90,11 +90,37 @@ class _Outcome:
         return float(self.residual @ self.residual)
 
 
+def _triangular(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Upper-triangular ``R`` (``k+1`` square) with ``R^T R = [J | r]^T [J | r]``.
+
+    The Cholesky factor of the small Gram matrix (cheap, one pass over the samples); the
+    QR factorization of ``[J | r]`` where the Gram matrix is too ill-conditioned for it.
+    """
+    aug = np.empty((r.size, jac.shape[1] + 1))
+    aug[:, :-1] = jac
+    aug[:, -1] = r
+    gram = aug.T @ aug
+    d = np.sqrt(np.diag(gram))
+    if np.all(d > 0):
+        scaled = gram / np.outer(d, d)
+        if np.linalg.cond(scaled) < 1e10:
+            try:
+                return np.linalg.cholesky(scaled).T * d
+            except np.linalg.LinAlgError:
+                pass
+    return np.linalg.qr(aug, mode="r")
+
+
 class _Problem:
     """Residual and Jacobian of one fit, from one simulation with sensitivities.
 
-    ``fun`` runs the plain simulation (the optimizer tries points it may reject);
-    ``jac`` runs the simulation with forward sensitivities at the accepted point.
+    Each evaluation simulates once with forward sensitivities, giving the residual ``r``
+    (``n`` samples) and its Jacobian ``J`` (``n x k``) together. The optimizer is handed
+    the same least-squares problem compressed to ``k + 1`` rows: the QR factorization
+    ``[J | r] = Q R`` gives ``r~ = R[:, k]`` and ``J~ = R[:, :k]`` with
+    ``|r~| = |r|``, ``J~^T J~ = J^T J`` and ``J~^T r~ = J^T r``, so every step,
+    cost and stopping test is the full problem's, at a fraction of the optimizer's
+    per-iteration cost on ``n x k`` matrices.
     """
 
     def __init__(self, model: Model, data: FitData, base: np.ndarray, free: list[int]):
@@ -103,27 +129,53 @@ class _Problem:
         self.base = base
         self.free = free
         self.nfev = 0
-        self.njev = 0
+        self._key: bytes | None = None
+        self._jac = np.zeros((len(free) + 1, len(free)))
+        self._best: tuple[float, bytes, np.ndarray, np.ndarray] | None = None
 
     def full(self, x: np.ndarray) -> np.ndarray:
+        """The whole parameter vector with the free ones set to ``x``."""
         p = self.base.copy()
         p[self.free] = x
         return p
 
-    def fun(self, x: np.ndarray) -> np.ndarray:
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian over every sample at ``x`` (one simulation)."""
         self.nfev += 1
-        r = self.data.packed.run(self.model, self.full(x))[:, 0] - self.data.y
-        if not np.all(np.isfinite(r)):
-            r = np.where(np.isfinite(r), r, 1e3)
-        return r
-
-    def jac(self, x: np.ndarray) -> np.ndarray:
-        self.njev += 1
         out, sens = self.data.packed.run_sens(self.model, self.full(x), self.free)
-        bad = ~np.isfinite(out[:, 0]) | ~np.all(np.isfinite(sens), axis=1)
-        if np.any(bad):
+        r = out[:, 0] - self.data.y
+        if not (np.isfinite(r).all() and np.isfinite(sens).all()):
+            bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
+            r[bad] = 1e3
             sens[bad] = 0.0
-        return sens
+        cost = float(r @ r)
+        if self._best is None or cost < self._best[0]:
+            self._best = (cost, np.asarray(x, dtype=float).tobytes(), r, sens)
+        return r, sens
+
+    def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian at ``x``, reusing the best evaluation when it is there."""
+        if self._best is not None and self._best[1] == np.asarray(x, dtype=float).tobytes():
+            return self._best[2], self._best[3]
+        return self.evaluate(x)
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        """The residual over every sample at ``x`` (a plain simulation)."""
+        r = self.data.packed.run(self.model, self.full(x))[:, 0] - self.data.y
+        return np.where(np.isfinite(r), r, 1e3)
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        r, sens = self.evaluate(x)
+        k = len(self.free)
+        aug = _triangular(sens, r)
+        self._key = np.asarray(x, dtype=float).tobytes()
+        self._jac = aug[:, :k].copy()
+        return aug[:, k].copy()
+
+    def jac(self, x: np.ndarray, *_: object) -> np.ndarray:
+        if np.asarray(x, dtype=float).tobytes() != self._key:
+            self.fun(x)
+        return self._jac
 
 
 def match_trials(
@@ -212,14 +264,14 @@ def match_trials(
 
     best = None
     if not free:
-        r = problem.fun(base[free])
+        r = problem.residual(base[free])
         best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
     for x0 in starts if free else []:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
                 ret = least_squares(
-                    problem.fun,
+                    problem.fun if diff_step is None else problem.residual,
                     x0,
                     jac=problem.jac if diff_step is None else "2-point",
                     bounds=(lo, hi),
@@ -234,9 +286,8 @@ def match_trials(
             except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
                 notes.append(f"a start failed: {exc}")
                 continue
-        outcome = _Outcome(
-            ret.x, problem.fun(ret.x), ret.jac, ret.status > 0, str(ret.message), ret.nfev
-        )
+        r, jac = problem.at(ret.x)
+        outcome = _Outcome(ret.x, r, jac, ret.status > 0, str(ret.message), ret.nfev)
         if best is None or outcome.chisqr < best.chisqr:
             best = outcome
     if best is None:
