@@ -748,12 +748,12 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     """Run the kernel once on a tiny input, so compile errors name the model's effects."""
     import numpy as np
 
-    if kernel.path is not None and not quiet and _VERBOSE_COMPILE:
-        if not _is_cached_path(kernel.path):
-            note(
-                f"compiling the simulation kernel of '{model.spec}' (once; cached in "
-                f"{kernel.path.parent})"
-            )
+    fresh = kernel.path is not None and not _is_cached_path(kernel.path)
+    if fresh and not quiet and _VERBOSE_COMPILE:
+        note(
+            f"compiling the simulation kernel of '{model.spec}' (once; cached in "
+            f"{kernel.path.parent})"
+        )
     t = np.array([0.0, 0.005])
     z = np.zeros(2)
     out = np.empty((2, len(OUT_COLUMNS)))
@@ -772,6 +772,8 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
             1,
             out,
         )
+        if fresh:  # the fit's kernel too, under the same note, into the same cache
+            _warm(model, kernel, True)
     except Exception as exc:
         names = ", ".join(e.name for e in model.effects) or "base"
         first = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip().splitlines()
@@ -789,7 +791,11 @@ _VERBOSE_COMPILE = os.environ.get("BALANCER_ID_QUIET", "") in ("", "0")
 
 def _is_cached_path(path: Path) -> bool:
     """Whether numba's cache already holds machine code for the kernel at ``path``."""
-    return path.exists() and any((path.parent / "__pycache__").glob(f"{path.stem}.*.nbi"))
+    cached = path.parent / "__pycache__"
+    return path.exists() and all(
+        any(cached.glob(f"{path.stem}.{func}-*.nbi"))
+        for func in ("simulate_batch", "simulate_batch_sens")
+    )
 
 
 def _is_cached(model: Model) -> bool:
