@@ -68,7 +68,7 @@ def crlb(model, trials: list[TrialData]) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=50)
-    parser.add_argument("--runs", type=int, default=3, help="runs of each whole command")
+    parser.add_argument("--runs", type=int, default=3, help="runs of each whole command (0: none)")
     parser.add_argument("--no-baseline", action="store_true")
     args = parser.parse_args()
     model = parse_model("variable_viscosity")
@@ -132,6 +132,8 @@ def main() -> None:
         f"script's core fit (solve_ivp inside lmfit), same trials: {base:.2f} s; "
         f"ratio {base / np.median(fast):.0f}x"
     )
+    if args.runs < 1:
+        return
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "six_trials.csv"
         write_synthetic_log(log, model, TRUTH, THRUSTS, sensor=SensorSettings(tilt_deg=12.0))
