@@ -22,6 +22,7 @@ from balancer_id.diagnose.signatures import Signature, signature_of
 from balancer_id.fit.classic import paper_method
 from balancer_id.fit.data import TrialData
 from balancer_id.fit.matching import MatchResult
+from balancer_id.simulate.kernel import compile_models
 
 #: BIC improvement a candidate needs before an effect is called missing. Calibrated on
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -154,7 +155,9 @@ def diagnose_match(
     }
     suggestions: list[Suggestion] = []
     failures: list[str] = []
-    for cand in candidates(match.model, with_trajectory=with_trajectory):
+    cands = candidates(match.model, with_trajectory=with_trajectory)
+    compile_models([c.model for c in cands])  # a first run says so, with a count
+    for cand in cands:
         try:
             sig = signature_of(cand.effect, ctx)
         except Exception as exc:  # a user's check must not stop the others

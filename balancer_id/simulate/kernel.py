@@ -706,15 +706,21 @@ def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> No
         The models whose kernels are needed.
     sensitivities : bool
         Also compile the sensitivity kernel (what a fit uses).
+
+    Notes
+    -----
+    A model whose kernel cannot be compiled is skipped here; :func:`get_kernel` raises
+    its error where the model is used.
     """
     todo = [m for m in models if (m.effects, m.param_names) not in _KERNELS]
     need = [m for m in todo if not _is_cached(m)]
     for k, m in enumerate(need, 1):
         if _VERBOSE_COMPILE:
             note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
-        _warm(m, get_kernel(m, quiet=True), sensitivities)
-    for m in todo:
-        _warm(m, get_kernel(m), sensitivities)
+        try:
+            _warm(m, get_kernel(m, quiet=True), sensitivities)
+        except Exception:  # a broken effect is reported where the model is used
+            continue
 
 
 def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
