@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from balancer_id.errors import IdentificationError
+from balancer_id.segment.decimate import decimate_trial
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.engine import PackedTrials, TrialInput
 from balancer_id.simulate.inputs import Thrust, Trapezoid
@@ -55,7 +56,9 @@ class TrialData:
         """Build from a segmented :class:`~balancer_id.segment.trial.Trial` (step thrust).
 
         Samples without an acceleration value (blank cells of a multi-rate export) are
-        left out; the simulation runs at the sample times that remain.
+        left out; the simulation runs at the sample times that remain. A trial faster
+        than 400 Hz is first decimated to 200-400 Hz, anti-aliased
+        (:func:`~balancer_id.segment.decimate.decimate_trial`).
 
         Parameters
         ----------
@@ -76,6 +79,7 @@ class TrialData:
         IdentificationError
             When the trial has (almost) no acceleration samples.
         """
+        trial, _ = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz, noted in trial.notes
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
         keep = np.isfinite(accel) & np.isfinite(time)
@@ -86,6 +90,7 @@ class TrialData:
             )
         time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
+        trajectory = getattr(trial, "reference", None) or trajectory  # a robot move's own
         if trajectory is not None:
             z_ref, v_ref = trajectory.evaluate(time)
         return cls(

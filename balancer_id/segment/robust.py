@@ -252,8 +252,9 @@ def level(x: np.ndarray) -> float:
     x = np.asarray(x, dtype=float)
     if x.size == 0:
         return float("nan")
-    cut = int(0.2 * x.size)  # scipy.stats.trim_mean(x, 0.2), without importing scipy.stats
-    return float(np.mean(np.sort(x)[cut : x.size - cut]))
+    cut = int(0.2 * x.size)  # scipy.stats.trim_mean's own steps; importing scipy.stats costs ~1 s
+    part = np.partition(x, (cut, x.size - cut - 1))
+    return float(np.mean(part[cut : x.size - cut]))
 
 
 def spread(x: np.ndarray) -> float:
