@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from balancer_id.segment.robust import find_peaks, level
+
+SAMPLE_LOGS = Path(__file__).resolve().parents[1] / "sample_logs"
 
 
 def test_find_peaks_is_scipys():
@@ -36,6 +39,20 @@ def test_fitting_imports_neither_scipy_stats_nor_matplotlib_nor_lmfit():
     code = (
         "import sys\n"
         "import balancer_id.fit.api, balancer_id.segment, balancer_id.fit.matching\n"
+        "bad = [m for m in ('scipy.stats', 'scipy.signal', 'matplotlib', 'lmfit') "
+        "if m in sys.modules]\n"
+        "print(','.join(bad))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def test_reading_and_segmenting_a_200_hz_log_imports_neither_scipy_stats_nor_plots():
+    code = (
+        "import sys\n"
+        "from balancer_id.fit.api import trial_data\n"
+        f"trials, _ = trial_data([{str(SAMPLE_LOGS / 'paper_balancer.csv')!r}])\n"
+        "assert trials\n"
         "bad = [m for m in ('scipy.stats', 'scipy.signal', 'matplotlib', 'lmfit') "
         "if m in sys.modules]\n"
         "print(','.join(bad))\n"
