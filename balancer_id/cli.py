@@ -43,7 +43,7 @@ ForceSignOpt = Annotated[
     int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
 ]
 VerticalOpt = Annotated[
-    str, typer.Option("--vertical", help="auto|x|y|z: vertical axis of logs without gravity.")
+    str, typer.Option("--vertical", help="auto|x|y|z|-z|...: up axis of logs without gravity.")
 ]
 ColumnsOpt = Annotated[
     str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
@@ -153,8 +153,8 @@ def _read_options(
 
     if force_sign not in (None, 1, -1):
         raise UsageError("--force-sign must be +1 or -1")
-    if vertical not in ("auto", "x", "y", "z"):
-        raise UsageError("--vertical must be auto, x, y or z")
+    if vertical.lstrip("+-") not in ("auto", "x", "y", "z") or vertical in ("+auto", "-auto"):
+        raise UsageError("--vertical must be auto or an axis with an optional sign: x, -z, +y")
     cmap = None
     if columns:
         cmap = {}

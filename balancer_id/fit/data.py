@@ -99,8 +99,8 @@ def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
     """The measured operating force as the model's input ``u(t)``, never shifted in time.
 
     A centred median over :data:`FORCE_MEDIAN_S` removes spikes and flicker and keeps
-    step edges in place; between two samples the input is the mean of the straight line
-    joining them (what a linear interpolation gives on average), held by the simulator.
+    step edges in place; each sample is held until the next (the sample at a step's onset
+    carries the new level, as the ideal step at the detected onset does).
 
     Parameters
     ----------
@@ -124,9 +124,7 @@ def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
     width += 1 - width % 2
     if width >= 3 and u.size > width:
         u = median_filter(u, size=width, mode="nearest")
-    held = u.copy()
-    held[:-1] = 0.5 * (u[:-1] + u[1:])
-    return Thrust.series(time, held)
+    return Thrust.series(time, u)
 
 
 def from_trials(
@@ -254,10 +252,15 @@ def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:
 def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:
     """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other.
 
+    Each trial counts with ``|thrust_N|``; a trial driven by a measured force also with
+    the 20th and 80th percentiles of ``|u|`` over its samples where ``|u|`` is above a
+    quarter of its peak, so that a guided move, whose force sweeps a range, counts as
+    the range of operating forces it covers.
+
     Parameters
     ----------
     trials : sequence of TrialData
-        The trials; only ``|thrust_N|`` matters.
+        The trials.
     rel_tol : float
         Relative tolerance: a magnitude within ``rel_tol`` above the last level found
         belongs to that level.
@@ -267,8 +270,16 @@ def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[flo
     list of float
         The lowest magnitude of each level (N), ascending.
     """
+    found: list[float] = []
+    for t in trials:
+        found.append(abs(t.thrust_N))
+        if t.input.thrust.times.size > 2:
+            u = np.abs(t.input.thrust.at(t.time))
+            big = u[u >= 0.25 * u.max()] if u.size and u.max() > 0 else u[:0]
+            if big.size:
+                found += [float(q) for q in np.percentile(big, [20, 80])]
     levels: list[float] = []
-    for f in sorted(abs(t.thrust_N) for t in trials):
+    for f in sorted(found):
         if not levels or f > levels[-1] * (1 + rel_tol):
             levels.append(f)
     return levels

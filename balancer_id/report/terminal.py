@@ -38,10 +38,22 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             f"{_fmt(run['sample_rate_hz'])} Hz, "
             f"channels: {', '.join(run['channels'])}"
         )
+        if run.get("vertical"):
+            known = (
+                "sign known"
+                if run.get("vertical_sign_known", True)
+                else ("sign is a guess: fix it with --vertical or --force-sign")
+            )
+            console.print(f"    vertical (up): {run['vertical']} ({known})")
     for w in info.get("warnings", []):
         console.print(f"  [yellow]warning:[/yellow] {w}")
+    for t in info["trials"]:
+        for note in t.get("notes", []):
+            if note.startswith("warning:"):
+                console.print(f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}")
     table = Table(title="step trials")
-    for col in ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "direction", "ends by"):
+    cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
+    for col in (*cols, "ends by"):
         table.add_column(col)
     for t in info["trials"]:
         table.add_row(
@@ -50,6 +62,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             f"{t['t_step']:.3f}",
             f"{t['t_start']:.2f} - {t['t_end']:.2f}",
             f"{t['thrust_N']:+.3f}",
+            f"{t.get('thrust_change_N', t['thrust_N']):+.3f}",
             t["direction"],
             str(t.get("end_reason", "")),
         )

@@ -239,6 +239,8 @@ def build_trials(
                 thrust_change_N=float(change),
                 continues=bool(chained[j]),
                 thrust_given=given is not None,
+                vertical=vertical_name(run.motion, rec.accel_axes),
+                vertical_sign_known=run.motion is None or run.motion.sign_known,
             )
         )
         level_now = level_new
@@ -276,3 +278,30 @@ def _given_level(
             "the given sign is kept (check --thrust or the vertical axis)"
         )
     return change, level_new
+
+
+def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
+    """Name the vertical (up) direction in the sensor frame: ``"+z"`` or ``"-x, 12 deg off"``.
+
+    Parameters
+    ----------
+    motion : VerticalMotion or None
+        The run's vertical motion (None: no acceleration channel).
+    axes : tuple of str
+        Names of the acceleration columns.
+
+    Returns
+    -------
+    str
+        The nearest signed axis, with the angle to it when over 1 degree; ``""`` without
+        acceleration.
+    """
+    if motion is None or motion.up.size == 0:
+        return ""
+    up = np.asarray(motion.up, float)
+    names = axes if len(axes) == up.size else ("x", "y", "z")[: up.size]
+    j = int(np.argmax(np.abs(up)))
+    norm = float(np.linalg.norm(up)) or 1.0
+    angle = float(np.degrees(np.arccos(np.clip(abs(up[j]) / norm, -1.0, 1.0))))
+    text = f"{'+' if up[j] >= 0 else '-'}{names[j]}"
+    return text if angle <= 1.0 else f"{text}, {angle:.0f} deg off"

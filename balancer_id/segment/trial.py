@@ -52,6 +52,13 @@ class Trial:
     thrust_given : bool
         ``thrust_N`` was given by the user (``--thrust``); the model is then driven by
         the given levels rather than by the force channel.
+    kind : str
+        ``"step"`` (a thrust step) or ``"move"`` (a guided move: the force varies
+        without steps; ``thrust_N`` is its signed peak).
+    vertical : str
+        The up direction in the sensor frame (``"+z"``, ``"-x, 12 deg off"``).
+    vertical_sign_known : bool
+        False when the up sign is a convention (linear acceleration, nothing fixed it).
     """
 
     index: int
@@ -70,6 +77,9 @@ class Trial:
     thrust_change_N: float | None = None
     continues: bool = False
     thrust_given: bool = False
+    kind: str = "step"
+    vertical: str = ""
+    vertical_sign_known: bool = True
 
     @property
     def change_N(self) -> float:
@@ -87,8 +97,11 @@ class Trial:
             "thrust_N": round(float(self.thrust_N), 4),
             "thrust_change_N": round(self.change_N, 4),
             "continues": self.continues,
+            "kind": self.kind,
             "direction": self.direction,
             "end_reason": self.end_reason,
             "n_samples": int(self.time.size),
+            "vertical": self.vertical,
+            "vertical_sign_known": self.vertical_sign_known,
             "notes": list(self.notes),
         }
