@@ -261,11 +261,30 @@ def fit(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    group_by: Annotated[
+        str | None,
+        typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
+    ] = None,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id import cache
 
     fixed = _assignments(fix, "--fix")
+    if group_by is not None:
+        _fit_groups(
+            logs,
+            group_by,
+            _read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+            model=model,
+            fixed=fixed,
+            effects_files=effects_file or (),
+            trajectory=_trajectory(trajectory),
+            per_trial=per_trial,
+            n_starts=starts,
+            json_out=json_out,
+            report=report,
+        )
+        return
     key_options = {
         "model": model,
         "thrust": thrust,
@@ -308,6 +327,31 @@ def fit(
         from balancer_id.report.terminal import print_fit
 
         print_fit(_console(), out)
+
+
+def _fit_groups(logs, group_by, options, *, json_out, report, **kwargs) -> None:
+    """``fit --group-by``: one identification per group of trials."""
+    from balancer_id.errors import UsageError
+    from balancer_id.fit import fit as run_fit
+    from balancer_id.fit.api import trial_data
+    from balancer_id.fit.data import group_trials
+
+    if report is not None:
+        raise UsageError("--report takes one model: give it without --group-by")
+    trials, _ = trial_data(logs, options, kwargs["trajectory"])
+    groups = group_trials(trials, group_by)
+    out = {"group_by": group_by, "groups": []}
+    for label, group in groups:
+        out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})
+    if json_out:
+        _emit_json(out)
+        return
+    from balancer_id.report.terminal import print_fit
+
+    console = _console()
+    for item in out["groups"]:
+        console.print(f"[bold]group {item['group']}[/bold]")
+        print_fit(console, item)
 
 
 @app.command()

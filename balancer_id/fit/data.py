@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import median_filter
 
-from balancer_id.errors import IdentificationError
+from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.model.spec import Model
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.engine import DEFAULT_SUBSTEPS, PackedTrials, TrialInput
@@ -392,3 +392,56 @@ class FitData:
         sizes = [td.time.size for td in self.trials]
         o = np.concatenate([[0], np.cumsum(sizes)])
         return [slice(int(o[j]), int(o[j + 1])) for j in range(len(self.trials))]
+
+
+def group_trials(trials: Sequence[TrialData], by: str) -> list[tuple[str, list[TrialData]]]:
+    """Split trials into groups that are identified separately (``fit --group-by``).
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials, in order.
+    by : str
+        ``"run"`` (each run of each log), ``"log"`` (each file), or ``"runs:1-3,4-6"``
+        (runs counted from 1 in recording order over all logs, joined in the groups
+        given; a run not named is left out).
+
+    Returns
+    -------
+    list of (str, list of TrialData)
+        Each group's label and trials, in order of first appearance.
+
+    Raises
+    ------
+    UsageError
+        For an unknown ``by`` or a run number that does not exist.
+    """
+    runs: list[str] = []
+    for t in trials:
+        if t.source not in runs:
+            runs.append(t.source)
+    if by == "run":
+        key = {r: r for r in runs}
+    elif by == "log":
+        key = {r: r.split(" [")[0] for r in runs}
+    elif by.startswith("runs:"):
+        key = {}
+        for part in filter(None, by[5:].split(",")):
+            lo, _, hi = part.partition("-")
+            try:
+                a, b = int(lo), int(hi or lo)
+            except ValueError:
+                raise UsageError(f"--group-by '{by}': '{part}' is not N or N-M") from None
+            if not 1 <= a <= b <= len(runs):
+                raise UsageError(
+                    f"--group-by '{by}': runs {part} not in 1-{len(runs)} (the runs found)"
+                )
+            label = f"runs {a}-{b}" if b > a else f"run {a}"
+            key.update({runs[i - 1]: label for i in range(a, b + 1)})
+    else:
+        raise UsageError(f"--group-by must be run, log or runs:1-3,4-6, not {by!r}")
+    groups: dict[str, list[TrialData]] = {}
+    for t in trials:
+        if t.source in key:
+            groups.setdefault(key[t.source], []).append(t)
+    return list(groups.items())
