@@ -8,10 +8,13 @@
    the raw signals and fitted with ``variable_viscosity``; per parameter: bias, spread
    and the share of seeds within the fit benchmark's tolerances (m_a 2 %, T_a 5 %,
    D0 8 %, A 15 %).
-2. Payload change between runs: six runs, the payload changed after run 2, 3 or 4
-   (m_a +1, +2 or +4 kg); detection = ``diagnose`` names a split of m_a at the right
-   run. False alarms: the same logs without a change, and logs with a hidden effect
-   (``karnopp`` f_s 0.5-1 N, ``dead_time`` 60 ms) fitted with the paper's model.
+2. Payload change between runs: six runs (+2.45, +4.9, +7.35, -2.45, -4.9, -7.35 N),
+   the payload changed after run 2, 3 or 4 (m_a +1, +2 or +4 kg), so that a thrust
+   level occurs on both sides of the change (a change that coincides with a change of
+   every thrust level cannot be told from a thrust dependence); detection =
+   ``diagnose`` names a split of m_a at the right run. False alarms: the same logs
+   without a change, and logs with a hidden effect (``karnopp`` f_s 0.5-1 N,
+   ``dead_time`` 60 ms) fitted with the paper's model.
    Uses the pure split test on the per-trial fits, as ``diagnose`` does.
 3. Guided moves: a person pushes and pulls the load smoothly (no step; peak 4-7 N over
    5-8 s); one excitation window, the measured force as input; accuracy per parameter.
@@ -41,6 +44,8 @@ TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 TOLERANCE = {"m_a": 0.02, "T_a": 0.05, "D0": 0.08, "A": 0.15}
 THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
 SESSION = (2.45, 4.9, -2.45, -4.9, 7.35, -7.35)
+#: Payload runs: each thrust level on both sides of a change after run 2, 3 or 4.
+PAYLOAD_ORDER = (2.45, 4.9, 7.35, -2.45, -4.9, -7.35)
 START = {"m_a": 15.0, "T_a": 0.3}
 
 
@@ -103,9 +108,11 @@ def payload(model, seeds: int) -> None:
         for seed in range(seeds):
             k = 2 + seed % 3
             sensor = SensorSettings(tilt_deg=10.0 + seed)
-            a = synthetic_recordings(model, TRUTH, THRUSTS[:k], sensor=sensor, seed=seed)
+            a = synthetic_recordings(model, TRUTH, PAYLOAD_ORDER[:k], sensor=sensor, seed=seed)
             heavier = {**TRUTH, "m_a": TRUTH["m_a"] + dm}
-            b = synthetic_recordings(model, heavier, THRUSTS[k:], sensor=sensor, seed=seed + 500)
+            b = synthetic_recordings(
+                model, heavier, PAYLOAD_ORDER[k:], sensor=sensor, seed=seed + 500
+            )
             for j, r in enumerate(b):
                 r.name = f"Run #{k + j + 1}"
             is_m, where = _split_found(model, a + b)

@@ -11,8 +11,11 @@ kept. Its improvement ``delta = chi2(one value) - chi2(two values)`` is chi-squa
 one degree of freedom when nothing changed; standard errors are first scaled up by the
 scatter left inside the groups (never down), the best split over ``n - 1`` candidates
 is Bonferroni-corrected, and the split must also beat a straight line in the order of
-the runs (a drift) and in the thrust (a thrust dependence), and move the parameter by
-more than :data:`MIN_RELATIVE_CHANGE`.
+the runs (a drift), a straight line in the thrust and one value per thrust level (a
+thrust dependence: a missing effect makes the per-run values follow the thrust), and
+move the parameter by more than :data:`MIN_RELATIVE_CHANGE`. A change that coincides
+with a change of every thrust level cannot be told from a thrust dependence and is not
+reported.
 """
 
 from __future__ import annotations
@@ -142,6 +145,19 @@ def _wls(x: np.ndarray, w: np.ndarray, design: np.ndarray) -> float:
     return float(np.sum(w * r**2))
 
 
+def _level_design(thrust: np.ndarray, rel_tol: float = 0.1) -> np.ndarray:
+    """One column per thrust level (magnitudes within ``rel_tol`` are one level)."""
+    order = np.argsort(thrust)
+    label = np.empty(thrust.size, dtype=int)
+    level, last = -1, -np.inf
+    for i in order:
+        if thrust[i] > last * (1 + rel_tol) or level < 0:
+            level += 1
+            last = thrust[i]
+        label[i] = level
+    return (label[:, None] == np.arange(level + 1)[None, :]).astype(float)
+
+
 def find_split(parameter: str, estimates: Sequence[RunEstimate]) -> GroupSplit | None:
     """Test whether a parameter's per-run estimates fall into two groups in time.
 
@@ -157,8 +173,9 @@ def find_split(parameter: str, estimates: Sequence[RunEstimate]) -> GroupSplit |
     -------
     GroupSplit or None
         The best split when it is significant at :data:`ALPHA` (after correction), beats
-        a line in run order and in thrust by :data:`MIN_GAIN_OVER_LINE` and changes the
-        parameter by at least :data:`MIN_RELATIVE_CHANGE`; None otherwise.
+        a line in run order, a line in thrust and one value per thrust level by
+        :data:`MIN_GAIN_OVER_LINE`, and changes the parameter by at least
+        :data:`MIN_RELATIVE_CHANGE`; None otherwise.
     """
     est = [e for e in estimates if np.isfinite(e.value) and np.isfinite(e.stderr) and e.stderr > 0]
     n = len(est)
@@ -184,6 +201,7 @@ def find_split(parameter: str, estimates: Sequence[RunEstimate]) -> GroupSplit |
     chi_lines = [_wls(x, w, np.column_stack([ones, order]))]
     if np.ptp(thrust) > 0:
         chi_lines.append(_wls(x, w, np.column_stack([ones, thrust])))
+        chi_lines.append(_wls(x, w, _level_design(thrust)))
     gain = (min(chi_lines) - chi_split) / scale
     before = float(np.average(x[:k], weights=w[:k]))
     after = float(np.average(x[k:], weights=w[k:]))
