@@ -24,7 +24,8 @@ import io
 import json
 import logging
 import os
-import tempfile
+import stat
+import sys
 import time
 import warnings
 from collections import deque
@@ -35,7 +36,8 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from balancer_id.errors import BalancerIdError, UsageError
+from balancer_id.errors import BalancerIdError, OutputExistsError, UsageError
+from balancer_id.files import atomic_write_text
 
 if TYPE_CHECKING:
     from balancer_id.model.spec import Model
@@ -228,8 +230,17 @@ def run_batch(
     jobs: int | None = None,
     scheduler: str | None = None,
     progress: Callable[[str], None] | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
+
+    Only one batch writes into a folder at a time (a lock file, released by the system
+    even when the process is killed). SIGTERM stops the batch like Ctrl-C: the workers
+    are stopped, finished results stay and ``summary.csv`` lists every log; no worker
+    outlives the batch (on Linux a worker dies with its parent, even after SIGKILL).
+    With ``resume`` a log whose result exists for the same input bytes, model and options
+    is not fitted again.
 
     Parameters
     ----------
@@ -259,6 +270,12 @@ def run_batch(
         absolute paths.
     progress : callable, optional
         Called with a one-line message as each log finishes.
+    resume : bool
+        Keep the results already in ``out_dir`` whose log, model and options are unchanged
+        (an interrupted batch continues); fit only the others.
+    overwrite : bool
+        Allow replacing the results of an earlier batch in ``out_dir`` (without
+        ``resume`` or ``overwrite``, a folder holding a ``summary.csv`` is refused).
 
     Returns
     -------
@@ -269,7 +286,8 @@ def run_batch(
     ------
     UsageError
         No log found; ``out_dir`` is a file or holds an input; bad ``jobs``; unknown
-        model or parameter; a scheduler without Dask installed, or unreachable.
+        model or parameter; a scheduler without Dask installed, or unreachable; another
+        batch writing into ``out_dir``; earlier results without ``resume``/``overwrite``.
     """
     started = time.perf_counter()
     say = progress or (lambda message: None)
@@ -293,43 +311,207 @@ def run_batch(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UsageError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
-    tasks = [
-        _Task(str(log), str(log.resolve()), out / name)
-        for log, name in zip(logs, _output_names(logs), strict=True)
-    ]
-    worker = partial(
-        _identify,
-        model=mdl.spec,
-        fixed=dict(fixed or {}),
-        options=options,
-        effects_files=extra,
-    )
-    rows: list[BatchRow | None] = [None] * len(tasks)
+    with _folder_lock(out), _sigterm_as_interrupt():
+        if (out / SUMMARY_NAME).exists() and not (resume or overwrite):
+            raise OutputExistsError(
+                f"--out {out} holds the results of an earlier batch; add --resume to keep "
+                "them and fit only what is missing or changed, or --overwrite to replace them"
+            )
+        tasks = [
+            _Task(str(log), str(log.resolve()), out / name)
+            for log, name in zip(logs, _output_names(logs), strict=True)
+        ]
+        worker = partial(
+            _identify,
+            model=mdl.spec,
+            fixed=dict(fixed or {}),
+            options=options,
+            effects_files=extra,
+        )
+        rows: list[BatchRow | None] = [None] * len(tasks)
+        keys = [
+            request_key(task.path, mdl.spec, fixed, options, extra) for task in tasks
+        ]
 
-    def record(index: int, payload: Payload) -> None:
-        row = _write_log_result(tasks[index], payload, mdl.spec)
-        rows[index] = row
-        done = sum(r is not None for r in rows)
-        say(f"[{done}/{len(tasks)}] {_describe(row)}")
+        def record(index: int, payload: Payload) -> None:
+            row = _write_log_result(tasks[index], payload, mdl.spec, keys[index])
+            rows[index] = row
+            done = sum(r is not None for r in rows)
+            say(f"[{done}/{len(tasks)}] {_describe(row)}")
 
-    items = [(k, task.path) for k, task in enumerate(tasks)]
-    try:
-        if scheduler is not None:
-            _run_dask(worker, items, record, scheduler, n_workers, say)
-        elif pooled:
-            say(f"identifying {len(tasks)} logs with {n_workers} worker processes")
-            run_in_processes(worker, items, record, n_workers, context=context, notify=say)
-        else:
-            say(f"identifying {len(tasks)} log(s) in this process")
-            for index, path in items:
-                record(index, worker(path))
-    except BaseException:
-        if any(row is not None for row in rows):  # keep what was done
+        items = []
+        for k, task in enumerate(tasks):
+            kept = _resumed_row(task, keys[k]) if resume else None
+            if kept is not None:
+                rows[k] = kept
+            elif not _is_regular(Path(task.path)):
+                record(k, _failure(_irregular(task.display), 3))
+            else:
+                items.append((k, task.path))
+        if resume:
+            say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
+        try:
+            if not items:
+                pass
+            elif scheduler is not None:
+                _run_dask(worker, items, record, scheduler, n_workers, say)
+            elif pooled and len(items) > 1:
+                n = min(n_workers, len(items))
+                say(f"identifying {len(items)} logs with {n} worker processes")
+                run_in_processes(worker, items, record, n, context=context, notify=say)
+            else:
+                say(f"identifying {len(items)} log(s) in this process")
+                for index, path in items:
+                    record(index, worker(path))
+        except BaseException:
+            # keep what was done: a consistent summary of every log, finished or not
             write_summary(out / SUMMARY_NAME, _fill_missing(rows, tasks, mdl.spec))
-        raise
-    final = _fill_missing(rows, tasks, mdl.spec)
-    summary = write_summary(out / SUMMARY_NAME, final)
+            raise
+        final = _fill_missing(rows, tasks, mdl.spec)
+        summary = write_summary(out / SUMMARY_NAME, final)
     return BatchResult(final, out, summary, seconds=time.perf_counter() - started)
+
+
+def request_key(
+    path: str,
+    spec: str,
+    fixed: Mapping[str, float] | None,
+    options: ReadOptions | None,
+    effects_files: Sequence[str],
+) -> str | None:
+    """What one log's result depends on: its bytes, the model, the options, the effects.
+
+    Parameters
+    ----------
+    path : str
+        The log.
+    spec : str
+        The model spec.
+    fixed : mapping, optional
+        Parameters held at known values.
+    options : ReadOptions, optional
+        Reading and segmentation options.
+    effects_files : sequence of str
+        User effect files (their bytes count too).
+
+    Returns
+    -------
+    str or None
+        A SHA-256 key (see :func:`balancer_id.cache.result_key`), or None when a file
+        cannot be read.
+    """
+    from balancer_id.cache import result_key
+
+    return result_key(
+        "batch",
+        [path, *effects_files],
+        {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)},
+    )
+
+
+def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
+    """The row of a result already written for the same request, or None."""
+    if key is None:
+        return None
+    try:
+        doc = json.loads(task.output.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or doc.get("request") != key:
+        return None
+    row = BatchRow(
+        file=task.display,
+        status=str(doc.get("status", "failed")),
+        model=str(doc.get("model", "")),
+        seconds=doc.get("seconds"),
+        json=str(task.output),
+    )
+    if row.status == "ok":
+        row.n_trials = len(doc.get("trials", []))
+        row.parameters = {
+            name: {"value": p.get("value"), "stderr": p.get("stderr")}
+            for name, p in doc.get("parameters", {}).items()
+        }
+        row.metrics = {k: doc.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
+    else:
+        row.error = str(doc.get("error", "failed"))
+        row.exit_code = int(doc.get("exit_code") or INTERNAL_EXIT_CODE)
+    return row
+
+
+def _is_regular(path: Path) -> bool:
+    try:
+        return stat.S_ISREG(path.stat().st_mode)
+    except OSError:
+        return True  # let the reader say why it cannot be read
+
+
+def _irregular(display: str) -> str:
+    """Why a path that is not a regular file is not a log."""
+    if Path(display).is_dir():
+        return f"{display}: a folder that cannot be listed (permission?); check its access rights"
+    return f"{display}: not a regular file (a pipe or a device); give a CSV file"
+
+
+#: Lock file that keeps two batches from writing into one folder.
+LOCK_NAME = ".balancer-id-batch.lock"
+
+
+@contextmanager
+def _folder_lock(out: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``out`` (refuse at once when another batch holds it)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield
+        return
+    path = out / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise UsageError(f"--out {out}: cannot write into the folder ({exc.strerror})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            raise UsageError(
+                f"--out {out}: another batch (process {holder}) is writing into this folder; "
+                "wait for it to finish, or give another --out"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        try:
+            yield
+        finally:
+            path.unlink(missing_ok=True)
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Within, SIGTERM (and SIGHUP) stops the batch as Ctrl-C does (main thread only)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"stopped by signal {signum}")
+
+    saved = {}
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            saved[sig] = signal.signal(sig, stop)
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def available_cpus() -> int:
@@ -404,8 +586,16 @@ def collect_logs(paths: Iterable[str | Path], out_dir: str | Path | None = None)
 
 
 def _expand(folder: Path, skip: Path | None) -> list[Path]:
+    """The CSV files below ``folder``; a subfolder that cannot be listed is returned as an
+    entry of its own, so that it becomes a failed row instead of vanishing."""
     logs = []
-    for root, dirs, names in os.walk(folder):
+    unreadable: list[Path] = []
+
+    def onerror(exc: OSError) -> None:
+        if exc.filename is not None:
+            unreadable.append(Path(exc.filename))
+
+    for root, dirs, names in os.walk(folder, onerror=onerror):
         base = Path(root)
         dirs[:] = [
             d
@@ -417,11 +607,14 @@ def _expand(folder: Path, skip: Path | None) -> list[Path]:
             for n in names
             if n.lower().endswith(".csv") and not n.startswith(".") and not _is_summary(base / n)
         ]
-    return sorted(logs, key=lambda p: p.relative_to(folder).parts)
+    found = sorted(logs, key=lambda p: p.relative_to(folder).parts)
+    return found + [p for p in unreadable if p != folder or not found]
 
 
 def _is_summary(path: Path) -> bool:
     """Whether a CSV is the ``summary.csv`` of an earlier batch (not a log)."""
+    if not _is_regular(path):  # never open a pipe or a device: it could block
+        return False
     try:
         with path.open(encoding="utf-8", errors="replace") as handle:
             head = handle.readline(200)
@@ -629,7 +822,12 @@ def run_in_processes(
 
     ctx = context or _mp_context()
     retry: list[tuple[int, Any]] = []
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(items)), mp_context=ctx)
+    pool = ProcessPoolExecutor(
+        max_workers=min(jobs, len(items)),
+        mp_context=ctx,
+        initializer=_die_with_parent,
+        initargs=(os.getpid(),),
+    )
     try:
         futures = {}
         with _one_thread_env():  # workers start on submit
@@ -652,6 +850,9 @@ def run_in_processes(
                 except Exception as exc:  # e.g. a result that cannot be pickled
                     payload = _internal(exc)
                 record(key, payload)
+    except BaseException:
+        _stop_workers(pool)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     if retry:
@@ -680,7 +881,12 @@ def _run_isolated(
         while queue or active:
             while queue and len(active) < jobs:
                 key, arg = queue.popleft()
-                pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+                pool = ProcessPoolExecutor(
+                    max_workers=1,
+                    mp_context=ctx,
+                    initializer=_die_with_parent,
+                    initargs=(os.getpid(),),
+                )
                 with _one_thread_env():
                     active[pool.submit(func, arg)] = (key, pool)
             done, _ = wait(list(active), return_when=FIRST_COMPLETED)
@@ -694,9 +900,59 @@ def _run_isolated(
                     payload = _internal(exc)
                 pool.shutdown(wait=True)
                 record(key, payload)
+    except BaseException:
+        for _, pool in active.values():
+            _stop_workers(pool)
+        raise
     finally:
         for _, pool in active.values():
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(batch_pid: int) -> None:
+    """Worker initializer: the worker ends when the batch process is gone.
+
+    A forkserver's workers are children of the fork server, which itself only exits when
+    the workers have, so neither notices a batch killed with SIGKILL. Each worker therefore
+    watches the batch's process id from a daemon thread (twice a second) and exits when it
+    is gone; on Linux it also asks for SIGKILL when its own parent dies.
+
+    Parameters
+    ----------
+    batch_pid : int
+        Process id of the batch that started the pool.
+    """
+    import threading
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            try:
+                os.kill(batch_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except OSError:
+                pass
+
+    threading.Thread(target=watch, name="balancer-id-watch-batch", daemon=True).start()
+
+
+def _stop_workers(pool: Any) -> None:
+    """Terminate a pool's worker processes now (an interrupted batch must not wait)."""
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError):
+            pass
 
 
 def _dask() -> Any:
@@ -766,8 +1022,11 @@ def _relabel(obj: Any, old: str, new: str) -> Any:
     return obj
 
 
-def _write_log_result(task: _Task, payload: Payload, spec: str) -> BatchRow:
-    """Turn a worker's payload into a row, and write the log's JSON."""
+def _write_log_result(
+    task: _Task, payload: Payload, spec: str, request: str | None = None
+) -> BatchRow:
+    """Turn a worker's payload into a row, and write the log's JSON (with its request key,
+    so that ``--resume`` knows what it was computed from)."""
     payload = _relabel(payload, task.path, task.display)
     row = BatchRow(file=task.display, status="failed", model=spec, seconds=payload.get("seconds"))
     if payload.get("status") == "ok":
@@ -791,12 +1050,13 @@ def _write_log_result(task: _Task, payload: Payload, spec: str) -> BatchRow:
         doc["exit_code"] = row.exit_code
         doc["model"] = spec
     doc["seconds"] = row.seconds
+    doc["request"] = request
     try:
         atomic_write_text(
             task.output, json.dumps(doc, indent=2, allow_nan=False, default=str) + "\n"
         )
         row.json = str(task.output)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, BalancerIdError) as exc:
         row.status = "failed"
         row.error = f"{task.display}: cannot write {task.output}: {exc}"
         row.exit_code = INTERNAL_EXIT_CODE
@@ -864,33 +1124,3 @@ def write_summary(path: str | Path, rows: Sequence[BatchRow]) -> Path:
     path = Path(path)
     atomic_write_text(path, buffer.getvalue())
     return path
-
-
-def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` whole or not at all.
-
-    The text goes to a temporary file in the same folder, which then replaces ``path``
-    (``os.replace``), so a reader never sees half a file.
-
-    Parameters
-    ----------
-    path : path
-        The file to write.
-    text : str
-        Its content.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; results are meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise

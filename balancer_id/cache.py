@@ -13,10 +13,19 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 from collections.abc import Iterable
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
+
+from balancer_id.errors import BalancerIdError
+from balancer_id.files import atomic_write_text
+
+#: Version of the entry layout; entries of another version are recomputed.
+SCHEMA = 2
+#: Bytes hashed at a time (a log is never held in memory whole for its key).
+_CHUNK = 1 << 20
 
 
 def cache_root() -> Path:
@@ -51,8 +60,8 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
         Name of the command (``fit``, ``diagnose`` ...); results of different commands
         never share a key.
     files : iterable of str or Path
-        Every file the result depends on (logs, effects files); their bytes are hashed,
-        so an edited file gives a new key.
+        Every file the result depends on (logs, effects files); their bytes are hashed in
+        chunks (never held in memory whole), so an edited file gives a new key.
     options : dict
         The command's options; hashed as sorted JSON, values that are not JSON hashed
         through ``str``.
@@ -60,8 +69,8 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
     Returns
     -------
     str or None
-        The hex SHA-256 key, or None when one of ``files`` cannot be read (the result is
-        then not cached).
+        The hex SHA-256 key, or None when one of ``files`` is not a regular file or cannot
+        be read (the result is then not cached).
     """
     h = hashlib.sha256()
     h.update(command.encode())
@@ -69,14 +78,46 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
     h.update(json.dumps(options, sort_keys=True, default=str).encode())
     for f in files:
         try:
-            h.update(Path(f).read_bytes())
+            if not stat.S_ISREG(os.stat(f).st_mode):
+                return None
+            with open(f, "rb") as fh:
+                for chunk in iter(lambda fh=fh: fh.read(_CHUNK), b""):
+                    h.update(chunk)
         except OSError:
             return None
     return h.hexdigest()
 
 
+def _results_dir(create: bool) -> Path | None:
+    """The private folder of cached results, or None when it is unsafe or cannot be made.
+
+    The folder is created 0700; one that others may write to is never used (anyone who can
+    write it could plant results).
+    """
+    folder = cache_root() / "results"
+    try:
+        if create:
+            folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = folder.stat()
+    except OSError:
+        return None
+    if not stat.S_ISDIR(st.st_mode) or st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return None
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return None
+    return folder
+
+
+def _checksum(result: Any) -> str:
+    return hashlib.sha256(json.dumps(result, sort_keys=True).encode()).hexdigest()
+
+
 def load(key: str | None) -> dict[str, Any] | None:
     """A cached result, or None.
+
+    An entry is served only when it is whole and unaltered: it must hold the schema
+    version, its key and a SHA-256 of its result. A corrupted entry is deleted and the
+    result is recomputed.
 
     Parameters
     ----------
@@ -86,16 +127,32 @@ def load(key: str | None) -> dict[str, Any] | None:
     Returns
     -------
     dict or None
-        The stored result, or None when the cache is off, holds no entry for ``key``, or
-        the entry cannot be read.
+        The stored result, or None when the cache is off, holds no valid entry for
+        ``key``, or is unsafe (writable by others).
     """
     if key is None or not enabled():
         return None
-    path = cache_root() / "results" / f"{key}.json"
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    folder = _results_dir(create=False)
+    if folder is None:
         return None
+    path = folder / f"{key}.json"
+    try:
+        entry = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        entry = None
+    valid = (
+        isinstance(entry, dict)
+        and entry.get("schema") == SCHEMA
+        and entry.get("key") == key
+        and isinstance(entry.get("result"), dict)
+        and entry.get("sha256") == _checksum(entry["result"])
+    )
+    if not valid:
+        path.unlink(missing_ok=True)
+        return None
+    return entry["result"]
 
 
 def store(key: str | None, result: dict[str, Any]) -> None:
@@ -106,16 +163,16 @@ def store(key: str | None, result: dict[str, Any]) -> None:
     key : str or None
         A key from :func:`result_key`; None stores nothing.
     result : dict
-        The command's JSON-ready result. It is written to a temporary file and moved into
-        place, so a concurrent reader never sees half an entry.
+        The command's JSON-ready result. It is stored with its key, the schema version and
+        a checksum, written whole or not at all.
     """
     if key is None or not enabled():
         return
-    folder = cache_root() / "results"
+    folder = _results_dir(create=True)
+    if folder is None:
+        return
+    entry = {"schema": SCHEMA, "key": key, "sha256": _checksum(result), "result": result}
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        tmp = folder / f".{key}.{os.getpid()}.tmp"
-        tmp.write_text(json.dumps(result), encoding="utf-8")
-        os.replace(tmp, folder / f"{key}.json")
-    except OSError:
+        atomic_write_text(folder / f"{key}.json", json.dumps(entry))
+    except (OSError, BalancerIdError):
         return

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -56,6 +58,10 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on 
 FixOpt = Annotated[
     list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
 ]
+OverwriteOpt = Annotated[
+    bool,
+    typer.Option("--overwrite", help="Replace output files that exist (never an input)."),
+]
 TrajectoryOpt = Annotated[
     str | None,
     typer.Option(
@@ -82,9 +88,33 @@ def _main(
     """Identify a passive balancer's dynamics from force/acceleration step logs."""
 
 
-def _fail(message: str, code: int) -> None:
-    typer.echo(f"balancer-id: error: {' '.join(str(message).split())}", err=True)
+def _one_line(text: object) -> str:
+    """``text`` on one line, with control characters (terminal escapes) made visible."""
+    flat = " ".join(str(text).split())
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)
+
+
+def _fail(
+    message: str, code: int, exc: BaseException | None = None, json_out: bool = False
+) -> None:
+    line = _one_line(message)
+    typer.echo(f"balancer-id: error: {line}", err=True)
+    if json_out:
+        _emit_json({"error": _error_record(line, code, exc)})
     raise typer.Exit(code)
+
+
+def _error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:
+    """The ``error`` object of ``--json`` output: kind, message, exit code, where."""
+    file = getattr(exc, "file", None)
+    return {
+        "kind": type(exc).__name__ if exc is not None else "Error",
+        "message": line,
+        "exit_code": code,
+        "file": None if file is None else str(file),
+        "line": getattr(exc, "line", None),
+        "column": getattr(exc, "column", None),
+    }
 
 
 def guarded(func: F) -> F:
@@ -94,14 +124,32 @@ def guarded(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         from balancer_id.errors import BalancerIdError
 
+        json_out = bool(kwargs.get("json_out"))
         try:
-            return func(*args, **kwargs)
+            with warnings.catch_warnings():
+                # numpy's floating-point RuntimeWarnings mean nothing to a user; what matters
+                # is said as findings and warnings of the results
+                warnings.filterwarnings("ignore", category=RuntimeWarning)
+                return func(*args, **kwargs)
         except (typer.Exit, typer.Abort):
             raise
         except BalancerIdError as exc:
-            _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail("interrupted", 130)
+            _fail(str(exc), exc.exit_code, exc, json_out)
+        except KeyboardInterrupt as exc:
+            _fail("interrupted", 130, exc, json_out)
+        except SystemExit as exc:  # sys.exit() inside a user's effects file
+            _fail(
+                f"a user effects file called sys.exit({exc.code!r}) while loading or running; "
+                "effects must not exit: remove the call",
+                2,
+                exc,
+                json_out,
+            )
+        except MemoryError as exc:
+            _fail("out of memory: the input is too large for this machine", 3, exc, json_out)
+        except OSError as exc:
+            name = f" '{exc.filename}'" if exc.filename else ""
+            _fail(f"cannot access{name}: {exc.strerror or exc}", 3, exc, json_out)
         except Exception as exc:  # never a traceback for the user
             if os.environ.get("BALANCER_ID_DEBUG"):
                 raise
@@ -109,6 +157,8 @@ def guarded(func: F) -> F:
                 f"internal error {type(exc).__name__}: {exc} "
                 "(rerun with BALANCER_ID_DEBUG=1 and report it)",
                 1,
+                exc,
+                json_out,
             )
 
     return wrapper  # type: ignore[return-value]
@@ -155,6 +205,10 @@ def _read_options(
         raise UsageError("--force-sign must be +1 or -1")
     if vertical.lstrip("+-") not in ("auto", "x", "y", "z") or vertical in ("+auto", "-auto"):
         raise UsageError("--vertical must be auto or an axis with an optional sign: x, -z, +y")
+    if not (math.isfinite(g) and g > 0):
+        raise UsageError(f"--g {g}: gravity must be a positive number of m/s^2, e.g. 9.81")
+    if accel_unit not in ("auto", "m/s^2", "g"):
+        raise UsageError("--accel-unit must be auto, m/s^2 or g")
     cmap = None
     if columns:
         cmap = {}
@@ -173,6 +227,33 @@ def _read_options(
     )
 
 
+def _check_outputs(
+    outputs: dict[str, Path | None], inputs: list[Path | str], overwrite: bool
+) -> None:
+    """Refuse, before any work, outputs that are inputs, exist (without --overwrite) or are
+    read-only."""
+    from balancer_id.files import check_output
+
+    for option, path in outputs.items():
+        if path is not None:
+            check_output(path, inputs=inputs, overwrite=overwrite, option=option)
+
+
+def _inputs(logs: list[Path], effects_file: list[Path] | None, trajectory: str | None = None):
+    """Every file a command reads (an output may be none of them)."""
+    files: list[Path | str] = [*logs, *(effects_file or ())]
+    if trajectory and not trajectory.strip().startswith("trapezoid:"):
+        files.append(trajectory)
+    return files
+
+
+def _at_least(value: int | float, low: int | float, option: str) -> None:
+    from balancer_id.errors import UsageError
+
+    if not (isinstance(value, int) or math.isfinite(value)) or value < low:
+        raise UsageError(f"{option} {value}: give a number >= {low}")
+
+
 def _trajectory(text: str | None):
     from balancer_id.errors import UsageError
     from balancer_id.simulate.inputs import parse_trajectory
@@ -183,6 +264,20 @@ def _trajectory(text: str | None):
         return parse_trajectory(text)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+
+
+def _printable(obj: Any) -> Any:
+    """``obj`` with control characters in every string made visible (``\x1b``), so a run
+    or file name holding terminal escape sequences cannot drive the user's terminal."""
+    if isinstance(obj, str):
+        if obj.isprintable():
+            return obj
+        return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
+    if isinstance(obj, dict):
+        return {k: _printable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_printable(v) for v in obj]
+    return obj
 
 
 def _emit_json(obj: object) -> None:
@@ -208,12 +303,14 @@ def inspect(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    overwrite: OverwriteOpt = False,
 ) -> None:
     """Show what was read from LOG and the step trials found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.pipeline import describe_log, read, segment
 
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+    _check_outputs({"--plot": plot}, [log], overwrite)
     data = read(log, options)
     try:
         trials = segment(data, options)
@@ -221,6 +318,8 @@ def inspect(
     except NoTrialError as exc:
         trials, problem = [], exc
     info = describe_log(data, trials)
+    if problem is not None:
+        info["error"] = _error_record(_one_line(problem), problem.exit_code, problem)
     if plot is not None:
         from balancer_id.report.inspect_plot import plot_inspection
 
@@ -231,9 +330,10 @@ def inspect(
         print_inspection = __import__(
             "balancer_id.report.terminal", fromlist=["print_inspection"]
         ).print_inspection
-        print_inspection(_console(), info)
+        print_inspection(_console(), _printable(info))
     if problem is not None:
-        raise problem
+        typer.echo(f"balancer-id: error: {_one_line(problem)}", err=True)
+        raise typer.Exit(problem.exit_code)
 
 
 @app.command()
@@ -261,6 +361,7 @@ def fit(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    overwrite: OverwriteOpt = False,
     group_by: Annotated[
         str | None,
         typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
@@ -270,11 +371,14 @@ def fit(
     from balancer_id import cache
 
     fixed = _assignments(fix, "--fix")
+    _at_least(starts, 1, "--starts")
+    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+    _check_outputs({"--report": report}, _inputs(logs, effects_file, trajectory), overwrite)
     if group_by is not None:
         _fit_groups(
             logs,
             group_by,
-            _read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+            options,
             model=model,
             fixed=fixed,
             effects_files=effects_file or (),
@@ -296,6 +400,7 @@ def fit(
         "vertical": vertical,
         "columns": columns,
         "g": g,
+        "accel_unit": accel_unit,
         "logs": [str(p) for p in logs],
         "effects": [str(p) for p in effects_file or ()],
     }
@@ -304,7 +409,6 @@ def fit(
     if out is None:
         from balancer_id.fit import fit as run_fit
 
-        options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
         result = run_fit(
             logs,
             model=model,
@@ -326,7 +430,7 @@ def fit(
     else:
         from balancer_id.report.terminal import print_fit
 
-        print_fit(_console(), out)
+        print_fit(_console(), _printable(out))
 
 
 def _fit_groups(logs, group_by, options, *, json_out, report, **kwargs) -> None:
@@ -350,8 +454,8 @@ def _fit_groups(logs, group_by, options, *, json_out, report, **kwargs) -> None:
 
     console = _console()
     for item in out["groups"]:
-        console.print(f"[bold]group {item['group']}[/bold]")
-        print_fit(console, item)
+        console.print(f"[bold]group {_printable(item['group'])}[/bold]")
+        print_fit(console, _printable(item))
 
 
 @app.command()
@@ -406,6 +510,17 @@ def simulate(
         raise UsageError("--force-sign must be +1 or -1")
     if not 0.0 <= noise_correlation < 1.0:
         raise UsageError("--noise-correlation must be in [0, 1)")
+    if not (math.isfinite(rate) and rate > 0):
+        raise UsageError(f"--rate {rate}: give a sample rate > 0 Hz, e.g. 200")
+    for option, value in (("--noise", noise), ("--force-noise", force_noise), ("--rest", rest)):
+        _at_least(value, 0.0, option)
+    if not (math.isfinite(duration) and duration > 0):
+        raise UsageError(f"--duration {duration}: give the motion's length in s (> 0)")
+    if not (math.isfinite(drop) and 0.0 <= drop < 1.0):
+        raise UsageError(f"--drop {drop}: give the fraction of samples dropped, in [0, 1)")
+    if not math.isfinite(tilt):
+        raise UsageError(f"--tilt {tilt}: give the sensor's tilt in degrees")
+    _check_outputs({"--out": out}, _inputs([], effects_file, trajectory), overwrite)
     sensor = SensorSettings(
         rate_hz=rate,
         accel_noise=noise,
@@ -459,16 +574,22 @@ def compare(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    overwrite: OverwriteOpt = False,
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails."""
     from balancer_id.diagnose import compare as run_compare
+    from balancer_id.errors import UsageError
 
     specs = [m.strip() for m in model.split(",") if m.strip()]
+    if not specs:
+        raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
+    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+    _check_outputs({"--plot": plot}, _inputs(logs, effects_file, trajectory), overwrite)
     results = run_compare(
         logs,
         specs,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+        options=options,
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
     )
@@ -484,7 +605,7 @@ def compare(
     else:
         from balancer_id.report.terminal import print_compare
 
-        print_compare(_console(), out)
+        print_compare(_console(), _printable(out))
 
 
 @app.command()
@@ -520,7 +641,7 @@ def diagnose(
     else:
         from balancer_id.report.terminal import print_diagnosis
 
-        print_diagnosis(_console(), out)
+        print_diagnosis(_console(), _printable(out))
 
 
 @app.command()
@@ -544,15 +665,25 @@ def improve(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    overwrite: OverwriteOpt = False,
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve."""
     from balancer_id.diagnose import improve as run_improve
 
+    _at_least(max_steps, 0, "--max-steps")
+    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+    _check_outputs(
+        {"--report": report, "--plot": plot}, _inputs(logs, effects_file, trajectory), overwrite
+    )
+    if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
+        from balancer_id.errors import UsageError
+
+        raise UsageError("--report and --plot name the same file; give two names")
     result = run_improve(
         logs,
         start=start,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+        options=options,
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
         max_steps=max_steps,
@@ -571,7 +702,7 @@ def improve(
     else:
         from balancer_id.report.terminal import print_improve
 
-        print_improve(_console(), out)
+        print_improve(_console(), _printable(out))
 
 
 @app.command()
@@ -589,16 +720,19 @@ def report(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    overwrite: OverwriteOpt = False,
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots."""
     from balancer_id.report.sections import write_full_report
 
+    options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
+    _check_outputs({"--out": out}, _inputs(logs, effects_file, trajectory), overwrite)
     write_full_report(
         logs,
         out,
         model=model,
         fixed=_assignments(fix, "--fix"),
-        options=_read_options(thrust, force_sign, vertical, columns, g, accel_unit),
+        options=options,
         effects_files=effects_file or (),
         trajectory=_trajectory(trajectory),
     )
@@ -627,6 +761,11 @@ def batch(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    resume: Annotated[
+        bool,
+        typer.Option("--resume", help="Keep results already in OUT for unchanged logs."),
+    ] = False,
+    overwrite: OverwriteOpt = False,
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
     from balancer_id.batch import run_batch
@@ -640,7 +779,9 @@ def batch(
         effects_files=effects_file or (),
         jobs=jobs,
         scheduler=scheduler,
-        progress=lambda msg: typer.echo(msg, err=True),
+        progress=lambda msg: typer.echo(_one_line(msg), err=True),
+        resume=resume,
+        overwrite=overwrite,
     )
     if json_out:
         _emit_json(result.to_dict())
@@ -671,12 +812,31 @@ def effects(
     else:
         from balancer_id.report.terminal import print_effects
 
-        print_effects(_console(), items)
+        print_effects(_console(), _printable(items))
 
 
 def main() -> None:
-    """Entry point of the ``balancer-id`` console script."""
-    app()
+    """Entry point of the ``balancer-id`` console script.
+
+    Usage errors (unknown option, a value of the wrong type) are one line on stderr with
+    exit 2, like every other error, instead of click's framed box.
+    """
+    try:
+        code = app(standalone_mode=False)
+    except typer.Abort:
+        typer.echo("balancer-id: error: interrupted", err=True)
+        code = 130
+    except Exception as exc:  # click's usage errors (typer vendors click in recent versions)
+        if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
+            raise
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            typer.echo(ctx.get_help(), err=True)
+        else:
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            typer.echo(f"balancer-id: error: {_one_line(exc.format_message())}{hint}", err=True)
+        code = exc.exit_code
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":

@@ -79,3 +79,12 @@ class NoTrialError(IdentificationError):
 
 class OutputExistsError(UsageError):
     """An output file exists already and overwriting was not asked for (exit 2)."""
+
+
+class OutputWriteError(BalancerIdError):
+    """An output cannot be written: full disk, no permission, a read-only file (exit 3).
+
+    Exit 3 as for a file that cannot be read: the file system refused, not the command line.
+    """
+
+    exit_code = 3

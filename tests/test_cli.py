@@ -170,10 +170,20 @@ def test_a_second_identical_fit_comes_from_the_cache(cli, simulated, tmp_path, m
     entries = list((tmp_path / "results").glob("*.json"))
     assert len(entries) == 1
     # a cached entry is what the second run prints: prove it by planting a marker in it
-    planted = json.loads(entries[0].read_text())
+    # (a whole entry, with its checksum: the cache serves only unaltered entries)
+    key = entries[0].stem
+    planted = json.loads(entries[0].read_text())["result"]
     planted["model"] = "from-the-cache"
-    entries[0].write_text(json.dumps(planted))
+    entries[0].unlink()
+    cache.store(key, planted)
     assert json.loads(cli("fit", simulated, "--json")[1])["model"] == "from-the-cache"
+    # an entry altered behind the cache's back is not served: it is recomputed
+    tampered = json.loads(entries[0].read_text())
+    tampered["result"]["model"] = "tampered"
+    entries[0].write_text(json.dumps(tampered))
+    assert json.loads(cli("fit", simulated, "--json")[1])["model"] == "variable_viscosity"
+    entries[0].write_text('{"schema": 2, "key": "cut in the mid')
+    assert json.loads(cli("fit", simulated, "--json")[1])["model"] == "variable_viscosity"
     # other options, or --no-cache, compute anew
     assert json.loads(cli("fit", simulated, "--json", "--no-cache")[1])["model"] == (
         "variable_viscosity"

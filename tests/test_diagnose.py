@@ -140,3 +140,22 @@ def test_diagnose_never_fails_on_a_sample_log(cli, log):
     result = json.loads(out)
     assert result["verdict"] in ("adequate", "effect missing")
     assert np.isfinite(result["metrics"]["rmse"])
+
+
+def test_a_check_without_data_finds_nothing_and_warns_nothing():
+    """Short trials leave statistics empty: numpy's warnings stay inside, strength is 0."""
+    import numpy as np
+
+    from balancer_id.diagnose.signatures import Signature, signature_of
+
+    class Starved:
+        name = "starved"
+
+        @classmethod
+        def signature(cls, ctx):
+            late = np.array([])
+            return Signature(float(np.mean(late) / np.std(late)), "mean of nothing", {"x": 1.0})
+
+    sig = signature_of(Starved, ctx=None)
+    assert sig.strength == 0.0 and "too little data" in sig.evidence
+    assert sig.start == {"x": 1.0}

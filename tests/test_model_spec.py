@@ -97,3 +97,28 @@ def test_malformed_user_effect_is_refused():
 
     with pytest.raises(ModelSpecError, match="implement at least one hook"):
         Registry().add(NoHook)
+
+
+@pytest.mark.parametrize(
+    ("body", "words"),
+    [
+        ("    @staticmethod\n    def force(f, v, z, k_h):\n        return -k_h * z\n",
+         "force(f, v, z, k_h) takes 4 argument(s)"),
+        ("    def force(self, f, v, z, h, k_h):\n        return -k_h * z\n",
+         "must be a staticmethod"),
+        ("    @staticmethod\n    def friction(v, k_h):\n        return 0.0\n",
+         "friction(v, F, k_h)"),
+    ],
+)
+def test_a_hook_with_a_wrong_signature_is_refused_by_name(tmp_path, body, words):
+    from balancer_id.model.registry import default_registry
+
+    path = tmp_path / "bad_effect.py"
+    path.write_text(
+        "from balancer_id import Effect, Param\n\n\nclass Bad(Effect):\n"
+        '    name = "bad_hose"\n    summary = "x"\n'
+        '    parameters = (Param("k_h", 2.0, 0.0, 200.0, "N/m", "stiffness"),)\n\n' + body
+    )
+    with pytest.raises(ModelSpecError, match="bad_hose") as info:
+        default_registry([path])
+    assert words in str(info.value)

@@ -20,6 +20,7 @@ parameters, in the order of :attr:`Effect.parameters`, after the state arguments
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -190,3 +191,35 @@ class Effect:
                     f"effect {label}: start value of {p.name} ({p.value}) is outside its bounds"
                 )
             seen.add(p.name)
+        for hook in cls.hooks():
+            _check_hook_signature(cls, label, hook)
+
+
+def _check_hook_signature(cls: type[Effect], label: str, hook: str) -> None:
+    """Refuse a hook that is not a staticmethod taking the state, then the parameters."""
+    expected = [*HOOKS[hook], *(p.name for p in cls.parameters)]
+    wanted = f"@staticmethod def {hook}({', '.join(expected)})"
+    if not isinstance(inspect.getattr_static(cls, hook), staticmethod):
+        raise ModelSpecError(
+            f"effect {label}: hook '{hook}' must be a staticmethod without self: {wanted}"
+        )
+    try:
+        params = list(inspect.signature(getattr(cls, hook)).parameters.values())
+    except (TypeError, ValueError):
+        return  # a builtin or compiled function: numba will judge it
+    kinds = {p.kind for p in params}
+    if inspect.Parameter.VAR_POSITIONAL in kinds:
+        return
+    positional = [
+        p
+        for p in params
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty
+    ]
+    keyword_only = [p for p in params if p.kind is p.KEYWORD_ONLY and p.default is p.empty]
+    if len(positional) != len(expected) or keyword_only:
+        got = ", ".join(p.name for p in params)
+        raise ModelSpecError(
+            f"effect {label}: hook {hook}({got}) takes {len(positional)} argument(s); it must "
+            f"take the state ({', '.join(HOOKS[hook]) or 'nothing'}) then the effect's own "
+            f"parameters in order: {wanted}"
+        )

@@ -18,13 +18,13 @@ Extra channels are written after the others under their ``extra`` key.
 from __future__ import annotations
 
 import os
-import tempfile
 from datetime import datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 
-from balancer_id.errors import OutputExistsError, UsageError
+from balancer_id.errors import UsageError
+from balancer_id.files import atomic_write, check_output
 from balancer_id.read.recording import FORMATS, Recording
 
 _DELIMITERS = (",", ";", "\t")
@@ -81,12 +81,12 @@ def write_log(
     """
     path = Path(path)
     _check_options(layout, delimiter, decimal, recordings)
-    if path.exists() and not overwrite:
-        raise OutputExistsError(f"{path} exists already; pass overwrite=True to replace it")
+    check_output(path, overwrite=overwrite, option="output")
     payload = render(recordings, layout, delimiter=delimiter, decimal=decimal, crlf=crlf)
     if bom:
         payload = b"\xef\xbb\xbf" + payload
-    _atomic_write(path, payload, overwrite)
+    check_output(path, overwrite=overwrite, option="output")
+    atomic_write(path, lambda fh: fh.write(payload))
     return path
 
 
@@ -247,22 +247,3 @@ def _generic(rec: Recording) -> _Columns:
         else:
             out.extend((f"a{axis}", rec.accel[:, k]) for k, axis in enumerate(rec.accel_axes))
     return out + _extras(rec, "")
-
-
-def _atomic_write(path: Path, payload: bytes, overwrite: bool) -> None:
-    folder = path.parent
-    if not folder.is_dir():
-        raise UsageError(f"cannot write {path}: the folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(payload)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)
-        if path.exists() and not overwrite:
-            raise OutputExistsError(f"{path} exists already; pass overwrite=True to replace it")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

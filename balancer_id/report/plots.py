@@ -12,15 +12,14 @@ matplotlib is imported inside the functions, so importing this module is cheap.
 
 from __future__ import annotations
 
-import os
-import tempfile
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from balancer_id.errors import UsageError
+from balancer_id.files import atomic_write
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -52,48 +51,6 @@ TRIAL_COLUMNS = 2
 # --------------------------------------------------------------------------------------
 # writing
 # --------------------------------------------------------------------------------------
-def atomic_write(path: str | Path, write: Callable[[IO[bytes]], object]) -> Path:
-    """Write a file whole or not at all.
-
-    ``write`` fills a temporary file in the target's directory, which then replaces the
-    target in one ``os.replace``; on any error the temporary file is removed and the
-    target is left as it was.
-
-    Parameters
-    ----------
-    path : str or Path
-        The file to write.
-    write : callable
-        Called with the open binary temporary file.
-
-    Returns
-    -------
-    Path
-        ``path``.
-
-    Raises
-    ------
-    UsageError
-        The target's directory does not exist or the target is a directory.
-    """
-    path = Path(path)
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"cannot write '{path}': directory '{parent}' does not exist")
-    if path.is_dir():
-        raise UsageError(f"cannot write '{path}': it is a directory; give a file name")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def _new_figure(
     width: float, height: float, layout: Literal["constrained"] | None = "constrained"
 ) -> Figure:

@@ -162,13 +162,26 @@ def synthetic_recordings(
 
 
 def _keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """Samples kept after wireless drop-outs: bursts of 1-5 samples, first and last kept.
+
+    Terminates for any fraction: at most ``4 n`` bursts are drawn, and what the bursts
+    leave short of the target is dropped sample by sample.
+    """
     keep = np.ones(n, dtype=bool)
-    if drop_fraction <= 0:
+    if not drop_fraction > 0 or n < 8:
         return keep
-    target = int(drop_fraction * n)
-    while (~keep).sum() < target:
+    target = min(int(min(drop_fraction, 1.0) * n), n - 2)
+    dropped = 0
+    for _ in range(4 * n):
+        if dropped >= target:
+            break
         start = int(rng.integers(1, n - 6))
-        keep[start : start + int(rng.integers(1, 6))] = False
+        burst = keep[start : start + int(rng.integers(1, 6))]
+        dropped += int(burst.sum())
+        burst[:] = False
+    if dropped < target:
+        inner = np.flatnonzero(keep[1:-1]) + 1
+        keep[rng.choice(inner, min(target - dropped, inner.size), replace=False)] = False
     return keep
 
 

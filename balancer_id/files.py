@@ -1,0 +1,211 @@
+"""Writing files safely: the one place that decides whether an output may be written.
+
+Every file balancer-id writes (reports, plots, synthetic logs, batch results, cache
+entries) goes through :func:`atomic_write`: a temporary file in the target's folder,
+flushed to disk, then one ``os.replace``, so a reader never sees half a file and a
+failure (full disk, Ctrl-C, SIGKILL) leaves the target as it was. Before anything is
+computed, the commands call :func:`check_output` on each output path: an output that is
+one of the inputs (same file, by inode, or the same path) is refused, an existing file is
+replaced only when the user said ``--overwrite``, and a read-only file never.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import IO
+
+from balancer_id.errors import OutputExistsError, OutputWriteError, UsageError
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """True when ``a`` and ``b`` name the same file (same path or same inode)."""
+    try:
+        if a.resolve() == b.resolve():
+            return True
+    except OSError:
+        pass
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_output(
+    path: str | Path,
+    *,
+    inputs: Iterable[str | Path] = (),
+    overwrite: bool = False,
+    option: str = "output",
+) -> Path:
+    """Refuse an output path that would destroy something the user gave.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file about to be written.
+    inputs : iterable of str or Path
+        Files the command reads (logs, effect files, trajectories, folders of logs): the
+        output may be none of them.
+    overwrite : bool
+        Whether an existing file may be replaced (the user's ``--overwrite``).
+    option : str
+        How the user named the path (``--report``, ``--plot``), for the message.
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    UsageError
+        The folder does not exist, the path is a folder or a special file, or it is one of
+        the inputs.
+    OutputExistsError
+        The file exists and ``overwrite`` is False, or it is read-only.
+    """
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(
+            f"{option} '{path}': the folder '{parent}' does not exist; create it first"
+        )
+    for src in inputs:
+        if _same_file(Path(src), path):
+            raise UsageError(
+                f"{option} '{path}' is one of the inputs; writing it would destroy your data: "
+                "give another file name"
+            )
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return path
+    except OSError as exc:
+        raise UsageError(f"{option} '{path}': cannot be checked ({exc.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UsageError(f"{option} '{path}' is a folder; give a file name")
+    if not stat.S_ISREG(st.st_mode):
+        raise UsageError(f"{option} '{path}' is not a regular file; give a file name")
+    if is_read_only(path):
+        raise OutputExistsError(
+            f"{option} '{path}' exists and is read-only; it is never replaced: give another name"
+        )
+    if not overwrite:
+        raise OutputExistsError(
+            f"{option} '{path}' exists already; add --overwrite to replace it, or give another name"
+        )
+    return path
+
+
+def is_read_only(path: str | Path) -> bool:
+    """Whether ``path`` is read-only: no write permission bit, or not writable by us.
+
+    The permission bits count even for a superuser, who could write anyway: a file made
+    read-only says "keep this".
+
+    Parameters
+    ----------
+    path : str or Path
+        An existing file.
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not (mode & 0o222) or not os.access(path, os.W_OK)
+
+
+def atomic_write(path: str | Path, write: Callable[[IO[bytes]], object]) -> Path:
+    """Write a file whole or not at all.
+
+    ``write`` fills a temporary file in the target's folder, which is flushed to disk and
+    then replaces the target in one ``os.replace``; on any error (including a full disk or
+    an interrupt) the temporary file is removed and the target is left as it was. A
+    read-only target is never replaced.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    write : callable
+        Called with the open binary temporary file.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    UsageError
+        The folder does not exist or the target is a folder.
+    OutputWriteError
+        The disk is full or the folder not writable (with what to do).
+    OutputExistsError
+        The target exists and is read-only.
+    """
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(f"cannot write '{path}': the folder '{parent}' does not exist")
+    if path.is_dir():
+        raise UsageError(f"cannot write '{path}': it is a folder; give a file name")
+    if path.exists() and is_read_only(path):
+        raise OutputExistsError(f"'{path}' is read-only; it is never replaced: give another name")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
+    except OSError as exc:
+        raise _write_error(path, exc) from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o644)
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise _write_error(path, exc) from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` whole or not at all (see :func:`atomic_write`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    text : str
+        Its content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    data = text.encode("utf-8")
+    return atomic_write(path, lambda fh: fh.write(data))
+
+
+def _write_error(path: Path, exc: OSError) -> OutputWriteError:
+    """A one-line error for an OSError met while writing ``path``."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        what = "the disk is full; free some space or write elsewhere"
+    elif exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        what = "permission denied; choose a folder you can write to"
+    else:
+        what = f"{exc.strerror or exc}"
+    return OutputWriteError(f"cannot write '{path}': {what}")

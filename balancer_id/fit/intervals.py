@@ -1,0 +1,184 @@
+"""Confidence intervals that respect the parameters' bounds: the profile likelihood.
+
+The Wald interval ``value ± 1.96 stderr`` comes from the curvature of the cost at the
+optimum. Where a parameter is poorly determined it can cross a physical bound (a mass
+"-9.6 .. 21.6 kg"). The profile interval asks the data instead: hold the parameter at a
+trial value, refit all the others, and keep the values whose cost stays within the
+chi-square threshold of the optimum,
+
+    S(theta) - S_min <= sigma^2 * chi2_1(level),   sigma^2 = S_min / (n - k)
+
+(the likelihood-ratio interval of least squares with the noise variance estimated from
+the fit). An end that reaches a bound before the cost crosses the threshold *is* the
+bound: the data cannot exclude it, and the interval says so.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.errors import BalancerIdError
+from balancer_id.fit.matching import MatchResult, match_trials
+
+#: Refits per end of an interval, at most (bracketing, then bisection).
+MAX_REFITS_PER_END = 14
+
+
+@dataclass(frozen=True)
+class ProfileInterval:
+    """A profile-likelihood confidence interval of one parameter.
+
+    Attributes
+    ----------
+    name : str
+        The parameter.
+    low, high : float
+        The interval's ends (in the parameter's unit).
+    level : float
+        Confidence level (0.95).
+    low_at_bound, high_at_bound : bool
+        Whether an end is the parameter's bound (the data do not exclude it).
+    method : str
+        ``"profile"``.
+    """
+
+    name: str
+    low: float
+    high: float
+    level: float
+    low_at_bound: bool
+    high_at_bound: bool
+    method: str = "profile"
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "low": self.low,
+            "high": self.high,
+            "level": self.level,
+            "method": self.method,
+            "low_at_bound": self.low_at_bound,
+            "high_at_bound": self.high_at_bound,
+        }
+
+
+def chi2_quantile_1dof(level: float) -> float:
+    """The ``level`` quantile of the chi-square distribution with one degree of freedom.
+
+    Parameters
+    ----------
+    level : float
+        Probability in (0, 1).
+
+    Returns
+    -------
+    float
+        ``z^2`` where ``z`` is the two-sided normal quantile (3.8415 for 0.95).
+    """
+    from scipy.special import ndtri
+
+    return float(ndtri(0.5 + level / 2.0) ** 2)
+
+
+def wald_crosses_bound(match: MatchResult, name: str) -> bool:
+    """Whether the Wald 95 % interval of ``name`` leaves the parameter's bounds (or is undefined).
+
+    Parameters
+    ----------
+    match : MatchResult
+        A fit.
+    name : str
+        A fitted parameter.
+
+    Returns
+    -------
+    bool
+    """
+    est = match.parameters[name]
+    if not est.vary:
+        return False
+    spec = match.model.param(name)
+    ci = est.ci95
+    return ci is None or ci[0] < spec.min or ci[1] > spec.max
+
+
+def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> ProfileInterval:
+    """The profile-likelihood interval of one fitted parameter.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its model, trials, fixed parameters and optimum are reused).
+    name : str
+        A parameter the fit varied.
+    level : float
+        Confidence level.
+
+    Returns
+    -------
+    ProfileInterval
+
+    Raises
+    ------
+    ValueError
+        When ``name`` was not fitted.
+    """
+    est = match.parameters.get(name)
+    if est is None or not est.vary:
+        raise ValueError(f"{name} was not fitted; only a fitted parameter has an interval")
+    spec = match.model.param(name)
+    n = match.y.size
+    k = sum(1 for p in match.parameters.values() if p.vary)
+    s_min = float(np.sum(match.residual**2))
+    sigma2 = s_min / max(n - k, 1)
+    threshold = s_min + sigma2 * chi2_quantile_1dof(level)
+    held = {p.name: p.value for p in match.parameters.values() if not p.vary}
+    start = match.values()
+
+    def cost(value: float) -> float:
+        try:
+            refit = match_trials(
+                match.model,
+                match.data.trials,
+                start={**start, name: value},
+                fixed={**held, name: value},
+                max_nfev=300,
+            )
+        except BalancerIdError:
+            return math.inf
+        return float(np.sum(refit.residual**2))
+
+    span = spec.max - spec.min
+    step0 = est.stderr if est.stderr and np.isfinite(est.stderr) and est.stderr > 0 else None
+    step0 = min(step0 or 0.1 * max(abs(est.value), 1e-3 * span), 0.25 * span)
+
+    def end(side: int) -> tuple[float, bool]:
+        bound = spec.min if side < 0 else spec.max
+        inside, step = est.value, step0
+        for _ in range(MAX_REFITS_PER_END):
+            trial = est.value + side * step
+            if (trial - bound) * side >= 0:  # at or past the bound
+                if cost(bound) <= threshold:
+                    return bound, True
+                outside = bound
+                break
+            if cost(trial) > threshold:
+                outside = trial
+                break
+            inside, step = trial, 2.0 * step
+        else:
+            return inside, False
+        for _ in range(MAX_REFITS_PER_END // 2):
+            mid = 0.5 * (inside + outside)
+            if cost(mid) <= threshold:
+                inside = mid
+            else:
+                outside = mid
+        return 0.5 * (inside + outside), False
+
+    low, low_b = end(-1)
+    high, high_b = end(+1)
+    return ProfileInterval(name, float(low), float(high), level, low_b, high_b)

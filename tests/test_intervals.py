@@ -1,0 +1,44 @@
+"""Profile-likelihood intervals: they agree with Wald where the fit is well determined and
+stay inside the physical bounds where it is not."""
+
+from __future__ import annotations
+
+import pytest
+from test_fit import step_trials
+
+from balancer_id.fit import match_trials
+from balancer_id.fit.intervals import chi2_quantile_1dof, profile_interval, wald_crosses_bound
+from balancer_id.model import parse_model
+
+
+def test_chi_square_quantile():
+    assert chi2_quantile_1dof(0.95) == pytest.approx(3.841459, rel=1e-6)
+    assert chi2_quantile_1dof(0.6826894921) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_profile_matches_wald_for_a_well_determined_mass(rng):
+    # viscous model, noise 0.03 m/s^2: the cost is nearly quadratic in m_a around the optimum
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0}
+    trials = step_trials("viscous", truth, [2.45, -4.9, 7.35], 0.03, rng, seconds=5.0)
+    fit = match_trials(parse_model("viscous"), trials, start={"m_a": 14.0, "T_a": 0.3})
+    est = fit.parameters["m_a"]
+    interval = profile_interval(fit, "m_a")
+    lo, hi = est.ci95
+    assert not wald_crosses_bound(fit, "m_a")
+    assert interval.low == pytest.approx(lo, abs=0.15 * (hi - lo))
+    assert interval.high == pytest.approx(hi, abs=0.15 * (hi - lo))
+    assert interval.low < truth["m_a"] < interval.high
+
+
+def test_profile_stops_at_the_bound_when_the_data_allow_it(rng):
+    # almost no viscosity and short trials: D0 is barely in the data, its Wald interval
+    # crosses zero; the profile interval ends at the bound D0 = 0 and says so
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 0.2}
+    trials = step_trials("viscous", truth, [2.45, -4.9], 0.05, rng, seconds=2.5)
+    fit = match_trials(parse_model("viscous"), trials, start={"m_a": 14.0, "T_a": 0.3})
+    assert wald_crosses_bound(fit, "D0")
+    interval = profile_interval(fit, "D0")
+    assert interval.low == 0.0 and interval.low_at_bound
+    assert not interval.high_at_bound
+    assert interval.high > fit.parameters["D0"].value
+    assert interval.low <= truth["D0"] <= interval.high
