@@ -327,6 +327,32 @@ class SessionPack:
         """
         return self.inner.run(model, pvec, substeps)[self.rows]
 
+    def run_sens(
+        self, model: Model, pvec: np.ndarray, cols: Sequence[int], substeps: int = DEFAULT_SUBSTEPS
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate with sensitivities (where the engine has them); rows of the fitted samples.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order.
+        cols : sequence of int
+            What to differentiate with respect to (as ``PackedTrials.run_sens``).
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        out : numpy.ndarray
+            As :meth:`run`.
+        sens : numpy.ndarray
+            The sensitivities of the fitted samples' acceleration.
+        """
+        out, sens = self.inner.run_sens(model, pvec, cols, substeps)  # type: ignore[attr-defined]
+        return out[self.rows], sens[self.rows]
+
 
 @dataclass
 class FitData:
