@@ -215,6 +215,17 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     )
     console.print(result["summary"])
     tests = result["residual_tests"]
+    groups = tests.get("parameter_groups")
+    if groups:
+        title = f"{groups['parameter']} per run (split test p = {groups['p_value']:.1e})"
+        runs = Table(title=title)
+        for col in ("#", "run", "value", "stderr", "|thrust| (N)"):
+            runs.add_column(col)
+        for k, r in enumerate(groups["runs"], start=1):
+            runs.add_row(
+                str(k), r["run"], f"{r['value']:.4g}", f"{r['stderr']:.2g}", f"{r['thrust_N']:.3g}"
+            )
+        console.print(runs)
     w = tests["whiteness"]
     if w.get("ljung_box_p") is not None:
         console.print(
@@ -257,7 +268,8 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
             s["evidence"],
             s["command"],
         )
-    console.print(sug)
+    if result["suggestions"] or not groups:
+        console.print(sug)
     for f in result.get("failed_candidates", []):
         console.print(f"[yellow]candidate failed:[/yellow] {f}")
 
