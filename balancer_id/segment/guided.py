@@ -27,14 +27,31 @@ MIN_MOVE_S = 1.0
 DEPART_K = 8.0
 START_K = 2.0
 #: The motion confirms the move when its smoothed acceleration exceeds this many noise
-#: deviations of the acceleration.
+#: deviations of the acceleration and follows the force (correlation with the force
+#: passed through a first-order lag of ``LAG_S``, at least ``MIN_CORRELATION``).
 MOTION_K = 5.0
+LAG_S = 0.3
+MIN_CORRELATION = 0.5
+#: A person moves the load within seconds: the force leaves its rest within this time
+#: (a slow drift of the sensor's offset is no move).
+MAX_DEPARTURE_S = 3.0
 
 
 def _noise(x: np.ndarray) -> float:
     """White-noise deviation from first differences (robust: MAD)."""
     d = np.diff(x)
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0)) if d.size else 0.0
+
+
+def _lagged_correlation(t: np.ndarray, u: np.ndarray, a: np.ndarray) -> float:
+    """Correlation of ``a`` with ``u`` through a first-order lag of :data:`LAG_S`."""
+    f = np.zeros_like(u)
+    for i in range(1, u.size):
+        k = min((t[i] - t[i - 1]) / LAG_S, 1.0)
+        f[i] = f[i - 1] + k * (u[i - 1] - f[i - 1])
+    if np.std(f) == 0 or np.std(a) == 0:
+        return 0.0
+    return float(np.corrcoef(f, a)[0, 1])
 
 
 def guided_move(
@@ -101,11 +118,15 @@ def guided_move(
     start = max(lo, begin - rest_n)
     if (time[stop - 1] - time[begin]) < MIN_MOVE_S or begin - lo < 3:
         return None
+    if time[first] - time[begin] > MAX_DEPARTURE_S:
+        return None
     acc_s = smooth(accel, w)
     a_sigma = max(_noise(accel) / np.sqrt(w), 1e-9)
     if np.max(np.abs(acc_s[begin:stop] - np.median(acc_s[start:begin]))) < MOTION_K * a_sigma:
         return None
     change = force[start:stop] - ref
+    if abs(_lagged_correlation(time[start:stop], change, acc_s[start:stop])) < MIN_CORRELATION:
+        return None
     if force_sign is not None:
         orientation = float(force_sign)
         how = "force sign as given"
