@@ -232,6 +232,7 @@ def run_batch(
     progress: Callable[[str], None] | None = None,
     resume: bool = False,
     overwrite: bool = False,
+    trajectory: Any = None,
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -276,6 +277,9 @@ def run_batch(
     overwrite : bool
         Allow replacing the results of an earlier batch in ``out_dir`` (without
         ``resume`` or ``overwrite``, a folder holding a ``summary.csv`` is refused).
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move, the same for every log (``servo``); its start is
+        found in each log unless given.
 
     Returns
     -------
@@ -306,7 +310,7 @@ def run_batch(
     pooled = scheduler is None and n_workers > 1
     context = _mp_context() if pooled else None  # the fork server starts while we compile
     extra = tuple(str(Path(f).resolve()) for f in effects_files)
-    mdl = _prepare_model(model, fixed, extra)
+    mdl = _prepare_model(model, fixed, extra, trajectory is not None)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -327,10 +331,11 @@ def run_batch(
             fixed=dict(fixed or {}),
             options=options,
             effects_files=extra,
+            trajectory=trajectory,
         )
         rows: list[BatchRow | None] = [None] * len(tasks)
         keys = [
-            request_key(task.path, mdl.spec, fixed, options, extra) for task in tasks
+            request_key(task.path, mdl.spec, fixed, options, extra, trajectory) for task in tasks
         ]
 
         def record(index: int, payload: Payload) -> None:
@@ -378,6 +383,7 @@ def request_key(
     fixed: Mapping[str, float] | None,
     options: ReadOptions | None,
     effects_files: Sequence[str],
+    trajectory: Any = None,
 ) -> str | None:
     """What one log's result depends on: its bytes, the model, the options, the effects.
 
@@ -393,6 +399,8 @@ def request_key(
         Reading and segmentation options.
     effects_files : sequence of str
         User effect files (their bytes count too).
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move (counts when given).
 
     Returns
     -------
@@ -402,11 +410,10 @@ def request_key(
     """
     from balancer_id.cache import result_key
 
-    return result_key(
-        "batch",
-        [path, *effects_files],
-        {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)},
-    )
+    request = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
+    if trajectory is not None:
+        request["trajectory"] = repr(trajectory)
+    return result_key("batch", [path, *effects_files], request)
 
 
 def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
@@ -636,7 +643,10 @@ def _check_out_dir(out: Path, given: Sequence[str | Path], logs: Sequence[Path])
 
 
 def _prepare_model(
-    model: str | None, fixed: Mapping[str, float] | None, extra: Sequence[str]
+    model: str | None,
+    fixed: Mapping[str, float] | None,
+    extra: Sequence[str],
+    with_trajectory: bool = False,
 ) -> Model:
     """Resolve the model, check ``fixed`` against it and warm the kernel's disk cache."""
     from balancer_id.fit.api import resolve_model
@@ -648,10 +658,10 @@ def _prepare_model(
             f"--fix {', '.join(unknown)}: not a parameter of '{mdl.spec}' "
             f"(its parameters: {', '.join(mdl.param_names)})"
         )
-    if mdl.has("servo"):
+    if mdl.has("servo") and not with_trajectory:
         raise UsageError(
-            "a model with 'servo' needs the robot's reference move, which batch does not "
-            "take; fit such logs one by one with 'balancer-id fit --trajectory ...'"
+            "a model with 'servo' needs the robot's reference move: give --trajectory "
+            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
     warm_kernel(mdl)
     return mdl
@@ -705,6 +715,7 @@ def _identify(
     fixed: Mapping[str, float],
     options: ReadOptions | None,
     effects_files: Sequence[str],
+    trajectory: Any = None,
 ) -> Payload:
     """Fit one log; never raises an ``Exception`` (a failure is a payload too).
 
@@ -719,7 +730,12 @@ def _identify(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             result = fit(
-                [path], model=model, fixed=fixed, options=options, effects_files=effects_files
+                [path],
+                model=model,
+                fixed=fixed,
+                options=options,
+                effects_files=effects_files,
+                trajectory=trajectory,
             )
             data: dict[str, Any] = dict(result.to_dict())
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]

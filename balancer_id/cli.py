@@ -65,7 +65,9 @@ OverwriteOpt = Annotated[
 TrajectoryOpt = Annotated[
     str | None,
     typer.Option(
-        "--trajectory", help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..'."
+        "--trajectory",
+        help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..[,start=..]' or a "
+        "CSV of time,position.",
     ),
 ]
 
@@ -260,6 +262,10 @@ def _trajectory(text: str | None):
 
     if text is None:
         return None
+    if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
+        from balancer_id.segment.move import read_trajectory_csv
+
+        return read_trajectory_csv(text)
     try:
         return parse_trajectory(text)
     except ValueError as exc:
@@ -303,9 +309,10 @@ def inspect(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    trajectory: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
 ) -> None:
-    """Show what was read from LOG and the step trials found in it."""
+    """Show what was read from LOG and the step trials (or the robot move) found in it."""
     from balancer_id.errors import NoTrialError
     from balancer_id.pipeline import describe_log, read, segment
 
@@ -313,7 +320,7 @@ def inspect(
     _check_outputs({"--plot": plot}, [log], overwrite)
     data = read(log, options)
     try:
-        trials = segment(data, options)
+        trials = segment(data, options, _trajectory(trajectory))
         problem = None
     except NoTrialError as exc:
         trials, problem = [], exc
@@ -361,6 +368,10 @@ def fit(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     group_by: Annotated[
         str | None,
@@ -371,6 +382,10 @@ def fit(
     from balancer_id import cache
 
     fixed = _assignments(fix, "--fix")
+    if params is not None:  # issue 9: hold an earlier fit's values; --fix wins
+        from balancer_id.fit.params_file import held_for_model
+
+        fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
     _at_least(starts, 1, "--starts")
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     _check_outputs({"--report": report}, _inputs(logs, effects_file, trajectory), overwrite)
@@ -420,6 +435,11 @@ def fit(
             n_starts=starts,
         )
         out = result.to_dict()
+        if result.coupling is not None:  # issue 9: advice for the robot-balancer pair
+            from balancer_id.diagnose.advice import advise_fit
+
+            moves = [t.input for t in result.match.data.trials]
+            out["advice"] = advise_fit(result.match.model, result.values, moves).to_dict()
         cache.store(key, out)
         if report is not None:
             from balancer_id.report.document import write_fit_report
@@ -564,6 +584,10 @@ def compare(
         str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
     ] = "viscous,variable_viscosity",
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
+    vibration_plot: Annotated[
+        Path | None,
+        typer.Option("--vibration-plot", help="With --trajectory: the moves' vibration PNG."),
+    ] = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     thrust: ThrustOpt = None,
@@ -576,7 +600,11 @@ def compare(
     accel_unit: AccelUnitOpt = "auto",
     overwrite: OverwriteOpt = False,
 ) -> None:
-    """Measured vs simulated for several models: errors per trial and where each fails."""
+    """Measured vs simulated for several models: errors per trial and where each fails.
+
+    With --trajectory it also sets the vibration of each log's move side by side
+    (human against robot: band power around the coupled mode).
+    """
     from balancer_id.diagnose import compare as run_compare
     from balancer_id.errors import UsageError
 
@@ -584,7 +612,11 @@ def compare(
     if not specs:
         raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
-    _check_outputs({"--plot": plot}, _inputs(logs, effects_file, trajectory), overwrite)
+    _check_outputs(
+        {"--plot": plot, "--vibration-plot": vibration_plot},
+        _inputs(logs, effects_file, trajectory),
+        overwrite,
+    )
     results = run_compare(
         logs,
         specs,
@@ -594,6 +626,15 @@ def compare(
         trajectory=_trajectory(trajectory),
     )
     out = {"models": [r.to_dict() for r in results]}
+    if trajectory is not None:  # issue 9: the vibration of each move, side by side
+        from balancer_id.diagnose.vibration import vibration_of_logs
+
+        vib = vibration_of_logs(logs, options, _trajectory(trajectory))
+        out["vibration"] = vib.to_dict()
+        if vibration_plot is not None:
+            from balancer_id.report.vibration_plot import plot_vibration
+
+            plot_vibration(vib, vibration_plot)
     if plot is not None:
         from balancer_id.report.sections import plot_comparison
 
@@ -761,6 +802,7 @@ def batch(
     columns: ColumnsOpt = None,
     g: GOpt = 9.8,
     accel_unit: AccelUnitOpt = "auto",
+    trajectory: TrajectoryOpt = None,
     resume: Annotated[
         bool,
         typer.Option("--resume", help="Keep results already in OUT for unchanged logs."),
@@ -782,6 +824,7 @@ def batch(
         progress=lambda msg: typer.echo(_one_line(msg), err=True),
         resume=resume,
         overwrite=overwrite,
+        trajectory=_trajectory(trajectory),
     )
     if json_out:
         _emit_json(result.to_dict())

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import NoTrialError, UsageError
@@ -74,7 +75,7 @@ def read(path: str | Path, options: ReadOptions | None = None) -> Log:
     return read_log(path, columns=options.columns, g=options.g, accel_unit=options.accel_unit)
 
 
-def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
+def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None) -> list[Trial]:
     """Find the trials of a log (raises NoTrialError when there is none).
 
     Parameters
@@ -84,6 +85,9 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     options : ReadOptions, optional
         Column map, thrusts, force sign, vertical axis and gravity; None uses the
         defaults.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move: one move window per run instead of step trials
+        (:func:`balancer_id.segment.move.find_moves`).
 
     Returns
     -------
@@ -98,6 +102,12 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     from balancer_id.segment import find_trials
 
     options = options or ReadOptions()
+    if trajectory is not None:  # robot move (issue 9)
+        from balancer_id.segment.move import find_moves
+
+        o = options
+        moves = find_moves(log, trajectory, force_sign=o.force_sign, vertical=o.vertical, g=o.g)
+        return list(moves)
     return find_trials(
         log,
         thrusts=options.thrusts,
@@ -107,7 +117,9 @@ def segment(log: Log, options: ReadOptions | None = None) -> list[Trial]:
     )
 
 
-def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
+def load_log(
+    path: str | Path, options: ReadOptions | None = None, trajectory: Any = None
+) -> LoadedLog:
     """Read one log and find its trials (raises NoTrialError when there is none).
 
     Parameters
@@ -117,6 +129,8 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
     options : ReadOptions, optional
         Column map, thrusts, force sign, vertical axis and gravity; None uses the
         defaults.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move (see :func:`segment`).
 
     Returns
     -------
@@ -130,10 +144,12 @@ def load_log(path: str | Path, options: ReadOptions | None = None) -> LoadedLog:
         When no step trial is found.
     """
     log = read(path, options)
-    return LoadedLog(log, segment(log, options))
+    return LoadedLog(log, segment(log, options, trajectory))
 
 
-def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None) -> list[LoadedLog]:
+def load_trials(
+    paths: Sequence[str | Path], options: ReadOptions | None = None, trajectory: Any = None
+) -> list[LoadedLog]:
     """Read several logs; trials are renumbered across logs.
 
     A log without trials is skipped as long as another log has some.
@@ -146,6 +162,8 @@ def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None)
         Column map, thrusts, force sign, vertical axis and gravity; None uses the
         defaults.
         ``thrusts`` may only be given with a single log.
+    trajectory : Trapezoid or TabulatedMove, optional
+        A robot's reference move (see :func:`segment`).
 
     Returns
     -------
@@ -166,7 +184,7 @@ def load_trials(paths: Sequence[str | Path], options: ReadOptions | None = None)
     problems = []
     for path in paths:
         try:
-            loaded.append(load_log(path, options))
+            loaded.append(load_log(path, options, trajectory))
         except NoTrialError as exc:
             if len(paths) == 1:
                 raise

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from balancer_id.constants import ACCEL_RANGE_G, FORCE_RANGE_N, G_DEFAULT
+from balancer_id.errors import LogReadError
 from balancer_id.read import read_log
 from balancer_id.read.header import classify, split_name
 from balancer_id.read.sniff import sniff
@@ -97,20 +98,20 @@ def _multirate_text() -> str:
     return "\ufeff" + "\r\n".join(lines) + "\r\n\r\n"
 
 
-def test_channel_at_another_rate_becomes_its_own_run(tmp_path: Path) -> None:
+def test_slower_force_under_a_shared_time_column_is_interpolated(tmp_path: Path) -> None:
     log = read_log(_write(tmp_path, "multirate.csv", _multirate_text()))
-    accel_run, force_run = log.recordings
-    assert accel_run.name == "Run #1" and force_run.name == "Run #1 (force)"
-    assert accel_run.n_samples == 200 and accel_run.force is None
-    assert accel_run.sample_rate_hz == pytest.approx(200.0)
-    assert accel_run.accel is not None
+    (run,) = log.recordings
+    assert run.name == "Run #1" and run.n_samples == 191  # up to the last force sample
+    assert run.sample_rate_hz == pytest.approx(200.0)
+    assert run.accel is not None and run.force is not None
     # An explicit "(g)" unit is converted without a warning about the unit.
-    np.testing.assert_allclose(accel_run.accel[0], np.array([0.01, 0.02, 1.0]) * G_DEFAULT)
-    assert force_run.n_samples == 20 and force_run.accel is None
-    assert force_run.sample_rate_hz == pytest.approx(20.0)
-    assert np.isnan(accel_run.extra["Position (m)"][1])  # extra channels keep NaN
+    np.testing.assert_allclose(run.accel[0], np.array([0.01, 0.02, 1.0]) * G_DEFAULT)
+    np.testing.assert_allclose(run.force, 1.5)
+    assert np.isnan(run.extra["Position (m)"][1])  # extra channels keep NaN
     assert not any("looks like g" in w for w in log.warnings)
-    assert any("different rates" in w for w in log.warnings)
+    (note,) = [w for w in log.warnings if "different rates" in w]
+    assert "force (20 Hz) and acceleration (200 Hz)" in note
+    assert "interpolated linearly" in note and "9 acceleration sample(s)" in note
 
 
 def test_values_in_g_auto_and_forced_units(tmp_path: Path) -> None:
@@ -120,10 +121,10 @@ def test_values_in_g_auto_and_forced_units(tmp_path: Path) -> None:
     assert auto.recordings[0].accel is not None
     assert auto.recordings[0].accel[0, 2] == pytest.approx(1.0 * G_DEFAULT)
     assert any("looks like g" in w for w in auto.warnings)
-    kept = read_log(path, accel_unit="m/s^2")
-    assert kept.recordings[0].accel is not None
-    assert kept.recordings[0].accel[0, 2] == pytest.approx(1.0)
-    assert kept.warnings == []
+    # forced to m/s^2, an accelerometer with gravity resting at 1.0 contradicts the unit
+    with pytest.raises(LogReadError, match=r"rests at a magnitude of 1\.01 m/s\^2") as err:
+        read_log(path, accel_unit="m/s^2")
+    assert err.value.exit_code == 3 and "--accel-unit g or auto" in str(err.value)
     custom = read_log(path, accel_unit="g", g=9.81)
     assert custom.recordings[0].accel is not None
     assert custom.recordings[0].accel[0, 2] == pytest.approx(9.81)
@@ -201,14 +202,63 @@ def test_capstone_time_column_per_rate(tmp_path: Path) -> None:
     for i in range(40):
         slow = f"{i * 0.05:.2f},{i * 0.1:.1f}" if i < 4 else ","
         pos = f"{i * 0.5:.1f},{i}" if i < 2 else ","
-        rows.append(f"{i * 0.005:.3f},0,0,9.8,{slow},{pos}")
+        rows.append(f"{i * 0.005:.3f},{i},0,9.8,{slow},{pos}")
     log = read_log(_write(tmp_path, "rates.csv", header + "\n".join(rows) + "\n"))
-    accel_run, force_run = log.recordings
-    assert (accel_run.name, force_run.name) == ("Run #1", "Run #1 (force)")
-    assert accel_run.n_samples == 40 and accel_run.sample_rate_hz == pytest.approx(200.0)
-    assert force_run.n_samples == 4 and force_run.sample_rate_hz == pytest.approx(20.0)
-    assert force_run.force is not None
-    np.testing.assert_allclose(force_run.force, [0.0, 0.1, 0.2, 0.3])
+    (run,) = log.recordings
+    assert run.name == "Run #1" and run.sample_rate_hz == pytest.approx(200.0)
+    # the acceleration's own samples, up to the force's last sample (0.15 s)
+    assert run.n_samples == 31 and run.accel is not None and run.force is not None
+    np.testing.assert_array_equal(run.accel[:, 0], np.arange(31.0))
+    np.testing.assert_allclose(run.force, 2.0 * run.time, atol=1e-12)  # force = t / 0.5 s
+    assert any("interpolated linearly" in w for w in log.warnings)
+
+
+def _capstone_fast_force(rate_force: float, every: int, n: int = 2000) -> str:
+    """One time column at ``rate_force``; acceleration blank in ``every - 1`` rows of ``every``."""
+    lines = ["Time (s),Force (N) Run #1,Acceleration z (m/s²) Run #1"]
+    for i in range(n):
+        t = i / rate_force
+        accel = f"{9.8 + 0.001 * i:.4f}" if i % every == 0 else ""
+        lines.append(f"{t:.6f},{np.sin(2 * np.pi * 3 * t) + 0.01 * (i % 2):.6f},{accel}")
+    return "\n".join(lines) + "\n"
+
+
+def test_capstone_faster_force_makes_one_run_on_the_accel_times(tmp_path: Path) -> None:
+    """Issue 8: force at 1000 Hz, acceleration blank in 4 rows of 5 -> one run at 200 Hz."""
+    log = read_log(_write(tmp_path, "capstone.csv", _capstone_fast_force(1000.0, 5)))
+    assert log.format == "pasco-capstone"
+    (run,) = log.recordings
+    assert run.n_samples == 400 and run.sample_rate_hz == pytest.approx(200.0)
+    assert run.accel is not None and run.force is not None
+    # the acceleration is the file's values, not interpolated
+    np.testing.assert_allclose(run.accel[:, 0], 9.8 + 0.001 * np.arange(0, 2000, 5))
+    np.testing.assert_allclose(run.time, np.arange(0, 2000, 5) / 1000.0)
+    # the force is the mean of the 5 samples centred on each accel sample (no time shift)
+    t = np.arange(2000) / 1000.0
+    force = np.round(np.sin(2 * np.pi * 3 * t) + 0.01 * (np.arange(2000) % 2), 6)
+    inner = [force[i - 2 : i + 3].mean() for i in range(5, 1995, 5)]
+    np.testing.assert_allclose(run.force[1:-1], inner, atol=1e-9)
+    # a 3 Hz sine averaged over 5 ms keeps its phase and ~all of its amplitude
+    expected = np.sin(2 * np.pi * 3 * run.time) + 0.005
+    np.testing.assert_allclose(run.force[1:-1], expected[1:-1], atol=2e-3)
+    (note,) = [w for w in log.warnings if "different rates" in w]
+    assert "force (1000 Hz) and acceleration (200 Hz)" in note and "averaged" in note
+    assert "not interpolated" in note
+
+
+def test_sensor_time_columns_of_their_own_make_one_run(tmp_path: Path) -> None:
+    """Capstone/SPARKvue layout: each sensor with its own time column, one run."""
+    header = "Time (s) Run #1,Force (N) Run #1,Time (s) Run #1,Acceleration z (m/s²) Run #1\n"
+    rows = []
+    for i in range(500):  # force at 500 Hz, acceleration at 100 Hz (blank after row 100)
+        acc = f"{i / 100:.3f},{9.8 + 0.01 * (i % 7):.3f}" if i < 100 else ","
+        rows.append(f"{i / 500:.4f},{i / 500:.4f},{acc}")
+    log = read_log(_write(tmp_path, "own.csv", header + "\n".join(rows) + "\n"))
+    (run,) = log.recordings
+    assert run.n_samples == 100 and run.sample_rate_hz == pytest.approx(100.0)
+    assert run.force is not None
+    np.testing.assert_allclose(run.force[1:], run.time[1:], atol=1e-9)  # linear force: mean = t
+    assert any("averaged" in w for w in log.warnings)
 
 
 def test_quoted_decimal_comma_with_comma_delimiter(tmp_path: Path) -> None:
@@ -218,3 +268,13 @@ def test_quoted_decimal_comma_with_comma_delimiter(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.time, [0.0, 0.05, 0.1])
     assert rec.force is not None
     np.testing.assert_allclose(rec.force, [1.5, -7.1e-15, 2.0])
+
+
+def test_force_on_its_own_time_column_without_acceleration_keeps_its_times(tmp_path: Path) -> None:
+    header = "Time (s) Run #1,Acceleration z (m/s²) Run #1,Time (s) Run #1,Force (N) Run #1\n"
+    rows = [f"{i / 100:.2f},,{i / 500:.4f},{i * 0.1:.1f}" for i in range(50)]
+    log = read_log(_write(tmp_path, "f.csv", header + "\n".join(rows) + "\n"))
+    (run,) = log.recordings
+    assert run.accel is None and run.force is not None
+    np.testing.assert_allclose(run.time, np.arange(50) / 500)
+    assert any("acceleration column is empty" in w for w in log.warnings)

@@ -7,13 +7,15 @@ from pathlib import Path
 
 from balancer_id.errors import IdentificationError
 from balancer_id.fit.classic import paper_method
-from balancer_id.fit.coupling import coupling
+from balancer_id.fit.coupling import coupling_of
 from balancer_id.fit.data import TrialData, from_trials
 from balancer_id.fit.matching import match_trials
+from balancer_id.fit.move_start import refine_move_start
 from balancer_id.fit.result import FitResult, PerTrialFit
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
 from balancer_id.pipeline import ReadOptions, load_trials
+from balancer_id.segment.move import start_given
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.inputs import Trapezoid
 
@@ -79,7 +81,7 @@ def trial_data(
     data: list[TrialData] = []
     names: list[str] = []
     if paths:
-        for item in load_trials(paths, options):
+        for item in load_trials(paths, options, trajectory):
             names.append(str(item.log.path))
             data.extend(from_trials(item.trials, trajectory=trajectory))
     given = [s for s in sources if isinstance(s, Trial)]
@@ -149,13 +151,17 @@ def fit(
     trials, names = trial_data(sources, options, trajectory)
     if not trials:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
-    classic = paper_method(trials)
+    classic = paper_method([t for t in trials if t.thrust_N != 0])  # moves: no step
     start: dict[str, float] = {}
     for name in ("m_a", "T_a"):
         value = getattr(classic, name)
         spec_param = mdl.param(name) if name in mdl.param_names else None
         if spec_param is not None and value == value and spec_param.min < value < spec_param.max:
             start[name] = float(value)
+    notes = []
+    if mdl.has("servo") and trajectory and not start_given(trajectory):  # issue 9: by fit
+        trials, shift = refine_move_start(mdl, trials, start, fixed)
+        notes.append(f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)")
     match = match_trials(
         mdl, trials, start=start, fixed=fixed, n_starts=n_starts, seed=seed, max_nfev=max_nfev
     )
@@ -165,12 +171,9 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
-    result = FitResult(match=match, classic=classic, sources=names)
+    result = FitResult(match=match, classic=classic, sources=names, warnings=notes)
     if mdl.has("servo"):
-        v = match.values()
-        result.coupling = coupling(
-            v["m_a"], v.get("T_a", v.get("T_up", 0.3)), v.get("D0", 0.0), v["k_r"], v["c_r"]
-        )
+        result.coupling = coupling_of(match.values())
     if per_trial:
         result.per_trial = fit_each_trial(mdl, trials, match.values(), fixed)
     return result

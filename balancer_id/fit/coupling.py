@@ -12,7 +12,8 @@ does not.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,21 +32,59 @@ class Coupling:
         ``(T_a D + m_a)(D + c_r) / (T_a m_a k_r) - 1``: positive when stable.
     poles : tuple of complex
         All closed-loop poles.
+    terms : dict
+        The terms of the stability condition: ``T_a*D``, ``m_a``, ``D``, ``c_r``,
+        ``k_r``, and its two sides ``lhs = (T_a D + m_a)(D + c_r)``, ``rhs = T_a m_a k_r``.
     """
 
     oscillation_hz: float
     damping_ratio: float
     stability_margin: float
     poles: tuple[complex, ...]
+    terms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def stable(self) -> bool:
+        """Whether every pole lies in the left half plane."""
+        return all(p.real < 0 for p in self.poles)
+
+    @property
+    def dominant(self) -> str:
+        """Which term carries the stabilizing side ``(T_a D + m_a)(D + c_r)`` (text)."""
+        if not self.terms:
+            return ""
+        damping = (
+            "the robot's damping c_r"
+            if self.terms["c_r"] >= self.terms["D"]
+            else "the balancer's viscosity D"
+        )
+        inertia = (
+            "the virtual mass m_a"
+            if self.terms["m_a"] >= self.terms["T_a*D"]
+            else "the lag-viscosity product T_a D"
+        )
+        return f"{damping} (in D + c_r) and {inertia} (in T_a D + m_a)"
 
     def to_dict(self) -> dict[str, object]:
         """CONTRACT.md ``coupling`` record."""
-        return {
+        out: dict[str, object] = {
             "oscillation_hz": self.oscillation_hz,
             "damping_ratio": self.damping_ratio,
             "stability_margin": self.stability_margin,
+            "stable": self.stable,
             "poles": [[p.real, p.imag] for p in self.poles],
         }
+        if self.terms:
+            t = self.terms
+            out["condition"] = {
+                "lhs": t["lhs"],
+                "rhs": t["rhs"],
+                "difference": t["lhs"] - t["rhs"],
+                "text": "(T_a D + m_a)(D + c_r) > T_a m_a k_r",
+            }
+            out["terms"] = dict(t)
+            out["dominant"] = self.dominant
+        return out
 
 
 def coupling(m_a: float, T_a: float, D: float, k_r: float, c_r: float) -> Coupling:
@@ -76,4 +115,41 @@ def coupling(m_a: float, T_a: float, D: float, k_r: float, c_r: float) -> Coupli
     margin = (
         float((T_a * D + m_a) * (D + c_r) / (T_a * m_a * k_r) - 1.0) if k_r > 0 else float("inf")
     )
-    return Coupling(freq, zeta, margin, tuple(complex(p) for p in poles))
+    terms = {
+        "T_a*D": T_a * D,
+        "m_a": m_a,
+        "D": D,
+        "c_r": c_r,
+        "k_r": k_r,
+        "lhs": (T_a * D + m_a) * (D + c_r),
+        "rhs": T_a * m_a * k_r,
+    }
+    return Coupling(freq, zeta, margin, tuple(complex(p) for p in poles), terms)
+
+
+def coupling_of(values: Mapping[str, float]) -> Coupling:
+    """The coupling figures of a parameter set (a fit's values).
+
+    Uses ``T_a`` (or the mean of ``T_up`` and ``T_down`` with ``asymmetric_lag``) and the
+    viscosity at zero operating force ``D0`` (0 without a viscosity effect).
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        Parameter values by MODEL.md name; must hold ``m_a``, ``k_r`` and ``c_r``.
+
+    Returns
+    -------
+    Coupling
+    """
+    if "T_a" in values:
+        lag = float(values["T_a"])
+    else:
+        lag = 0.5 * (float(values.get("T_up", 0.33)) + float(values.get("T_down", 0.33)))
+    return coupling(
+        float(values["m_a"]),
+        lag,
+        float(values.get("D0", 0.0)),
+        float(values["k_r"]),
+        float(values["c_r"]),
+    )

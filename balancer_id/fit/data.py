@@ -10,6 +10,7 @@ from scipy.ndimage import median_filter
 
 from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.model.spec import Model
+from balancer_id.segment.decimate import decimate_trial
 from balancer_id.segment.trial import Trial
 from balancer_id.simulate.engine import DEFAULT_SUBSTEPS, PackedTrials, TrialInput
 from balancer_id.simulate.inputs import Thrust, Trapezoid
@@ -71,7 +72,9 @@ class TrialData:
         The model is driven by the trial's measured force (see :func:`measured_thrust`)
         where there is one and the thrust was not given, else by a step of
         ``trial.thrust_N`` at ``trial.t_step``. Samples without an acceleration value
-        (blank cells of a multi-rate export) are left out. A trial that continues a
+        (blank cells of a multi-rate export) are left out. A trial faster than 400 Hz is
+        first decimated to 200-400 Hz, anti-aliased
+        (:func:`~balancer_id.segment.decimate.decimate_trial`). A trial that continues a
         session is simulated from rest here; :func:`from_trials` chains it.
 
         Parameters
@@ -176,6 +179,7 @@ def from_trials(
             and out[-1].time[-1] < trial.time[-1]
         )
         after = out[-1].time[-1] if continues else -np.inf
+        trial, _ = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz, noted in trial.notes
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
         keep = np.isfinite(accel) & np.isfinite(time) & (time > after)
@@ -198,8 +202,9 @@ def from_trials(
             thrust = Thrust.step(trial.t_step, trial.thrust_N)
         time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
-        if trajectory is not None:
-            z_ref, v_ref = trajectory.evaluate(time)
+        reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
+        if reference is not None:
+            z_ref, v_ref = reference.evaluate(time)
         lead_in = None
         if continues:
             assert history is not None

@@ -15,11 +15,17 @@ time checks, gaps, saturation).
 Decisions
 ---------
 * Each run keeps the rows where its time and its force/acceleration are present; blank
-  cells (padding of short runs, derived columns blank at the edges, another rate under a
-  shared time column) drop out, nothing is interpolated. Force and acceleration under one
-  time column with clearly different rates give two recordings, ``"<run>"`` and
-  ``"<run> (force)"`` (or ``"(acceleration)"``). Extra channels (gyro, position,
-  velocity) are aligned with the run's rows and may hold NaN.
+  cells (padding of short runs, derived columns blank at the edges) drop out, nothing is
+  interpolated. Force and acceleration at clearly different rates, under one time column
+  (blank cells) or under time columns of their own, make one recording on the
+  acceleration's sample times: the acceleration is never interpolated, the force is
+  averaged (faster) or interpolated (slower) onto them (:mod:`~balancer_id.read.resample`),
+  and a warning says so. Extra channels (gyro, position, velocity) are aligned with the
+  run's rows and may hold NaN.
+* Only regular files are read (FIFOs, devices, folders refused before any ``open``),
+  streamed within a byte limit counted as read; a cut last line is dropped and infinite
+  or absurd values are read as missing samples, each with a warning; a resting
+  acceleration that contradicts the unit or ``g`` the user forced is refused.
 * A single acceleration column (a motion sensor's ``Acceleration (m/s²)``, a generic
   ``a``) is returned with shape ``(n, 1)`` and axis label ``"z"`` (taken as vertical);
   it includes gravity when its median is beyond g/2 in size (a motion sensor's

@@ -1,11 +1,14 @@
 """Turn run plans and parsed columns into :class:`Recording` objects.
 
 Each run keeps the rows where its time and its channels are present: padded blanks at
-the end of a short run, derived channels blank in the first and last rows, and a
-channel sampled at another rate under a shared time column all drop out this way,
-without interpolation. When the force and the acceleration of one run are sampled at
-clearly different rates (fewer than 75 % of the rows in common), the sparser channel
-becomes a recording of its own, named ``"<run> (force)"`` or ``"<run> (acceleration)"``.
+the end of a short run and derived channels blank in the first and last rows drop out
+this way, without interpolation. When the force and the acceleration of one run are
+sampled at clearly different rates (fewer than 75 % of the rows in common under one
+time column, or each under a time column of its own), the run is one recording on the
+acceleration's sample times: the acceleration (the output) is never interpolated, the
+force (the input) is brought onto its times by :func:`~balancer_id.read.resample.onto_times`
+(averaged over each acceleration period when faster, interpolated when slower), and a
+warning says so.
 """
 
 from __future__ import annotations
@@ -16,10 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from balancer_id.constants import FORCE_RANGE_N
+from balancer_id.errors import LogReadError
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
+from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
-from balancer_id.read.units import resolve_accel
+from balancer_id.read.units import UnitMismatch, resolve_accel
 from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
@@ -32,6 +37,7 @@ class _ChannelSet:
     rows: np.ndarray  # boolean mask over the table's rows
     force: bool
     accel: bool
+    force_rows: np.ndarray | None = None  # force samples on their own rows/time: resample
 
 
 def build_recordings(
@@ -70,10 +76,12 @@ def build_recordings(
     Raises
     ------
     LogReadError
-        Time going backwards or repeating (from :func:`check_time`).
+        Time going backwards or repeating (from :func:`check_time`), or a resting
+        acceleration that contradicts the unit the user forced or ``g``.
     """
     recordings: list[Recording] = []
     warnings: list[str] = []
+    warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
         warnings.append(
             f"column '{header[col]}' ignored: non-numeric value {cell.strip()[:40]!r} "
@@ -84,11 +92,23 @@ def build_recordings(
         time = table.columns[plan.time]
         if plan.time_scale != 1.0:
             time = time * plan.time_scale
-        sets, notes = _channel_sets(plan, table, time)
+        force_time = time
+        if plan.force_time is not None:
+            force_time = table.columns[plan.force_time] * plan.force_time_scale
+        sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
         for chosen in sets:
+            force_only = chosen.force and not chosen.accel and plan.force_time is not None
             rec, rec_warnings = _build_one(
-                path, plan, chosen, table, header, time, accel_unit=accel_unit, g=g
+                path,
+                plan,
+                chosen,
+                table,
+                header,
+                force_time if force_only else time,
+                accel_unit=accel_unit,
+                g=g,
+                force_time=force_time,
             )
             warnings.extend(rec_warnings)
             if rec is not None:
@@ -97,52 +117,40 @@ def build_recordings(
 
 
 def _channel_sets(
-    plan: RunPlan, table: Table, time: np.ndarray
+    plan: RunPlan, table: Table, time: np.ndarray, force_time: np.ndarray
 ) -> tuple[list[_ChannelSet], list[str]]:
     notes: list[str] = []
     has_time = np.isfinite(time)
     masks: dict[str, np.ndarray] = {}
+    timed: dict[str, np.ndarray] = {}
     if plan.force is not None:
         masks["force"] = np.isfinite(table.columns[plan.force])
+        timed["force"] = masks["force"] & np.isfinite(force_time)
     if plan.accel:
         ok = np.ones(table.n_rows, dtype=bool)
         for col in plan.accel:
             ok &= np.isfinite(table.columns[col])
         masks["acceleration"] = ok
-    counts = {k: int(np.count_nonzero(m & has_time)) for k, m in masks.items()}
+        timed["acceleration"] = ok & has_time
+    counts = {k: int(np.count_nonzero(m)) for k, m in timed.items()}
     for key in [k for k, n in counts.items() if n == 0]:
         notes.append(f"the {key} column is empty; ignored")
-        del masks[key], counts[key]
+        del masks[key], counts[key], timed[key]
     if masks:
-        any_value = np.logical_or.reduce(list(masks.values()))
-        no_time = int(np.count_nonzero(any_value & ~has_time))
+        no_time = sum(int(np.count_nonzero(masks[k] & ~timed[k])) for k in masks)
         if no_time:
-            notes.append(f"{no_time} row(s) with values but no time were skipped")
+            notes.append(f"{no_time} value(s) without a time were skipped")
     if not masks:
         notes.append("no data; run skipped")
         return [], notes
     if len(masks) == 1:
-        ((key, mask),) = masks.items()
-        return [_ChannelSet(plan.name, mask & has_time, key == "force", key != "force")], notes
-    both = masks["force"] & masks["acceleration"] & has_time
-    common = int(np.count_nonzero(both))
-    if common >= COMMON_SHARE * max(counts.values()):
-        return [_ChannelSet(plan.name, both, True, True)], notes
-    dense = max(counts, key=lambda k: counts[k])
-    sparse = "force" if dense == "acceleration" else "acceleration"
-    notes.append(
-        f"force and acceleration are sampled at different rates; the {sparse} is returned as "
-        f"its own run '{plan.name} ({sparse})'"
-    )
-    return [
-        _ChannelSet(plan.name, masks[dense] & has_time, dense == "force", dense != "force"),
-        _ChannelSet(
-            f"{plan.name} ({sparse})",
-            masks[sparse] & has_time,
-            sparse == "force",
-            sparse != "force",
-        ),
-    ], notes
+        ((key, mask),) = timed.items()
+        return [_ChannelSet(plan.name, mask, key == "force", key != "force")], notes
+    if plan.force_time is None:
+        both = timed["force"] & timed["acceleration"]
+        if np.count_nonzero(both) >= COMMON_SHARE * max(counts.values()):
+            return [_ChannelSet(plan.name, both, True, True)], notes
+    return [_ChannelSet(plan.name, timed["acceleration"], True, True, timed["force"])], notes
 
 
 def _build_one(
@@ -155,39 +163,74 @@ def _build_one(
     *,
     accel_unit: str,
     g: float,
+    force_time: np.ndarray,
 ) -> tuple[Recording | None, list[str]]:
     warnings: list[str] = []
-    idx = np.flatnonzero(chosen.rows)
+    count = int(np.count_nonzero(chosen.rows))
     name = chosen.name
-    if idx.size < 2:
-        warnings.append(f"{name}: only {idx.size} sample(s); run skipped")
+    if count < 2:
+        warnings.append(f"{name}: only {count} sample(s); run skipped")
         return None, warnings
-    time = time_all[idx]
-    check_time(path, time, lambda i: table.line_of(idx[i]), header[plan.time])
-    force = table.columns[plan.force][idx] if chosen.force and plan.force is not None else None
+    # every row: views of the parsed columns, not copies (big files)
+    full = count == table.n_rows and chosen.force_rows is None
+    idx = np.arange(0) if full else np.flatnonzero(chosen.rows)
+    rows: np.ndarray | slice = slice(None) if full else idx
+    time = time_all[rows]
+    check_time(path, time, lambda i: table.line_of(i if full else idx[i]), header[plan.time])
+    force = table.columns[plan.force][rows] if chosen.force and plan.force is not None else None
+    if chosen.force_rows is not None and plan.force is not None:
+        force, rows, note = _force_onto_accel(
+            path,
+            plan,
+            table.columns[plan.force],
+            chosen.force_rows,
+            idx,
+            table,
+            header,
+            force_time,
+            time_all,
+        )
+        warnings.append(f"{name}: {note}")
+        if rows.size < 2:
+            warnings.append(f"{name}: only {rows.size} sample(s) with force; run skipped")
+            return None, warnings
+        time = time_all[rows]
     accel = None
     includes_gravity = True
     if chosen.accel and plan.accel:
-        raw = np.column_stack([table.columns[c][idx] for c in plan.accel])
-        accel, includes_gravity, note = resolve_accel(
-            raw,
-            header_unit=plan.accel_unit,
-            includes_gravity=plan.includes_gravity,
-            accel_unit=accel_unit,
-            g=g,
-        )
+        raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
+        try:
+            accel, includes_gravity, note = resolve_accel(
+                raw,
+                header_unit=plan.accel_unit,
+                includes_gravity=plan.includes_gravity,
+                accel_unit=accel_unit,
+                g=g,
+            )
+        except UnitMismatch as exc:
+            raise LogReadError(
+                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=exc.hint
+            ) from None
         if note:
             warnings.append(f"{name}: {note}")
     extra = {
-        label: table.columns[col][idx] for label, col in plan.extra.items() if col in table.columns
+        label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
     }
     gaps = find_gaps(time)
     if gaps:
         longest = max(gap.t_after - gap.t_before for gap in gaps)
-        warnings.append(
-            f"{name}: {len(gaps)} gap(s) in the time column, {sum(gp.n_missing for gp in gaps)} "
-            f"sample(s) missing, longest {longest:.3g} s (kept as gaps, not interpolated)"
-        )
+        missing = sum(gp.n_missing for gp in gaps)
+        if missing > 10 * time.size:  # not dropped samples: a clock jump or a damaged time
+            warnings.append(
+                f"{name}: the time jumps by up to {longest:.3g} s ({len(gaps)} jump(s)), far "
+                "longer than the run's samples span: the clock restarted or the time column "
+                "is damaged (kept as gaps, not interpolated)"
+            )
+        else:
+            warnings.append(
+                f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) missing, "
+                f"longest {longest:.3g} s (kept as gaps, not interpolated)"
+            )
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
@@ -211,3 +254,43 @@ def _build_one(
         extra=extra,
     )
     return rec, warnings
+
+
+def _force_onto_accel(
+    path: Path,
+    plan: RunPlan,
+    force_all: np.ndarray,
+    force_rows: np.ndarray,
+    idx: np.ndarray,
+    table: Table,
+    header: list[str],
+    force_time: np.ndarray,
+    time_all: np.ndarray,
+) -> tuple[np.ndarray | None, np.ndarray, str]:
+    """Force at the acceleration rows ``idx``; rows the force does not cover are dropped."""
+    fidx = np.flatnonzero(force_rows)
+    t_force = force_time[fidx]
+    column = header[plan.force_time if plan.force_time is not None else plan.time]
+    check_time(path, t_force, lambda i: table.line_of(fidx[i]), column)
+    t_accel = time_all[idx]
+    if fidx.size < 2:
+        return None, idx, "the force has fewer than 2 samples; left out"
+    res = onto_times(t_force, force_all[fidx], t_accel)
+    how = (
+        "averaged over each acceleration sample period (low-pass)"
+        if res.method == "averaged"
+        else "interpolated linearly"
+    )
+    note = (
+        f"force ({res.source_rate_hz:.4g} Hz) and acceleration ({res.target_rate_hz:.4g} Hz) "
+        f"are sampled at different rates; one run on the acceleration's sample times (the "
+        f"acceleration is not interpolated), the force {how} onto them"
+    )
+    dropped = int(idx.size - np.count_nonzero(res.keep))
+    if dropped:
+        note += f"; {dropped} acceleration sample(s) outside the force's time span left out"
+    gaps = find_gaps(t_force)
+    if gaps:
+        longest = max(gap.t_after - gap.t_before for gap in gaps)
+        note += f"; {len(gaps)} gap(s) in the force (longest {longest:.3g} s) bridged"
+    return res.values, idx[res.keep], note

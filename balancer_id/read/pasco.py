@@ -55,8 +55,11 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
     column per rate: ``Time (s) Run #1, Force (N) Run #1, Time (s) Run #1, Position (m)
     Run #1``), else the shared one before it (``Time (s) Auto``, ``Time (s)``), else the
     first time column of its run, the shared one, or the only time column of the file.
-    A run whose force and acceleration sit under different time columns gives two plans;
-    the second is named ``"<run> (force)"`` or ``"<run> (acceleration)"``.
+    A run whose force and acceleration sit under different time columns (sensors at
+    different rates) gives one plan: the acceleration's, with the force and its own time
+    column (:attr:`RunPlan.force_time`). Other measurement groups under further time
+    columns give plans of their own, named ``"<run> (force)"``, ``"<run> (acceleration)"``
+    or ``"<run> (N)"``.
 
     Parameters
     ----------
@@ -113,7 +116,7 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
     for key, by_time in groups.items():
         name = _run_name(key, groups)
         run_plans = [plan_from_columns(name, by_index[t], cols) for t, cols in by_time.items()]
-        run_plans = [p for p in run_plans if p.has_signal]
+        run_plans = _join_rates([p for p in run_plans if p.has_signal])
         for k, plan in enumerate(run_plans[1:], start=2):
             if plan.force is not None and not plan.accel:
                 plan.name = f"{name} (force)"
@@ -123,6 +126,27 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
                 plan.name = f"{name} ({k})"
         plans.extend(run_plans)
     return plans
+
+
+def _join_rates(plans: list[RunPlan]) -> list[RunPlan]:
+    """Join a force-only plan into the acceleration-only plan of the same run."""
+    force = next((p for p in plans if p.force is not None and not p.accel), None)
+    accel = next((p for p in plans if p.accel and p.force is None), None)
+    if force is None or accel is None:
+        return plans
+    accel.force, accel.force_time, accel.force_time_scale = (
+        force.force,
+        force.time,
+        force.time_scale,
+    )
+    accel.notes.extend(force.notes)
+    if force.extra:
+        accel.notes.append(
+            "channel(s) "
+            + ", ".join(f"'{k}'" for k in force.extra)
+            + " on the force's time column ignored"
+        )
+    return [p for p in plans if p is not force]
 
 
 def _run_name(key: str, members: dict[str, dict[int, list[Column]]]) -> str:

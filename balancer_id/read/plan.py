@@ -28,6 +28,12 @@ class RunPlan:
         Factor to seconds (1.0, or 1e-3 for ms).
     force : int or None
         Column index of the force, or None.
+    force_time : int or None
+        Column index of the force's own time column when it is not ``time`` (a sensor
+        at another rate in columns of its own); the force is then brought onto the
+        acceleration's sample times.
+    force_time_scale : float
+        Factor to seconds of ``force_time``.
     accel : tuple of int
         Column indexes of the acceleration axes (empty when none).
     accel_axes : tuple of str
@@ -46,6 +52,8 @@ class RunPlan:
     time: int
     time_scale: float = 1.0
     force: int | None = None
+    force_time: int | None = None
+    force_time_scale: float = 1.0
     accel: tuple[int, ...] = ()
     accel_axes: tuple[str, ...] = ()
     accel_unit: str = ""
@@ -59,6 +67,8 @@ class RunPlan:
         cols = [self.time, *self.accel, *self.extra.values()]
         if self.force is not None:
             cols.append(self.force)
+        if self.force_time is not None:
+            cols.append(self.force_time)
         return cols
 
     @property

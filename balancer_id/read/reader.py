@@ -20,6 +20,11 @@ from balancer_id.read.sniff import sniff
 from balancer_id.read.table import read_table
 from balancer_id.read.units import check_accel_unit
 
+#: Largest plausible time value (s, or ms before conversion): a Unix time in ms fits.
+TIME_BOUND = 1e13
+#: Largest plausible force (N) or acceleration (m/s^2 or g) of any sensor.
+SIGNAL_BOUND = 1e6
+
 
 def read_log(
     path: str | os.PathLike[str],
@@ -33,7 +38,10 @@ def read_log(
 
     The layout, delimiter (``,``, ``;``, tab), decimal mark, BOM and line endings are
     detected from the file. Each run becomes one :class:`Recording` on its own time base;
-    dropped samples are reported as gaps and never interpolated.
+    dropped samples are reported as gaps and never interpolated. Only regular files are
+    read, streamed within ``max_bytes``; a cut last line is dropped and values that are
+    infinite or beyond any sensor's range (force, acceleration beyond 1e6; time beyond
+    1e13) are treated as missing samples, each with a warning.
 
     Parameters
     ----------
@@ -71,7 +79,15 @@ def read_log(
     fmt, plans = _plan(sniffed.path, header, columns)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
-    table = read_table(sniffed, wanted, optional)
+    limits: dict[int, float] = {}
+    for plan in plans:
+        for col in (plan.time, plan.force_time):
+            if col is not None:
+                limits[col] = TIME_BOUND
+        for col in (plan.force, *plan.accel):
+            if col is not None:
+                limits[col] = SIGNAL_BOUND
+    table = read_table(sniffed, wanted, optional, limits)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
             sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g

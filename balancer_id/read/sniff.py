@@ -1,15 +1,24 @@
 """Open a log and find how it is written: size, encoding, BOM, delimiter, decimal mark, header.
 
 Nothing here knows about PASCO or phyphox; the result, :class:`Sniffed`, holds the
-file's bytes (re-encoded as UTF-8 without BOM) and the header cells, ready for
+head of the file (re-encoded as UTF-8 without BOM) and the header cells, ready for
 :mod:`balancer_id.read.table` to parse the numbers.
+
+Safety: only regular files are opened (a FIFO, a device, a socket or a folder is refused
+from ``os.stat`` before any ``open``, and the file is opened with ``O_NONBLOCK`` and
+checked again with ``fstat``); every read counts the bytes actually read against the
+size limit (a file whose size reads as 0 is not trusted); UTF-8 and cp1252 files are
+streamed to the parser from disk, never held whole in memory; a header of more than
+:data:`MAX_COLUMNS` columns is refused at once.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,6 +32,13 @@ _CONTROL = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+(?:[eE][+-]?\d+)?$")
 _DECIMAL_POINT = re.compile(r"^[+-]?(?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?$")
 _SAMPLE_LINES = 50
+#: Bytes read first to sniff the layout; more (up to HEAD_MAX_BYTES) when the lines are long.
+HEAD_BYTES = 1 << 20
+HEAD_MAX_BYTES = 16 << 20
+#: A header with more columns than this is refused (no export has as many).
+MAX_COLUMNS = 10_000
+_TAIL_BYTES = 1 << 16
+_CHUNK = 1 << 20
 _BOMS = (
     (b"\xef\xbb\xbf", "utf-8-sig"),
     (b"\xff\xfe", "utf-16-le"),
@@ -39,7 +55,8 @@ class Sniffed:
     path : pathlib.Path
         The file.
     data : bytes
-        The whole file as UTF-8, without BOM.
+        The file as UTF-8, without BOM: the whole file, or (``stream`` True) its head,
+        cut after its last complete line.
     encoding : str
         The encoding the file was written in (``"utf-8"``, ``"utf-8-sig"``, ``"cp1252"``, ...).
     delimiter : str
@@ -53,6 +70,18 @@ class Sniffed:
     header_line : int
         Line number (1-based) of the header in the file; data row ``i`` is on line
         ``header_line + 1 + i``.
+    stream : bool
+        True when the parser reads the rows from the file itself (from ``raw_offset``,
+        decoding with ``read_encoding``) rather than from ``data``.
+    raw_offset : int
+        Byte offset in the file of the first data line (used when ``stream``).
+    read_encoding : str
+        The encoding the parser decodes the streamed rows with.
+    limit : int
+        Most bytes that may be read from the file.
+    cut_last : str
+        The last line of the file when it has no line end and looks cut (fewer cells
+        than the line before, or a shorter last number); the parser drops it.
     """
 
     path: Path
@@ -63,6 +92,11 @@ class Sniffed:
     header: list[str]
     data_start: int
     header_line: int = 1
+    stream: bool = False
+    raw_offset: int = 0
+    read_encoding: str = "utf-8"
+    limit: int = DEFAULT_MAX_BYTES
+    cut_last: str = ""
 
     @property
     def has_bom(self) -> bool:
@@ -102,30 +136,198 @@ def _line_of(data: bytes, offset: int) -> int:
     return data.count(b"\n", 0, offset) + 1
 
 
-def _load(path: Path, max_bytes: int | None) -> bytes:
-    """Check the file exists, is not empty and not too large, and return its bytes."""
-    if not path.exists():
-        raise LogReadError(path, "file not found", hint="check the path and the file name")
-    if path.is_dir():
-        raise LogReadError(path, "is a folder, not a log file", hint="give the path of a CSV file")
-    size = path.stat().st_size
-    limit = default_max_bytes() if max_bytes is None else int(max_bytes)
-    if size > limit:
-        raise LogReadError(
-            path,
-            f"file is {_human(size)}, more than the {_human(limit)} this machine can read safely",
-            line=1,
-            hint="split the file into smaller files (e.g. one run per file) or raise max_bytes",
+_KINDS = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+class FileTooLarge(Exception):
+    """More bytes were read from a file than its limit allows."""
+
+
+def _kind_error(path: Path, mode: int) -> LogReadError | None:
+    if stat.S_ISDIR(mode):
+        return LogReadError(path, "is a folder, not a log file", hint="give the path of a CSV file")
+    if stat.S_ISREG(mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    return LogReadError(
+        path,
+        f"is {kind}, not a regular file; only regular files are read",
+        hint="save the data to a CSV file and give its path",
+    )
+
+
+def _os_error(path: Path, exc: OSError) -> LogReadError:
+    if isinstance(exc, FileNotFoundError):
+        return LogReadError(path, "file not found", hint="check the path and the file name")
+    if isinstance(exc, PermissionError):
+        return LogReadError(
+            path, "permission denied", hint="make the file readable (chmod u+r) or copy it"
         )
+    return LogReadError(path, f"cannot be opened: {exc.strerror or exc}")
+
+
+def open_regular(path: str | os.PathLike[str], limit: int | None = None) -> int:
+    """Open a regular file for reading without ever blocking, and return its descriptor.
+
+    ``os.stat`` decides first (a FIFO, a device, a socket or a folder is refused before
+    any ``open``); the file is then opened with ``O_NONBLOCK`` and checked again with
+    ``fstat`` (the path may have been replaced in between).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    limit : int, optional
+        Refuse a file whose size (as ``stat`` says) is above this many bytes.
+
+    Returns
+    -------
+    int
+        An open file descriptor (the caller closes it).
+
+    Raises
+    ------
+    LogReadError
+        Missing, not a regular file, unreadable (permission), or too large.
+    """
+    path = Path(path)
     try:
-        data = path.read_bytes()
+        info = os.stat(path)
     except OSError as exc:
-        raise LogReadError(path, f"cannot be opened: {exc.strerror or exc}", line=1) from None
-    if not data.strip(b" \t\r\n\x00\xef\xbb\xbf\xff\xfe"):
+        raise _os_error(path, exc) from None
+    error = _kind_error(path, info.st_mode)
+    if error is not None:
+        raise error
+    if limit is not None and info.st_size > limit:
+        raise _too_large(path, info.st_size, limit)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise _os_error(path, exc) from None
+    error = _kind_error(path, os.fstat(fd).st_mode)
+    if error is not None:
+        os.close(fd)
+        raise error
+    return fd
+
+
+def _too_large(path: Path, size: int, limit: int) -> LogReadError:
+    return LogReadError(
+        path,
+        f"file is {_human(size)}, more than the {_human(limit)} this machine can read safely",
+        line=1,
+        hint="split the file into smaller files (e.g. one run per file) or raise max_bytes",
+    )
+
+
+class BoundedReader(io.RawIOBase):
+    """A read-only raw stream over a descriptor that stops at ``limit`` bytes read.
+
+    Parameters
+    ----------
+    fd : int
+        An open descriptor (closed with the reader).
+    limit : int
+        Most bytes that may be read; reading more raises :class:`FileTooLarge`.
+    offset : int
+        Where to start reading.
+    """
+
+    def __init__(self, fd: int, limit: int, offset: int = 0) -> None:
+        super().__init__()
+        self._fd = fd
+        self._left = limit - offset
+        os.lseek(fd, offset, os.SEEK_SET)
+
+    def readable(self) -> bool:
+        """Return True (the stream reads).
+
+        Returns
+        -------
+        bool
+        """
+        return True
+
+    def readinto(self, buffer: bytearray | memoryview) -> int:  # type: ignore[override]
+        """Read into ``buffer``; raise :class:`FileTooLarge` past the limit.
+
+        Parameters
+        ----------
+        buffer : bytearray or memoryview
+            Where the bytes go.
+
+        Returns
+        -------
+        int
+            Bytes read (0 at the end of the file).
+        """
+        view = memoryview(buffer).cast("B")
+        want = min(len(view), self._left + 1)
+        if want <= 0:
+            raise FileTooLarge
+        got = os.readv(self._fd, [view[:want]])
+        self._left -= got
+        if self._left < 0:
+            raise FileTooLarge
+        return got
+
+    def close(self) -> None:
+        """Close the descriptor."""
+        if not self.closed:
+            os.close(self._fd)
+        super().close()
+
+
+def _read_up_to(path: Path, fd: int, n: int, limit: int) -> tuple[bytes, bool]:
+    """Read at most ``n`` bytes from ``fd``; True when the end of the file was reached."""
+    parts: list[bytes] = []
+    total = 0
+    while total < n:
+        chunk = os.read(fd, min(_CHUNK, n - total))
+        if not chunk:
+            return b"".join(parts), True
+        parts.append(chunk)
+        total += len(chunk)
+        if total > limit:
+            raise _too_large(path, total, limit)
+    return b"".join(parts), False
+
+
+def _tail(fd: int, end: int) -> bytes:
+    """The last bytes of the file before offset ``end`` (at most ``_TAIL_BYTES``)."""
+    start = max(0, end - _TAIL_BYTES)
+    return os.pread(fd, end - start, start)
+
+
+def _load(path: Path, max_bytes: int | None) -> tuple[bytes, bool, int, bytes]:
+    """Read the head of a regular file within the size limit.
+
+    Returns the head (the whole file when ``complete``), whether it is complete, the
+    limit, and the file's last bytes.
+    """
+    limit = default_max_bytes() if max_bytes is None else int(max_bytes)
+    fd = open_regular(path, limit)
+    try:
+        data, complete = _read_up_to(path, fd, HEAD_BYTES, limit)
+        while not complete and data.count(b"\n") <= _SAMPLE_LINES and len(data) < HEAD_MAX_BYTES:
+            more, complete = _read_up_to(path, fd, len(data), limit - len(data))
+            data += more
+        tail = data[-_TAIL_BYTES:] if complete else _tail(fd, os.fstat(fd).st_size)
+    except OSError as exc:
+        raise _os_error(path, exc) from None
+    finally:
+        os.close(fd)
+    if complete and not data.strip(b" \t\r\n\x00\xef\xbb\xbf\xff\xfe"):
         raise LogReadError(
             path, "file is empty", line=1, hint="export the data again from the logging app"
         )
-    return data
+    return data, complete, limit, tail
 
 
 def _decode(path: Path, data: bytes) -> tuple[bytes, str]:
@@ -210,32 +412,56 @@ def _choose_decimal(delimiter: str, sample: list[str]) -> str:
 
 
 def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed:
-    """Read a log file and find its encoding, delimiter, decimal mark and header.
+    """Read the head of a log file and find its encoding, delimiter, decimal mark and header.
 
     Parameters
     ----------
     path : str or path-like
         The file.
     max_bytes : int, optional
-        Refuse files larger than this (bytes); default :func:`default_max_bytes`.
+        Refuse files larger than this (bytes, counted as they are read); default
+        :func:`default_max_bytes`.
 
     Returns
     -------
     Sniffed
-        The file's bytes and layout facts.
+        The file's head (or whole content) and layout facts.
 
     Raises
     ------
     LogReadError
-        Missing, empty, too large, binary or undecodable file, or a header with no data.
+        Missing, not a regular file, unreadable, empty, too large, binary or undecodable
+        file, a header of more than :data:`MAX_COLUMNS` columns, or a header with no data.
     """
     path = Path(path)
-    data, encoding = _decode(path, _load(path, max_bytes))
+    head, complete, limit, tail = _load(path, max_bytes)
+    if not complete and (
+        head.startswith(tuple(bom for bom, enc in _BOMS if enc.startswith("utf-16")))
+        or (b"\n" not in head and b"\r" in head)
+    ):  # UTF-16 or CR-only line ends: decoded whole, in memory (bounded by the limit)
+        fd = open_regular(path, limit)
+        try:
+            head, complete = _read_up_to(path, fd, limit + 1, limit)
+        except OSError as exc:
+            raise _os_error(path, exc) from None
+        finally:
+            os.close(fd)
+    if not complete:  # decode whole lines only: a character may be cut at the end
+        cut = head.rfind(b"\n")
+        head = head[: cut + 1] if cut >= 0 else head
+    data, encoding = _decode(path, head)
     # The header is the first line that is not blank.
     start = 0
     while True:
         end = data.find(b"\n", start)
         line_end = len(data) if end < 0 else end
+        if line_end - start > HEAD_MAX_BYTES // 2 or (end < 0 and not complete):
+            raise LogReadError(
+                path,
+                "the first line is longer than any log header",
+                line=_line_of(data, start),
+                hint="check that this is a CSV export with one header line",
+            )
         header_line = data[start:line_end].decode("utf-8").strip("\r\n")
         if header_line.strip() or end < 0:
             break
@@ -244,6 +470,14 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
     if not header_line.strip():
         raise LogReadError(path, "file is empty", line=1, hint="export the data again")
     header_lineno = _line_of(data, start)
+    widest = max(header_line.count(d) for d in (*_DELIMITERS, " ")) + 1
+    if widest > MAX_COLUMNS:
+        raise LogReadError(
+            path,
+            f"the header has {widest} columns, more than the {MAX_COLUMNS} a log may have",
+            line=header_lineno,
+            hint="export only the time, force and acceleration columns",
+        )
     sample: list[str] = []
     pos = data_start
     while len(sample) < _SAMPLE_LINES and pos < len(data):
@@ -263,4 +497,65 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
     delimiter = _choose_delimiter(header_line, sample)
     decimal = _choose_decimal(delimiter, sample)
     header = [cell.replace("\ufeff", "").strip() for cell in _fields(header_line, delimiter)]
-    return Sniffed(path, data, encoding, delimiter, decimal, header, data_start, header_lineno)
+    stream = not complete
+    raw_offset = 0
+    if stream:
+        newlines = data.count(b"\n", 0, data_start)
+        raw_offset = _after_newlines(head, newlines)
+    cut_last = "" if encoding.startswith("utf-16") else _cut_last_line(tail, delimiter)
+    return Sniffed(
+        path,
+        data,
+        encoding,
+        delimiter,
+        decimal,
+        header,
+        data_start,
+        header_lineno,
+        stream=stream,
+        raw_offset=raw_offset,
+        read_encoding="cp1252" if encoding == "cp1252" else "utf-8",
+        limit=limit,
+        cut_last=cut_last,
+    )
+
+
+def _after_newlines(raw: bytes, n: int) -> int:
+    """Offset just after the ``n``-th newline of ``raw`` (0 for ``n`` = 0)."""
+    pos = 0
+    for _ in range(n):
+        pos = raw.index(b"\n", pos) + 1
+    return pos
+
+
+_NUMBER = re.compile(r"^[+-]?(\d+)?(?:[.,](\d*))?(?:[eE][+-]?\d+)?$")
+
+
+def _cut_last_line(tail: bytes, delimiter: str) -> str:
+    """The file's last line when it has no line end and looks cut, else ``""``.
+
+    Cut: fewer cells than the line before, or a last cell that is not a whole number
+    where the line before has one, has no exponent where the line before has one, or has
+    fewer decimals.
+    """
+    if not tail.strip() or tail.endswith((b"\n", b"\r")):
+        return ""
+    lines = tail.decode("utf-8", errors="replace").replace("\r", "\n").split("\n")
+    last = lines[-1]
+    prev = next((line for line in reversed(lines[:-1]) if line.strip()), None)
+    if prev is None or not last.strip():
+        return ""
+    cells, before = _fields(last, delimiter), _fields(prev, delimiter)
+    if len(cells) < len(before):
+        return last
+    a, b = cells[-1].strip().strip('"'), before[-1].strip().strip('"')
+    m_a, m_b = _NUMBER.match(a), _NUMBER.match(b)
+    if m_b is None or not b:
+        return ""
+    if m_a is None or not a:
+        return last
+    if ("e" in b.lower()) != ("e" in a.lower()):
+        return last
+    if len(m_a.group(2) or "") < len(m_b.group(2) or ""):
+        return last
+    return ""

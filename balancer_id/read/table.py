@@ -8,6 +8,7 @@ the error can name its line and column. Empty cells and ``NaN`` become NaN.
 from __future__ import annotations
 
 import io
+import os
 import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -15,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from balancer_id.errors import LogReadError
-from balancer_id.read.sniff import Sniffed
+from balancer_id.read.sniff import BoundedReader, FileTooLarge, Sniffed, open_regular
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -23,6 +24,8 @@ if TYPE_CHECKING:
 #: Missing-value spellings on top of pandas' defaults (``""``, ``NaN``, ``nan``, ``NA``, ...).
 _NA_EXTRA = ["NAN", "-NAN", "Nan", "nan(ind)", "-nan(ind)", "#NV", "#WERT!", "#VALUE!"]
 _LINE_IN_MESSAGE = re.compile(r"\b(line|row) (\d+)")
+#: Values beyond this magnitude are not measurements (and would overflow squares).
+DEFAULT_BOUND = 1e12
 
 
 @dataclass
@@ -41,12 +44,16 @@ class Table:
     dropped : dict
         Header index -> (line, cell) of the first non-numeric cell, for columns that were
         allowed to fail (extra channels) and were left out.
+    notes : list of str
+        What was done to the numbers (a cut last line dropped, values beyond the column's
+        bound or infinite treated as missing).
     """
 
     columns: dict[int, np.ndarray]
     n_rows: int
     first_line: int
     dropped: dict[int, tuple[int, str]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
     def line_of(self, row: int | np.integer) -> int:
         """Return the file line number of data row ``row``.
@@ -65,7 +72,14 @@ class Table:
         return self.first_line + int(row)
 
 
-def _read(sniffed: Sniffed, usecols: list[int], dtype: object) -> pd.DataFrame:
+#: Rows per chunk when a big file is parsed from disk.
+CHUNK_ROWS = 1 << 18
+
+
+def _read(
+    sniffed: Sniffed, usecols: list[int], dtype: object, encoding: str
+) -> pd.DataFrame | dict[int, np.ndarray]:
+    """Parse; float64 columns come back as a dict (a streamed file read in chunks)."""
     import pandas as pd  # lazy: importing balancer_id.read stays cheap
 
     kwargs: dict[str, object] = {
@@ -76,7 +90,7 @@ def _read(sniffed: Sniffed, usecols: list[int], dtype: object) -> pd.DataFrame:
         "decimal": sniffed.decimal,
         "skip_blank_lines": False,
         "engine": "c",
-        "encoding": "utf-8",
+        "encoding": encoding,
         "quotechar": '"',
         "na_values": _NA_EXTRA,
     }
@@ -84,13 +98,84 @@ def _read(sniffed: Sniffed, usecols: list[int], dtype: object) -> pd.DataFrame:
         kwargs["sep"] = r"\s+"
     else:
         kwargs["sep"] = sniffed.delimiter
-    buffer = io.BytesIO(sniffed.data)
-    buffer.seek(sniffed.data_start)
-    return pd.read_csv(buffer, **kwargs)
+    if not sniffed.stream:
+        buffer = io.BytesIO(sniffed.data)
+        buffer.seek(sniffed.data_start)
+        frame = pd.read_csv(buffer, **kwargs)
+        if dtype is str:
+            return frame
+        return {c: frame[c].to_numpy(dtype=np.float64) for c in usecols}
+    # streamed from disk: never the whole file in memory; the limit counts bytes read
+    raw = BoundedReader(open_regular(sniffed.path), sniffed.limit, sniffed.raw_offset)
+    with io.BufferedReader(raw, buffer_size=1 << 20) as stream:
+        if dtype is str:
+            return pd.read_csv(stream, **kwargs)
+        # chunk by chunk into columns allocated once for the rows the file size promises
+        # (grown if it promised too few): the peak is the numbers once plus one chunk
+        size = max(16, int(_expected_rows(sniffed) * 1.03) + 16)
+        columns = {c: np.empty(size) for c in usecols}
+        n = 0
+        with pd.read_csv(stream, chunksize=CHUNK_ROWS, **kwargs) as chunks:
+            for chunk in chunks:
+                k = len(chunk)
+                if n + k > size:
+                    size = max(n + k, size + size // 4)
+                    for c in usecols:
+                        columns[c] = _grown(columns[c], size)
+                for c in usecols:
+                    columns[c][n : n + k] = chunk[c].to_numpy(dtype=np.float64)
+                n += k
+                del chunk
+    for c in usecols:
+        columns[c] = _grown(columns[c], n)
+    return columns
 
 
-def read_table(sniffed: Sniffed, wanted: list[int], optional: set[int] | None = None) -> Table:
+def _expected_rows(sniffed: Sniffed) -> int:
+    """Rows the file holds if its lines are as long as those of its head."""
+    head = sniffed.data[sniffed.data_start :]
+    lines = max(1, head.count(b"\n"))
+    per_line = max(1.0, len(head) / lines)
+    try:
+        size = os.stat(sniffed.path).st_size
+    except OSError:
+        return lines
+    return int((size - sniffed.raw_offset) / per_line) + 1
+
+
+def _grown(values: np.ndarray, size: int) -> np.ndarray:
+    """``values`` resized to ``size`` in place when it can be, else as a copy."""
+    try:
+        values.resize(size, refcheck=False)
+    except ValueError:
+        values = np.resize(values, size)
+    return values
+
+
+def _read_any(
+    sniffed: Sniffed, usecols: list[int], dtype: object
+) -> pd.DataFrame | dict[int, np.ndarray]:
+    """Read; a streamed UTF-8 file with other bytes further on is read again as cp1252."""
+    encoding = sniffed.read_encoding if sniffed.stream else "utf-8"
+    try:
+        return _read(sniffed, usecols, dtype, encoding)
+    except UnicodeDecodeError:
+        if not sniffed.stream or encoding != "utf-8":
+            raise
+        return _read(sniffed, usecols, dtype, "cp1252")
+
+
+def read_table(
+    sniffed: Sniffed,
+    wanted: list[int],
+    optional: set[int] | None = None,
+    limits: dict[int, float] | None = None,
+) -> Table:
     """Parse the columns ``wanted`` as float64.
+
+    A last line that :func:`~balancer_id.read.sniff.sniff` found cut is dropped, and
+    values that are infinite or beyond their column's bound (``limits``, default
+    :data:`DEFAULT_BOUND`) become NaN (missing samples); both are said in ``notes``.
 
     Parameters
     ----------
@@ -101,6 +186,8 @@ def read_table(sniffed: Sniffed, wanted: list[int], optional: set[int] | None = 
     optional : set of int, optional
         Columns that may be dropped (reported in ``Table.dropped``) instead of failing
         when they hold text.
+    limits : dict, optional
+        Header index -> largest plausible magnitude of that column's values.
 
     Returns
     -------
@@ -117,13 +204,46 @@ def read_table(sniffed: Sniffed, wanted: list[int], optional: set[int] | None = 
     usecols = sorted(set(wanted))
     first_line = sniffed.header_line + 1
     try:
-        frame = _read(sniffed, usecols, np.float64)
-    except ValueError:  # a cell that is not a number (or a malformed row): slow path, text
-        return _read_slow(sniffed, usecols, optional, first_line)
+        columns = _read_any(sniffed, usecols, np.float64)
+    except ValueError as exc:  # a cell that is not a number (or a malformed row): slow path
+        if isinstance(exc, UnicodeDecodeError):
+            raise _parser_error(sniffed, exc, first_line) from None
+        table = _read_slow(sniffed, usecols, optional, first_line)
     except Exception as exc:  # never a traceback: pandas' other errors become LogReadError
         raise _parser_error(sniffed, exc, first_line) from None
-    columns = {c: frame[c].to_numpy(dtype=np.float64) for c in usecols}
-    return Table(columns, len(frame), first_line)
+    else:
+        if not isinstance(columns, dict):  # pragma: no cover - numbers come back as a dict
+            raise TypeError("numeric columns expected")
+        table = Table(columns, len(columns[usecols[0]]) if usecols else 0, first_line)
+    return _finish(sniffed, table, limits or {})
+
+
+def _finish(sniffed: Sniffed, table: Table, limits: dict[int, float]) -> Table:
+    """Drop a cut last line; values infinite or beyond their column's bound become NaN."""
+    if sniffed.cut_last and table.n_rows:
+        line = table.line_of(table.n_rows - 1)
+        table.columns = {c: v[:-1] for c, v in table.columns.items()}
+        table.n_rows -= 1
+        table.notes.append(
+            f"line {line}, the last, has no line end and looks cut "
+            f"({sniffed.cut_last.strip()[:40]!r}); dropped"
+        )
+    for col, values in list(table.columns.items()):
+        bound = limits.get(col, DEFAULT_BOUND)
+        with np.errstate(invalid="ignore"):
+            bad = np.abs(values) > bound  # NaN compares False; inf is beyond any bound
+        n_bad = int(np.count_nonzero(bad))
+        if n_bad:
+            first = int(np.argmax(bad))
+            table.notes.append(
+                f"column '{sniffed.header[col]}': {n_bad} value(s) infinite or beyond "
+                f"±{bound:g} (first {values[first]:g} on line {table.line_of(first)}) "
+                "treated as missing samples"
+            )
+            values = values.copy()  # pandas' arrays may be read-only
+            values[bad] = np.nan
+            table.columns[col] = values
+    return table
 
 
 def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_line: int) -> Table:
@@ -131,9 +251,11 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
     import pandas as pd
 
     try:
-        frame = _read(sniffed, usecols, str)
+        frame = _read_any(sniffed, usecols, str)
     except Exception as exc:  # ParserError, UnicodeDecodeError, MemoryError, ...
         raise _parser_error(sniffed, exc, first_line) from None
+    if isinstance(frame, dict):  # pragma: no cover - text is always read as a frame
+        raise TypeError("text columns expected")
     columns: dict[int, np.ndarray] = {}
     dropped: dict[int, tuple[int, str]] = {}
     bad_required: tuple[int, int, str] | None = None
@@ -170,6 +292,12 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
 
 
 def _parser_error(sniffed: Sniffed, exc: BaseException, first_line: int) -> LogReadError:
+    if isinstance(exc, FileTooLarge):
+        return LogReadError(
+            sniffed.path,
+            f"more than {sniffed.limit} bytes read, more than this machine can read safely",
+            hint="split the file into smaller files (e.g. one run per file) or raise max_bytes",
+        )
     message = " ".join(str(exc).split()) or type(exc).__name__
     found = _LINE_IN_MESSAGE.search(message)
     # pandas counts "line N" from 1 and "row N" from 0 over the data it was given.

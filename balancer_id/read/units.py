@@ -15,6 +15,15 @@ Rules (documented in the package docs):
   ``a``) includes gravity when its median is beyond g/2 in size; it is never guessed to
   be in g (a kinematic acceleration of ~1 m/s^2 is common), only converted when its
   unit says ``g``.
+
+Plausibility (the resting magnitude against the unit and ``g``), never fitted silently:
+
+* values taken as g (``accel_unit="g"``, or a ``(g)`` header) that rest at ~g (so ~g^2,
+  ~96 m/s^2, once converted) are m/s^2: refused when the user forced ``g``
+  (:class:`UnitMismatch`), kept as m/s^2 with a warning when only the header said g;
+* three axes forced to ``m/s^2`` that include gravity and rest at ~1 are in g: refused;
+* an acceleration with gravity that rests at ~9.8 m/s^2 while ``g`` is far from it
+  (``g=1``): the ``g`` setting is refused.
 """
 
 from __future__ import annotations
@@ -29,6 +38,28 @@ _ALIASES = {"m/s²": "m/s^2", "m/s2": "m/s^2", "ms2": "m/s^2", "mps2": "m/s^2", 
 
 _G_LOW, _G_HIGH = 0.7, 1.3
 _WITH_G_MIN = 4.0
+_G_STANDARD = 9.80665
+
+
+class UnitMismatch(ValueError):
+    """The resting magnitude of the acceleration contradicts its unit or ``g``.
+
+    Parameters
+    ----------
+    message : str
+        What contradicts what.
+    hint : str
+        What to do.
+    """
+
+    def __init__(self, message: str, hint: str) -> None:
+        super().__init__(message)
+        self.message = message
+        self.hint = hint
+
+
+def _near(value: float, target: float) -> bool:
+    return _G_LOW * target < value < _G_HIGH * target
 
 
 def check_accel_unit(accel_unit: str) -> str:
@@ -86,32 +117,83 @@ def resolve_accel(
     includes_gravity : bool
         The decision.
     warning : str or None
-        A message when the unit was guessed from the values.
+        A message when the unit was guessed from the values, or a header unit was
+        contradicted by them.
+
+    Raises
+    ------
+    UnitMismatch
+        The resting magnitude contradicts a unit the user forced, or ``g``.
     """
     if accel.size == 0:
         return accel, bool(includes_gravity) if includes_gravity is not None else True, None
+    sub = accel[:: max(1, accel.shape[0] // 1_000_000)]  # a million samples tell the level
     if accel.shape[1] == 1:
-        level = float(np.abs(np.median(accel[:, 0])))
+        level = float(np.abs(np.median(sub[:, 0])))
     else:
-        level = float(np.median(np.sqrt(np.einsum("ij,ij->i", accel, accel))))
+        level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
+    if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
+        if accel_unit == "g":
+            raise UnitMismatch(
+                f"the acceleration rests at {level:.2f}, which is {level * g:.0f} m/s^2 in g: "
+                "the values are in m/s^2, not g",
+                "pass --accel-unit m/s^2 or auto",
+            )
+        explicit_g = False
+        note = (
+            f"the header says g but the acceleration rests at {level:.2f} "
+            f"({level * g:.0f} m/s^2 as g): the values are taken as m/s^2, not converted"
+        )
+        if includes_gravity is None:
+            includes_gravity = True
+        _check_g(level, g)
+        return accel, includes_gravity, note
     if explicit_g:
         accel = accel * g
         level *= g
         if includes_gravity is None:
             includes_gravity = level > g / 2
+        if includes_gravity:
+            _check_g(level, g)
         return accel, includes_gravity, None
+    if (
+        accel_unit == "m/s^2"
+        and accel.shape[1] > 1
+        and includes_gravity is not False
+        and _G_LOW < level < _G_HIGH
+    ):
+        raise UnitMismatch(
+            f"the acceleration rests at a magnitude of {level:.2f} m/s^2; an accelerometer "
+            "that includes gravity reads ~9.8 m/s^2 at rest: the values look like g",
+            "pass --accel-unit g or auto",
+        )
     if accel_unit == "m/s^2" or accel.shape[1] == 1:
         if includes_gravity is None:
             includes_gravity = level > g / 2
+        if includes_gravity:
+            _check_g(level, g)
         return accel, includes_gravity, None
     looks_like_g = _G_LOW < level < _G_HIGH
     if includes_gravity is None:
         includes_gravity = level >= _WITH_G_MIN or looks_like_g
+    if includes_gravity and not looks_like_g:
+        _check_g(level, g)
     if includes_gravity and looks_like_g:
+        _check_g(level * g, g)
         warning = (
             f"acceleration magnitude at rest is {level:.2f}, which looks like g rather than "
             "m/s^2; converted to m/s^2 (pass accel_unit='m/s^2' or --accel-unit m/s^2 if wrong)"
         )
         return accel * g, True, warning
     return accel, includes_gravity, None
+
+
+def _check_g(level: float, g: float) -> None:
+    """Refuse a ``g`` setting that the resting magnitude (m/s^2) of a with-g log contradicts."""
+    if _near(level, _G_STANDARD) and not _near(g, _G_STANDARD):
+        raise UnitMismatch(
+            f"the acceleration rests at {level:.2f} m/s^2 (gravity), which contradicts "
+            f"g = {g:g} m/s^2",
+            f"pass --g {_G_STANDARD:.2f} or the local gravity",
+        )

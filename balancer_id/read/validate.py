@@ -138,7 +138,10 @@ def count_saturated(
             out["force"] = n
     if accel is not None and accel.size:
         limit = ACCEL_RANGE_G * g - ACCEL_RESOLUTION
-        n = int(np.count_nonzero((np.abs(accel) >= limit).any(axis=1)))
+        hit = np.zeros(accel.shape[0], dtype=bool)
+        for j in range(accel.shape[1]):  # column by column: no (n, k) temporaries
+            hit |= np.abs(accel[:, j]) >= limit
+        n = int(np.count_nonzero(hit))
         if n:
             out["accel"] = n
     return out

@@ -692,8 +692,21 @@ def _coupling_section(result: FitResult) -> Section:
                 "Closed-loop poles, and the stability boundary in the servo's (c_r, k_r) "
                 "plane with the identified robot.",
             ),
+            *_advice_blocks(result),
         ],
     )
+
+
+def _advice_blocks(result: FitResult) -> list[Paragraph]:
+    """The stability condition's dominant terms and the advice (issue 9)."""
+    from balancer_id.diagnose.advice import advise_fit
+
+    moves = [t.input for t in result.match.data.trials]
+    advice = advise_fit(result.match.model, result.values, moves)
+    dominant = result.coupling.dominant if result.coupling is not None else ""
+    return [Paragraph(f"Dominant terms: {dominant}.")] + [
+        Paragraph(line.strip()) for line in advice.lines()
+    ]
 
 
 # --------------------------------------------------------------------------------------

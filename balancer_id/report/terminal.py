@@ -117,6 +117,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             f"robot coupling: oscillation {_fmt(cp['oscillation_hz'])} Hz, damping ratio "
             f"{_fmt(cp['damping_ratio'], 3)}, stability margin {_fmt(cp['stability_margin'], 3)}"
         )
+        _print_robot(console, result)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
@@ -168,6 +169,11 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
         :meth:`ModelComparison.to_dict` per model, all on the same trials.
     """
     models = result["models"]
+    if result.get("vibration"):  # issue 9: human against robot
+        from balancer_id.diagnose.vibration import vibration_lines
+
+        for line in vibration_lines(result["vibration"]):
+            console.print(line)
     table = Table(title="models compared on the same trials")
     for col in ("model", "RMSE (m/s^2)", "fit %", "AIC", "BIC", "worst window"):
         table.add_column(col)
@@ -300,3 +306,18 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
     for r in result.get("rejected", []):
         console.print(f"[yellow]not taken:[/yellow] {r}")
     console.print(f"final model: [bold]{result['final_model']}[/bold] — {result['final_summary']}")
+
+
+def _print_robot(console: Console, result: dict[str, Any]) -> None:
+    """The stability condition, its dominant terms and the advice (robot logs, issue 9)."""
+    from balancer_id.diagnose.advice import advice_lines
+
+    cond = result["coupling"].get("condition")
+    if cond:
+        console.print(
+            f"stability: {cond['text']}: {cond['lhs']:.4g} vs {cond['rhs']:.4g} "
+            f"({'stable' if result['coupling'].get('stable') else 'UNSTABLE'}); "
+            f"dominated by {result['coupling'].get('dominant', '')}"
+        )
+    for line in advice_lines(result["advice"]) if result.get("advice") else []:
+        console.print(line)

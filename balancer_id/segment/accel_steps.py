@@ -35,6 +35,9 @@ BASELINE_S = 30.0
 #: Time constants (s) tried when placing the onset of a first-order rise.
 _RISE_T = np.geomspace(0.1, 1.0, 25)
 
+#: Highest rate (Hz) of the onset search; faster logs are searched on block means first.
+SEARCH_HZ = 200
+
 
 @dataclass(frozen=True)
 class _Stretch:
@@ -160,7 +163,9 @@ def rise_onset(time: np.ndarray, accel: np.ndarray, lo: int, hi: int, peak: int,
     Fits ``b + A (1 - exp(-(t - t0)/T))`` (zero before ``t0``) by least squares for every
     candidate ``t0`` (a sample in ``[peak - w, peak + w/4]``) and every ``T`` of a grid
     over 0.1..1 s, over the samples from ``w/2`` before the earliest candidate to ``w``
-    after ``peak``.
+    after ``peak``. Above :data:`SEARCH_HZ` the search runs on block means (at most
+    :data:`SEARCH_HZ`) and is then refined at the full rate within one block of the
+    coarse onset, so the cost grows linearly with the rate, not with its square.
 
     Parameters
     ----------
@@ -182,20 +187,44 @@ def rise_onset(time: np.ndarray, accel: np.ndarray, lo: int, hi: int, peak: int,
     f_lo, f_hi = max(lo, k_lo - w // 2), min(hi, peak + w)
     t = time[f_lo:f_hi]
     y = accel[f_lo:f_hi] - accel[f_lo:f_hi].mean()
-    ks = np.arange(k_lo, k_hi + 1)
-    lag = np.clip(t[None, :] - time[ks][:, None], 0.0, None)
-    best = (np.inf, peak)
-    for tau in _RISE_T:
+    # w spans ~1 s: blocks of `step` samples bring the search to at most SEARCH_HZ
+    step = max(1, w // SEARCH_HZ)
+    if step == 1 or k_hi - k_lo < 4 * step:
+        ks = np.arange(k_lo, k_hi + 1)
+        j, _ = _best_rise(t, y, time[ks], _RISE_T)
+        return int(ks[j])
+    nb = t.size // step
+    tb = t[: nb * step].reshape(nb, step).mean(axis=1)
+    yb = y[: nb * step].reshape(nb, step).mean(axis=1)
+    first = f_lo + np.arange(nb) * step  # first sample of each block
+    cand = np.flatnonzero((first >= k_lo) & (first <= k_hi))
+    j, i_tau = _best_rise(tb, yb, time[first[cand]], _RISE_T)
+    k = int(first[cand[j]])
+    taus = _RISE_T[i_tau : i_tau + 1]
+    while step > 1:  # refine within one block, ~10 candidates per stage
+        stride = max(1, step // 10)
+        ks = np.arange(max(k_lo, k - step), min(k_hi, k + step) + 1, stride)
+        j, _ = _best_rise(t, y, time[ks], taus)
+        k, step = int(ks[j]), stride if stride > 1 else 1
+    return k
+
+
+def _best_rise(t: np.ndarray, y: np.ndarray, t0: np.ndarray, taus: np.ndarray) -> tuple[int, int]:
+    """Index of the onset ``t0`` and of the time constant with the least squared error."""
+    lag = np.clip(t[None, :] - t0[:, None], 0.0, None)
+    best = (np.inf, 0, 0)
+    n, sy, yy = y.size, y.sum(), y @ y
+    for i, tau in enumerate(taus):
         rise = -np.expm1(-lag / tau)  # (candidates, samples)
         # least squares on [1, rise]: closed form of the 2x2 normal equations per row
-        n, s1, s2 = y.size, rise.sum(axis=1), (rise * rise).sum(axis=1)
-        sy, ry = y.sum(), rise @ y
+        s1, s2 = rise.sum(axis=1), (rise * rise).sum(axis=1)
+        ry = rise @ y
         det = n * s2 - s1 * s1
         ok = det > 1e-12
         b = np.where(ok, (s2 * sy - s1 * ry) / np.where(ok, det, 1.0), sy / n)
         amp = np.where(ok, (n * ry - s1 * sy) / np.where(ok, det, 1.0), 0.0)
-        sse = y @ y - b * sy - amp * ry
+        sse = yy - b * sy - amp * ry
         j = int(np.argmin(sse))
         if sse[j] < best[0]:
-            best = (float(sse[j]), int(ks[j]))
-    return best[1]
+            best = (float(sse[j]), j, i)
+    return best[1], best[2]

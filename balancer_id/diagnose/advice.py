@@ -1,0 +1,509 @@
+"""Advice for a robot-balancer pair: settings that damp the coupled mode (paper section IV).
+
+The coupled loop ``T_a m_a s^3 + (T_a D + m_a) s^2 + (D + c_r) s + k_r`` has one complex
+pole pair, the mode a robot excites. For an identified system, :func:`advise` finds for
+each of the balancer's viscosity ``D0``, the robot's damping ``c_r`` and its stiffness
+``k_r`` (each changed alone) the value nearest to today's that brings the mode's damping
+ratio to at least the target (0.3 by default), with the predicted frequency, damping and
+stability margin; :func:`check_by_simulation` simulates the move with each setting and
+measures the mode's frequency and damping in the simulated settling.
+
+Changing one setting cannot always reach the target: the damping of the mode is bounded
+by the drive lag (with ``k_r -> 0`` it tends to ``(T_a D + m_a) / (2 sqrt(T_a m_a (D +
+c_r)))``, and more ``c_r`` beyond a point *lowers* it, the lag turning damping into
+stiffness). Such a setting is reported as not reachable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from balancer_id.fit.coupling import Coupling, coupling_of
+from balancer_id.model.spec import Model
+from balancer_id.simulate.engine import TrialInput, simulate_many
+from balancer_id.simulate.inputs import Thrust
+
+#: The damping ratio the advice aims at.
+TARGET_DAMPING = 0.3
+#: The settings the advice may change, and the range searched (factor of today's value).
+SETTINGS = ("D0", "c_r", "k_r")
+SEARCH_DECADES = 2.0
+#: Settling simulated after the move's end for the check (s).
+CHECK_AFTER_S = 8.0
+
+_WHAT = {
+    "D0": "balancer viscosity D0 (kg/s)",
+    "c_r": "robot servo damping c_r (N s/m)",
+    "k_r": "robot servo stiffness k_r (N/m)",
+}
+
+
+@dataclass(frozen=True)
+class ModeFigures:
+    """Frequency, damping ratio and stability margin of the coupled mode."""
+
+    oscillation_hz: float
+    damping_ratio: float
+    stability_margin: float | None = None
+
+    def to_dict(self) -> dict[str, float | None]:
+        """JSON-ready dict."""
+        return {
+            "oscillation_hz": self.oscillation_hz,
+            "damping_ratio": self.damping_ratio,
+            "stability_margin": self.stability_margin,
+        }
+
+
+@dataclass
+class Setting:
+    """One way to reach the target: a single parameter changed.
+
+    Attributes
+    ----------
+    parameter : str
+        ``D0``, ``c_r`` or ``k_r``.
+    current : float
+        Today's value.
+    advised : float or None
+        The value nearest to today's that reaches the target; None when not reachable.
+    predicted : ModeFigures or None
+        The mode after the change, from the characteristic polynomial.
+    simulated : ModeFigures or None
+        The mode measured in a simulation of the move after the change.
+    note : str
+        Why it is not reachable, or a caveat.
+    """
+
+    parameter: str
+    current: float
+    advised: float | None
+    predicted: ModeFigures | None
+    simulated: ModeFigures | None = None
+    note: str = ""
+
+    @property
+    def change(self) -> float | None:
+        """Relative change ``advised / current - 1`` (None when not reachable)."""
+        if self.advised is None or self.current == 0:
+            return None
+        return self.advised / self.current - 1.0
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "parameter": self.parameter,
+            "what": _WHAT[self.parameter],
+            "current": self.current,
+            "advised": self.advised,
+            "change_percent": None if self.change is None else 100.0 * self.change,
+            "predicted": None if self.predicted is None else self.predicted.to_dict(),
+            "simulated": None if self.simulated is None else self.simulated.to_dict(),
+            "note": self.note,
+        }
+
+
+@dataclass
+class Advice:
+    """Settings that bring the coupled mode's damping ratio to the target.
+
+    Attributes
+    ----------
+    target : float
+        The damping ratio aimed at.
+    now : ModeFigures
+        The mode today.
+    settings : list of Setting
+        One per parameter (``D0``, ``c_r``, ``k_r``).
+    viscosity_factor : float
+        The effective viscosity of the settling as a share of ``D0`` used in the
+        predictions (``variable_viscosity``: the servo force lowers it).
+    """
+
+    target: float
+    now: ModeFigures
+    settings: list[Setting] = field(default_factory=list)
+    viscosity_factor: float = 1.0
+
+    @property
+    def needed(self) -> bool:
+        """Whether today's damping ratio is below the target."""
+        return self.now.damping_ratio < self.target
+
+    @property
+    def smallest(self) -> Setting | None:
+        """The reachable setting with the smallest relative change (None if none)."""
+        ok = [s for s in self.settings if s.advised is not None and s.current > 0]
+        if not ok:
+            return None
+        return min(ok, key=lambda s: abs(np.log(s.advised / s.current)))  # type: ignore[operator]
+
+    def to_dict(self) -> dict[str, object]:
+        """The ``advice`` record of ``fit --json``."""
+        best = self.smallest
+        return {
+            "target_damping_ratio": self.target,
+            "needed": self.needed,
+            "now": self.now.to_dict(),
+            "settings": [s.to_dict() for s in self.settings],
+            "smallest_change": None if best is None else best.parameter,
+            "viscosity_factor": self.viscosity_factor,
+        }
+
+    def lines(self) -> list[str]:
+        """The advice as short lines of text (terminal and report)."""
+        return advice_lines(self.to_dict())
+
+
+def advice_lines(advice: Mapping[str, Any]) -> list[str]:
+    """Short lines of text from an ``advice`` record (:meth:`Advice.to_dict`).
+
+    Parameters
+    ----------
+    advice : mapping
+        The ``advice`` object of ``fit --json``.
+
+    Returns
+    -------
+    list of str
+        Today's mode, then one line per setting (the smallest change marked).
+    """
+    now = advice["now"]
+    target = advice["target_damping_ratio"]
+    fac = float(advice.get("viscosity_factor", 1.0))
+    seen = (
+        f" (with the settling's effective viscosity, {100 * fac:.0f} % of D0: the servo "
+        "force lowers the variable viscosity)"
+        if fac < 0.999
+        else ""
+    )
+    out = [
+        f"coupled mode today: {now['oscillation_hz']:.3g} Hz, damping ratio "
+        f"{now['damping_ratio']:.3g}, stability margin {now['stability_margin']:+.3g}{seen}"
+    ]
+    if not advice["needed"]:
+        out.append(f"the damping ratio is already at least {target:g}: no change needed")
+        return out
+    out.append(f"to bring the damping ratio to {target:g}, change one of:")
+    for s in advice["settings"]:
+        p = s["predicted"]
+        if s["advised"] is None or p is None:
+            out.append(f"  {s['what']} alone: not reachable ({s['note']})")
+            continue
+        text = (
+            f"  {s['what']}: {s['current']:.4g} -> {s['advised']:.4g} "
+            f"({s['change_percent'] or 0.0:+.0f} %): {p['oscillation_hz']:.3g} Hz, "
+            f"damping {p['damping_ratio']:.3g}, margin {p['stability_margin']:+.3g}"
+        )
+        sim = s.get("simulated")
+        if sim is not None:
+            text += (
+                f"; simulated: {sim['oscillation_hz']:.3g} Hz, damping {sim['damping_ratio']:.3g}"
+            )
+        if s["parameter"] == advice.get("smallest_change"):
+            text += "  <- smallest change"
+        out.append(text)
+    if advice.get("smallest_change") is None:
+        out.append("  no single setting reaches it: change two together, or the lag T_a")
+    return out
+
+
+def _coupling(values: Mapping[str, float], factor: float) -> Coupling:
+    return coupling_of({**values, "D0": factor * float(values.get("D0", 0.0))})
+
+
+def _figures(values: Mapping[str, float], factor: float = 1.0) -> ModeFigures:
+    c = _coupling(values, factor)
+    return ModeFigures(c.oscillation_hz, c.damping_ratio, c.stability_margin)
+
+
+def _ok(values: Mapping[str, float], target: float, factor: float = 1.0) -> bool:
+    c = _coupling(values, factor)
+    return c.stable and c.damping_ratio >= target
+
+
+def advise_setting(
+    values: Mapping[str, float],
+    parameter: str,
+    target: float = TARGET_DAMPING,
+    bounds: tuple[float, float] | None = None,
+    viscosity_factor: float = 1.0,
+) -> Setting:
+    """The value of one parameter nearest to today's that reaches the target damping.
+
+    A log-spaced grid over :data:`SEARCH_DECADES` decades either side of today's value
+    finds the reachable values; the nearest one is then refined by bisection to the
+    boundary (so the predicted damping is the target, on its reachable side).
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        The identified parameters (``m_a``, ``T_a``, ``D0``, ``k_r``, ``c_r``).
+    parameter : {"D0", "c_r", "k_r"}
+        The setting to change.
+    target : float
+        Damping ratio to reach.
+    bounds : tuple of float, optional
+        The values the setting may take; None allows the whole searched range.
+    viscosity_factor : float
+        The effective viscosity during the settling as a share of ``D0`` (1 for a
+        constant viscosity; see :func:`viscosity_factor`).
+
+    Returns
+    -------
+    Setting
+        Without ``simulated`` (see :func:`check_by_simulation`).
+    """
+    base = {k: float(v) for k, v in values.items()}
+    base.setdefault("D0", 0.0)
+    current = float(base[parameter])
+    fac = viscosity_factor
+    if _ok(base, target, fac):
+        return Setting(parameter, current, current, _figures(base, fac), note="already reached")
+    ref = current if current > 0 else 1.0
+    grid = ref * np.logspace(-SEARCH_DECADES, SEARCH_DECADES, 801)
+    if bounds is not None:
+        grid = grid[(grid >= bounds[0]) & (grid <= bounds[1])]
+    ok = np.array([_ok({**base, parameter: float(x)}, target, fac) for x in grid], dtype=bool)
+    if not ok.any():
+        return Setting(
+            parameter,
+            current,
+            None,
+            None,
+            note=f"no value in {float(grid[0]):.3g} .. {float(grid[-1]):.3g} reaches damping "
+            f"{target:g}"
+            if grid.size
+            else "no value allowed",
+        )
+    idx = np.flatnonzero(ok)
+    k = int(idx[np.argmin(np.abs(np.log(grid[idx] / ref)))])
+    good = float(grid[k])
+    # the infeasible neighbour on the side of today's value
+    j = k - 1 if good > ref else k + 1
+    if 0 <= j < grid.size and not ok[j]:
+        bad = float(grid[j])
+        for _ in range(60):
+            mid = float(np.sqrt(good * bad))
+            if _ok({**base, parameter: mid}, target, fac):
+                good = mid
+            else:
+                bad = mid
+    return Setting(parameter, current, good, _figures({**base, parameter: good}, fac))
+
+
+def advise(
+    values: Mapping[str, float],
+    target: float = TARGET_DAMPING,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    viscosity_factor: float = 1.0,
+) -> Advice:
+    """Settings of ``D0``, ``c_r`` and ``k_r`` (each alone) that reach the target damping.
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        The identified parameters (``m_a``, ``T_a``, ``D0``, ``k_r``, ``c_r``).
+    target : float
+        Damping ratio to reach (0.3 by default).
+    bounds : mapping of str to tuple, optional
+        Allowed range of each setting.
+    viscosity_factor : float
+        The effective viscosity during the settling as a share of ``D0`` (see
+        :func:`viscosity_factor`); 1 predicts at ``D0`` itself.
+
+    Returns
+    -------
+    Advice
+        Predicted figures only; :func:`check_by_simulation` adds the simulated ones.
+    """
+    base = dict(values)
+    base.setdefault("D0", 0.0)
+    fac = float(viscosity_factor)
+    settings = [advise_setting(base, p, target, (bounds or {}).get(p), fac) for p in SETTINGS]
+    return Advice(target, _figures(base, fac), settings, fac)
+
+
+def mode_from_response(time: np.ndarray, accel: np.ndarray) -> ModeFigures | None:
+    """Frequency and damping ratio of the oscillation in a free response.
+
+    A third-order linear prediction ``a[n] = sum c_i a[n-i]`` (least squares, on the
+    response decimated to about 20 samples per second) gives three discrete poles; the
+    complex pair, mapped back with ``s = log(z) / dt``, is the mode.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Equally spaced times (s) of the free response (no input).
+    accel : numpy.ndarray
+        The acceleration (m/s^2).
+
+    Returns
+    -------
+    ModeFigures or None
+        None when the response holds no oscillation.
+    """
+    dt0 = float(np.median(np.diff(time)))
+    step = max(round(0.05 / dt0), 1)
+    y = np.asarray(accel, dtype=float)[::step]
+    dt = dt0 * step
+    order = 3
+    if y.size < 4 * order:
+        return None
+    X = np.column_stack([y[order - i - 1 : y.size - i - 1] for i in range(order)])
+    c, *_ = np.linalg.lstsq(X, y[order:], rcond=None)
+    roots = np.roots(np.concatenate([[1.0], -c]))
+    s = np.log(roots.astype(complex)) / dt
+    pair = [p for p in s if p.imag > 1e-6]
+    if not pair:
+        return None
+    p = max(pair, key=lambda q: q.real / abs(q))
+    return ModeFigures(float(p.imag / (2 * np.pi)), float(-p.real / abs(p)))
+
+
+def _simulate_move(model: Model, values: Mapping[str, float], move: TrialInput):
+    """The move simulated to :data:`CHECK_AFTER_S` past its end: (grid, sim, t_end)."""
+    t = np.asarray(move.time, dtype=float)
+    if move.z_ref is None or move.v_ref is None:
+        return None
+    zr = np.asarray(move.z_ref, dtype=float)
+    vr = np.asarray(move.v_ref, dtype=float)
+    moving = np.flatnonzero((np.abs(vr) > 1e-9) | (np.abs(zr - zr[-1]) > 1e-9))
+    if moving.size == 0:
+        return None
+    dt = float(np.median(np.diff(t)))
+    t_end = float(t[moving[-1]])
+    grid = np.arange(t[0], t_end + CHECK_AFTER_S, dt)
+    zg = np.interp(grid, t, zr)
+    vg = np.interp(grid, t, vr, right=0.0)
+    sim = simulate_many(model, values, [TrialInput(grid, Thrust.step(grid[0], 0.0), zg, vg)])[0]
+    return grid, sim, t_end
+
+
+def simulate_mode(
+    model: Model, values: Mapping[str, float], move: TrialInput
+) -> ModeFigures | None:
+    """Simulate the move and measure the coupled mode in the settling after it.
+
+    Parameters
+    ----------
+    model : Model
+        The identified model (with ``servo``).
+    values : mapping of str to float
+        Its parameters.
+    move : TrialInput
+        The move (times, thrust, reference); the simulation is extended by
+        :data:`CHECK_AFTER_S` after the reference stops.
+
+    Returns
+    -------
+    ModeFigures or None
+        From :func:`mode_from_response` on the acceleration after the move's end.
+    """
+    run = _simulate_move(model, values, move)
+    if run is None:
+        return None
+    grid, sim, t_end = run
+    after = grid > t_end
+    return mode_from_response(grid[after], sim.accel[after])
+
+
+def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput) -> float:
+    """The settling's effective viscosity as a share of ``D0`` (``variable_viscosity``).
+
+    With ``D(h) = D0 exp(-A |h|)`` the servo force lowers the viscosity the mode sees.
+    The effective share is the dissipation-weighted mean ``sum exp(-A|h|) v^2 / sum v^2``
+    over the simulated settling after the move (an equivalent linearization); 1 without
+    ``A``.
+
+    Parameters
+    ----------
+    model : Model
+        The identified model.
+    values : mapping of str to float
+        Its parameters.
+    move : TrialInput
+        The move.
+
+    Returns
+    -------
+    float
+        In (0, 1].
+    """
+    A = float(values.get("A", 0.0)) if "A" in model.param_names else 0.0
+    if A <= 0:
+        return 1.0
+    run = _simulate_move(model, values, move)
+    if run is None:
+        return 1.0
+    grid, sim, t_end = run
+    after = grid > t_end
+    w = sim.velocity[after] ** 2
+    if not np.sum(w) > 0:
+        return 1.0
+    return float(np.sum(np.exp(-A * np.abs(sim.operating_force[after])) * w) / np.sum(w))
+
+
+def check_by_simulation(
+    advice: Advice, model: Model, values: Mapping[str, float], moves: Sequence[TrialInput]
+) -> Advice:
+    """Fill each reachable setting's ``simulated`` figures by simulating the first move.
+
+    Parameters
+    ----------
+    advice : Advice
+        From :func:`advise`.
+    model : Model
+        The identified model.
+    values : mapping of str to float
+        Its parameters.
+    moves : sequence of TrialInput
+        The fitted moves; the first is simulated.
+
+    Returns
+    -------
+    Advice
+        The same object, updated.
+    """
+    if not moves:
+        return advice
+    for s in advice.settings:
+        if s.advised is None:
+            continue
+        s.simulated = simulate_mode(model, {**values, s.parameter: s.advised}, moves[0])
+    return advice
+
+
+def advise_fit(
+    model: Model,
+    values: Mapping[str, float],
+    moves: Sequence[TrialInput],
+    target: float = TARGET_DAMPING,
+) -> Advice:
+    """The whole advice for an identified robot-balancer pair, checked by simulation.
+
+    Parameters
+    ----------
+    model : Model
+        The identified model (with ``servo``).
+    values : mapping of str to float
+        Its parameters.
+    moves : sequence of TrialInput
+        The fitted moves (the first is simulated for the checks and the viscosity factor).
+    target : float
+        Damping ratio to reach.
+
+    Returns
+    -------
+    Advice
+        Settings within the model's parameter bounds, predicted with the settling's
+        effective viscosity (:func:`viscosity_factor`) and checked by simulation.
+    """
+    bounds = {p.name: (p.min, p.max) for p in model.params if p.name in SETTINGS}
+    fac = viscosity_factor(model, values, moves[0]) if moves else 1.0
+    advice = advise(values, target, bounds, viscosity_factor=fac)
+    return check_by_simulation(advice, model, values, moves)

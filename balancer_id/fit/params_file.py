@@ -1,0 +1,93 @@
+"""Parameters known from an earlier fit: ``fit --params FILE.json`` holds them.
+
+The usual robot workflow identifies the balancer from step trials first, then the
+robot's servo from a robot-assist log with the balancer held at those values.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from balancer_id.errors import UsageError
+
+
+def read_params_file(path: str | Path) -> dict[str, float]:
+    """The parameter values of an earlier ``fit --json`` (or a plain ``{NAME: value}``).
+
+    Parameters
+    ----------
+    path : str or Path
+        A JSON file: the object ``balancer-id fit --json`` prints (its ``parameters``
+        ``{NAME: {"value": ...}}``), or a flat object ``{NAME: number}``.
+
+    Returns
+    -------
+    dict of str to float
+        Parameter name -> value.
+
+    Raises
+    ------
+    UsageError
+        When the file cannot be read, is not JSON, or holds no parameter values.
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise UsageError(f"--params {path}: cannot read it ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise UsageError(
+            f"--params {path}: line {exc.lineno} column {exc.colno}: not JSON ({exc.msg}); "
+            "give the output of 'balancer-id fit --json'"
+        ) from None
+    table = data.get("parameters", data) if isinstance(data, dict) else None
+    out: dict[str, float] = {}
+    for name, item in (table or {}).items():
+        value = item.get("value") if isinstance(item, dict) else item
+        if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+            out[str(name)] = float(value)
+    if not out:
+        raise UsageError(
+            f"--params {path}: no parameter values found; give the output of "
+            "'balancer-id fit --json' or an object of NAME: value"
+        )
+    return out
+
+
+def held_for_model(
+    path: str | Path, model: str | None, effects_files: tuple[Path, ...] | list[Path] = ()
+) -> dict[str, float]:
+    """The values of ``path`` (:func:`read_params_file`) that are parameters of ``model``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON of an earlier fit.
+    model : str or None
+        The model spec of this fit (None: the default).
+    effects_files : sequence of Path
+        User effect files the spec may name.
+
+    Returns
+    -------
+    dict of str to float
+        Parameter name -> value, only for the model's parameters.
+
+    Raises
+    ------
+    UsageError
+        When the file holds none of the model's parameters.
+    """
+    from balancer_id.fit.api import resolve_model
+
+    names = set(resolve_model(model, effects_files).param_names)
+    values = read_params_file(path)
+    held = {k: v for k, v in values.items() if k in names}
+    if not held:
+        raise UsageError(
+            f"--params {path}: none of its parameters ({', '.join(sorted(values))}) is a "
+            f"parameter of the model"
+        )
+    return held
