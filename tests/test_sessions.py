@@ -204,7 +204,7 @@ def test_guided_move_is_one_window_driven_by_the_force(model, cli, tmp_path):
     code, out, err = cli("inspect", path, "--json")
     assert code == 0, err
     (trial,) = json.loads(out)["trials"]
-    assert trial["kind"] == "move" and 1.5 < trial["t_start"] < 2.0 and trial["t_end"] == 12.0
+    assert trial["kind"] == "guided" and 1.5 < trial["t_start"] < 2.0 and trial["t_end"] == 12.0
     trials = find_trials(_log([rec]))
     res = match_trials(model, from_trials(trials), start=START)
     # one move: a quarter of the information of six step runs; 4 standard errors hold

@@ -70,7 +70,8 @@ class TrialData:
         """Build from one segmented :class:`~balancer_id.segment.trial.Trial`, alone.
 
         The model is driven by the trial's measured force (see :func:`measured_thrust`)
-        where there is one and the thrust was not given, else by a step of
+        where there is one, the thrust was not given and no robot move drives the trial
+        (a robot's force is its servo's answer, not an input), else by a step of
         ``trial.thrust_N`` at ``trial.t_step``. Samples without an acceleration value
         (blank cells of a multi-rate export) are left out. A trial faster than 400 Hz is
         first decimated to 200-400 Hz, anti-aliased
@@ -188,7 +189,8 @@ def from_trials(
                 f"{trial.source} [{trial.recording}], trial at {trial.t_step:.2f} s: no "
                 "acceleration samples; identification needs the acceleration channel"
             )
-        if trial.force is not None and not trial.thrust_given:
+        reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
+        if trial.force is not None and not trial.thrust_given and reference is None:
             thrust = measured_thrust(time, trial.force)
             if continues:
                 first = np.searchsorted(thrust.times, time[keep][0])
@@ -202,7 +204,6 @@ def from_trials(
             thrust = Thrust.step(trial.t_step, trial.thrust_N)
         time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
-        reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
         if reference is not None:
             z_ref, v_ref = reference.evaluate(time)
         lead_in = None

@@ -150,7 +150,7 @@ def guided_move(
         end_reason="end of run" if stop == rec.n_samples else "gap",
         source=source,
         notes=[f"guided move: no step, the measured force drives the model; {how}"],
-        kind="move",
+        kind="guided",
         vertical=vertical_name(motion, rec.accel_axes),
         vertical_sign_known=motion.sign_known,
     )

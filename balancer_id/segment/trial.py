@@ -53,8 +53,9 @@ class Trial:
         ``thrust_N`` was given by the user (``--thrust``); the model is then driven by
         the given levels rather than by the force channel.
     kind : str
-        ``"step"`` (a thrust step) or ``"move"`` (a guided move: the force varies
-        without steps; ``thrust_N`` is its signed peak).
+        ``"step"`` (a thrust step), ``"guided"`` (a person's guided move: the force
+        varies without steps; ``thrust_N`` is its signed peak) or ``"move"`` (a robot's
+        reference move, :class:`~balancer_id.segment.move.MoveTrial`).
     vertical : str
         The up direction in the sensor frame (``"+z"``, ``"-x, 12 deg off"``).
     vertical_sign_known : bool
