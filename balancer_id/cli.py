@@ -45,7 +45,7 @@ ForceSignOpt = Annotated[
     int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
 ]
 VerticalOpt = Annotated[
-    str, typer.Option("--vertical", help="auto|x|y|z: vertical axis of logs without gravity.")
+    str, typer.Option("--vertical", help="auto|x|y|z|-z|...: up axis of logs without gravity.")
 ]
 ColumnsOpt = Annotated[
     str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
@@ -205,8 +205,8 @@ def _read_options(
 
     if force_sign not in (None, 1, -1):
         raise UsageError("--force-sign must be +1 or -1")
-    if vertical not in ("auto", "x", "y", "z"):
-        raise UsageError("--vertical must be auto, x, y or z")
+    if vertical.lstrip("+-") not in ("auto", "x", "y", "z") or vertical in ("+auto", "-auto"):
+        raise UsageError("--vertical must be auto or an axis with an optional sign: x, -z, +y")
     if not (math.isfinite(g) and g > 0):
         raise UsageError(f"--g {g}: gravity must be a positive number of m/s^2, e.g. 9.81")
     if accel_unit not in ("auto", "m/s^2", "g"):
@@ -373,6 +373,10 @@ def fit(
         typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
     ] = None,
     overwrite: OverwriteOpt = False,
+    group_by: Annotated[
+        str | None,
+        typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
+    ] = None,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS."""
     from balancer_id import cache
@@ -385,6 +389,21 @@ def fit(
     _at_least(starts, 1, "--starts")
     options = _read_options(thrust, force_sign, vertical, columns, g, accel_unit)
     _check_outputs({"--report": report}, _inputs(logs, effects_file, trajectory), overwrite)
+    if group_by is not None:
+        _fit_groups(
+            logs,
+            group_by,
+            options,
+            model=model,
+            fixed=fixed,
+            effects_files=effects_file or (),
+            trajectory=_trajectory(trajectory),
+            per_trial=per_trial,
+            n_starts=starts,
+            json_out=json_out,
+            report=report,
+        )
+        return
     key_options = {
         "model": model,
         "thrust": thrust,
@@ -432,6 +451,31 @@ def fit(
         from balancer_id.report.terminal import print_fit
 
         print_fit(_console(), _printable(out))
+
+
+def _fit_groups(logs, group_by, options, *, json_out, report, **kwargs) -> None:
+    """``fit --group-by``: one identification per group of trials."""
+    from balancer_id.errors import UsageError
+    from balancer_id.fit import fit as run_fit
+    from balancer_id.fit.api import trial_data
+    from balancer_id.fit.data import group_trials
+
+    if report is not None:
+        raise UsageError("--report takes one model: give it without --group-by")
+    trials, _ = trial_data(logs, options, kwargs["trajectory"])
+    groups = group_trials(trials, group_by)
+    out = {"group_by": group_by, "groups": []}
+    for label, group in groups:
+        out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})
+    if json_out:
+        _emit_json(out)
+        return
+    from balancer_id.report.terminal import print_fit
+
+    console = _console()
+    for item in out["groups"]:
+        console.print(f"[bold]group {_printable(item['group'])}[/bold]")
+        print_fit(console, _printable(item))
 
 
 @app.command()

@@ -234,6 +234,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
                 "t_last": float(rec.time[-1]) if rec.n_samples else None,
                 "channels": channels,
                 "saturated": dict(rec.saturated),
+                **_vertical_of(rec.name, trials),
             }
         )
         gaps += [{"run": rec.name, **g.to_dict()} for g in rec.gaps]
@@ -247,3 +248,11 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "warnings": list(log.warnings),
         "trials": [t.to_dict() for t in trials],
     }
+
+
+def _vertical_of(run: str, trials: Sequence[Trial]) -> dict[str, object]:
+    """The up axis of a run and whether its sign is known, from its trials."""
+    for t in trials:
+        if t.recording == run and t.vertical:
+            return {"vertical": t.vertical, "vertical_sign_known": t.vertical_sign_known}
+    return {}

@@ -10,6 +10,7 @@ import numpy as np
 
 from balancer_id.diagnose.candidates import Refit, candidates, quick_refit
 from balancer_id.diagnose.context import DiagnosisContext, build_context
+from balancer_id.diagnose.groups import detect_groups
 from balancer_id.diagnose.residual_tests import (
     input_correlation,
     regime_table,
@@ -146,8 +147,25 @@ def diagnose_match(
             "intercept_N": classic.intercept_N,
             "free_slope": classic.free_slope,
         },
-        "parameter_drift": parameter_drift(match, trials, fixed),
     }
+    per = _per_trial_fits(match, trials, fixed)
+    tests["parameter_drift"] = parameter_drift(match, trials, fixed, per=per)
+    source_of = {td.index: td.source for td in trials}
+    split = detect_groups(
+        match.model.param_names,
+        [source_of.get(p.index, "") for p in per],
+        [p.values for p in per],
+        [p.stderr for p in per],
+        [p.thrust_N for p in per],
+    )
+    if split is not None:  # say it first; an effect would only mimic it: none is offered
+        tests["parameter_groups"] = split.to_dict()
+        summary = (
+            split.sentence("kg" if split.parameter == "m_a" else "")
+            + ". Fit each group on its own: "
+            + shlex.join(["balancer-id", "fit", *paths, "--group-by", split.group_spec()])
+        )
+        return Diagnosis(match, ctx, tests, [], "parameter changed", summary, [])
     fresh = {
         k: float(v)
         for k, v in (("m_a", classic.m_a), ("T_a", classic.T_a))
@@ -310,8 +328,21 @@ def _verdict(
     )
 
 
+def _per_trial_fits(
+    match: MatchResult, trials: Sequence[TrialData], fixed: dict[str, float] | None
+) -> list:
+    from balancer_id.fit.api import fit_each_trial
+
+    if len(trials) < 3:
+        return []
+    return fit_each_trial(match.model, trials, match.values(), fixed)
+
+
 def parameter_drift(
-    match: MatchResult, trials: Sequence[TrialData], fixed: dict[str, float] | None = None
+    match: MatchResult,
+    trials: Sequence[TrialData],
+    fixed: dict[str, float] | None = None,
+    per: Sequence | None = None,
 ) -> list[dict[str, object]]:
     """Per-trial refits of the current model: slope of each parameter against thrust
     and the up/down difference, with their significance.
@@ -324,6 +355,8 @@ def parameter_drift(
         The trials to refit one by one; fewer than three give no rows.
     fixed : dict of str to float, optional
         Parameters held at these values in every refit.
+    per : sequence of PerTrialFit, optional
+        The per-trial fits when already done (None: fitted here).
 
     Returns
     -------
@@ -333,11 +366,10 @@ def parameter_drift(
         ``|thrust|`` and its ``slope_z`` (when the thrusts differ), and ``up_minus_down``
         (when both directions occur).
     """
-    from balancer_id.fit.api import fit_each_trial
-
     if len(trials) < 3:
         return []
-    per = fit_each_trial(match.model, trials, match.values(), fixed)
+    if per is None:
+        per = _per_trial_fits(match, trials, fixed)
     rows = []
     for name in match.model.param_names:
         vals = [(abs(p.thrust_N), p.direction, p.values[name], p.stderr.get(name)) for p in per]

@@ -8,7 +8,7 @@ from pathlib import Path
 from balancer_id.errors import IdentificationError
 from balancer_id.fit.classic import paper_method
 from balancer_id.fit.coupling import coupling_of
-from balancer_id.fit.data import TrialData
+from balancer_id.fit.data import TrialData, from_trials
 from balancer_id.fit.matching import match_trials
 from balancer_id.fit.move_start import refine_move_start
 from balancer_id.fit.result import FitResult, PerTrialFit
@@ -83,12 +83,10 @@ def trial_data(
     if paths:
         for item in load_trials(paths, options, trajectory):
             names.append(str(item.log.path))
-            data.extend(TrialData.from_trial(t, trajectory=trajectory) for t in item.trials)
-    for s in sources:
-        if isinstance(s, Trial):
-            data.append(TrialData.from_trial(s, trajectory=trajectory))
-        elif isinstance(s, TrialData):
-            data.append(s)
+            data.extend(from_trials(item.trials, trajectory=trajectory))
+    given = [s for s in sources if isinstance(s, Trial)]
+    data.extend(from_trials(given, trajectory=trajectory))
+    data.extend(s for s in sources if isinstance(s, TrialData))
     for k, td in enumerate(data):
         td.index = k
     return data, names
