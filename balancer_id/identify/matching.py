@@ -119,7 +119,7 @@ def _triangular(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
             chol = None
         if chol is not None and np.min(np.abs(np.diag(chol))) > 1e-5:
             return chol.T * d
-    return np.linalg.qr(aug, mode="r")
+    return np.asarray(np.linalg.qr(aug, mode="r"))
 
 
 class _Problem:

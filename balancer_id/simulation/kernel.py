@@ -753,7 +753,7 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     import numpy as np
 
     fresh = kernel.path is not None and not _is_cached_path(kernel.path)
-    if fresh and not quiet and _VERBOSE_COMPILE:
+    if fresh and not quiet and _VERBOSE_COMPILE and kernel.path is not None:
         note(
             f"compiling the simulation kernel of '{model.spec}' (once; cached in "
             f"{kernel.path.parent})"
