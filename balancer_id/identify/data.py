@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from balancer_id.errors import IdentificationError
-from balancer_id.segment.decimate import decimate_trial
+from balancer_id.segment.decimate import Decimation, decimate_trial
+from balancer_id.segment.robust import rate_of
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.engine import PackedTrials, TrialInput
 from balancer_id.simulation.inputs import Thrust, Trapezoid
@@ -34,6 +35,8 @@ class TrialData:
         Measured vertical acceleration at ``input.time`` (m/s^2).
     source : str
         File and run the trial came from.
+    decimation : Decimation or None
+        How the trial was decimated for fitting (None: fitted at the log's own rate).
     """
 
     index: int
@@ -43,11 +46,17 @@ class TrialData:
     input: TrialInput
     accel: np.ndarray
     source: str = ""
+    decimation: Decimation | None = None
 
     @property
     def time(self) -> np.ndarray:
         """Sample times (s)."""
         return self.input.time
+
+    @property
+    def rate_hz(self) -> float:
+        """The rate the trial is fitted at (Hz): its samples' median rate."""
+        return rate_of(self.input.time) if self.input.time.size >= 2 else float("nan")
 
     @classmethod
     def from_trial(
@@ -79,7 +88,7 @@ class TrialData:
         IdentificationError
             When the trial has (almost) no acceleration samples.
         """
-        trial, _ = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz, noted in trial.notes
+        trial, decimation = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
         keep = np.isfinite(accel) & np.isfinite(time)
@@ -101,6 +110,7 @@ class TrialData:
             input=TrialInput(time, Thrust.step(trial.t_step, trial.thrust_N), z_ref, v_ref),
             accel=accel,
             source=f"{trial.source} [{trial.recording}]",
+            decimation=decimation if decimation.factor > 1 else None,
         )
 
 

@@ -153,6 +153,8 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
                 _fmt(row["rmse"]),
             )
         console.print(per)
+    for note in result.get("notes", []):
+        console.print(f"note: {note}")
     for w in result.get("warnings", []):
         console.print(f"[yellow]warning:[/yellow] {w}")
 
