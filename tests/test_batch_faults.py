@@ -138,3 +138,20 @@ def test_user_code_that_exits_inside_a_worker_is_a_failed_row(two_logs, tmp_path
     assert rows["gentle.csv"].ok
     assert not rows["hard.csv"].ok and rows["hard.csv"].exit_code == 4
     assert "exit(7)" in rows["hard.csv"].error
+
+
+def test_the_batch_key_tells_long_trajectory_tables_apart(tmp_path):
+    import numpy as np
+
+    from balancer_id.batch.inputs import request_key
+    from balancer_id.segment.move import TabulatedMove
+
+    log = tmp_path / "a.csv"
+    log.write_text("x")
+    t = np.linspace(0.0, 5.0, 5001)
+    one = TabulatedMove(t, 0.2 * t / 5.0)
+    other = TabulatedMove(t, one.position.copy())
+    other.position[2500] += 1e-3  # numpy's repr elides the middle of a long array
+    assert repr(one) == repr(other)
+    keys = {request_key(str(log), "viscous+servo", None, None, (), move) for move in (one, other)}
+    assert len(keys) == 2
