@@ -96,11 +96,8 @@ def _session_without_force(truth, levels, holds, seed, tilt):
     import dataclasses
 
     from balancer_id.model import parse_model
+    from balancer_id.simulation.sessions import record, session_thrust
     from balancer_id.simulation.synth import SensorSettings
-
-    # main's session simulator (issue 8); this branch runs before arch has merged it
-    sessions = pytest.importorskip("balancer_id.simulation.sessions")
-    record, session_thrust = sessions.record, sessions.session_thrust
 
     holds = np.broadcast_to(np.asarray(holds, float), (len(levels),))
     rec = record(
