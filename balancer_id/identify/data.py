@@ -320,6 +320,18 @@ class _Motion:
         The acceleration at the end of the drop-out is the mean of the first 0.1 s after
         it; the drive force is the thrust at ``time[0]`` (its steady state: a thrust
         held longer than a few drive lags).
+
+        Parameters
+        ----------
+        time, accel : numpy.ndarray
+            The samples after the drop-out (s, m/s^2).
+        thrust : float
+            The thrust at ``time[0]`` (N).
+
+        Returns
+        -------
+        tuple of float
+            Drive force (N), velocity (m/s) and position (m) at ``time[0]``.
         """
         if self.t is None:
             return (thrust, 0.0, 0.0)
