@@ -36,12 +36,55 @@ from balancer_id.cli.options import (
     read_options,
     trajectory,
 )
+from balancer_id.cli.progress import stage
 
 if TYPE_CHECKING:
     from balancer_id.trials import ReadOptions
 
+_TYPE_WORDS = {
+    "str": "TEXT",
+    "int": "INTEGER",
+    "float": "NUMBER",
+    "path": "FILE",
+    "Path": "FILE",
+    "bool": "",
+}
+
+
+def _in_words(label: str | None) -> str | None:
+    """``<list[Path]>`` -> ``FILE...``, ``<str>`` -> ``TEXT``, a flag's ``<bool>`` -> nothing."""
+    if not label or not (label.startswith("<") and ">" in label):
+        return label
+    inner, rest = label[1:].split(">", 1)
+    many = inner.startswith("list[") and inner.endswith("]")
+    inner = inner[5:-1] if many else inner
+    word = _TYPE_WORDS.get(inner, inner.upper())
+    if not word:
+        return None
+    return word + ("..." if many or rest else "")
+
+
+def _help_types_in_words() -> None:
+    """Typer >= 0.20 shows option types as ``<list[Path]>``; show them as words."""
+    import typer.core as tc
+
+    for cls in (getattr(tc, "TyperOption", None), getattr(tc, "TyperArgument", None)):
+        shown = getattr(cls, "display_type_rich", None)
+        if shown is None or getattr(shown, "_in_words", False):
+            continue
+
+        def in_words(self, ctx, _shown=shown):
+            return _in_words(_shown(self, ctx))
+
+        in_words._in_words = True  # type: ignore[attr-defined]
+        cls.display_type_rich = in_words  # type: ignore[method-assign]
+
+
+_help_types_in_words()
+
 app = typer.Typer(
-    add_completion=False,
+    add_completion=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Identify a passive balancer's dynamics from force/acceleration step logs.",
@@ -62,14 +105,23 @@ def _main(
         bool,
         typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
     ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="No progress messages on stderr.")
+    ] = False,
 ) -> None:
-    """Identify a passive balancer's dynamics from force/acceleration step logs."""
+    """Identify a passive balancer's dynamics from force/acceleration step logs.
+
+    Example: balancer-id fit sample_logs/paper_balancer.csv
+    """
+    from balancer_id.cli import progress
+
+    progress.QUIET = quiet
 
 
 def _console():
     from rich.console import Console
 
-    return Console(width=max(100, Console().width))
+    return Console()  # the terminal's real width (80 when stdout is not a terminal)
 
 
 def _advised(result):
@@ -97,7 +149,10 @@ def inspect(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Show what was read from LOG and the step trials (or the robot move) found in it."""
+    """Show what was read from LOG and the step trials (or the robot move) found in it.
+
+    Example: balancer-id inspect sample_logs/paper_balancer.csv --plot channels.png
+    """
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
@@ -115,6 +170,7 @@ def inspect(
         from balancer_id.report.inspect_plot import plot_inspection
 
         plot_inspection(data, trials, plot, g=options.g, vertical=options.vertical)
+        typer.echo(f"wrote {plot}", err=True)
     if json_out:
         emit_json(info)
     else:
@@ -153,7 +209,10 @@ def fit(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Identify the parameters of the model over all trials of all LOGS."""
+    """Identify the parameters of the model over all trials of all LOGS.
+
+    Example: balancer-id fit sample_logs/paper_balancer.csv --model viscous+karnopp
+    """
     from balancer_id.cli.request import FitRequest
 
     fixed = assignments(fix, "--fix")
@@ -186,14 +245,15 @@ def fit(
             from balancer_id.report.document import check_report_path
 
             check_report_path(report, logs)
-        result = run_fit(
-            _load(logs, options, trajectory_text),
-            model=model,
-            fixed=request.fixed,
-            effects_files=request.effects_files,
-            per_trial=per_trial,
-            n_starts=starts,
-        )
+        with stage(f"fitting {model or 'variable_viscosity'} ({starts} start(s))"):
+            result = run_fit(
+                _load(logs, options, trajectory_text),
+                model=model,
+                fixed=request.fixed,
+                effects_files=request.effects_files,
+                per_trial=per_trial,
+                n_starts=starts,
+            )
         out = result.to_dict()
         advice = _advised(result)
         if advice is not None:  # issue 9: advice for the robot-balancer pair
@@ -202,7 +262,9 @@ def fit(
         if report is not None:
             from balancer_id.report.document import write_fit_report
 
-            write_fit_report(result, report)
+            with stage(f"writing {report}"):
+                write_fit_report(result, report)
+            typer.echo(f"wrote {report}", err=True)
     if json_out:
         emit_json(out)
     else:
@@ -244,7 +306,10 @@ def simulate(
     trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
 ) -> None:
-    """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
+    """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
+
+    Example: balancer-id simulate --param m_a=0.5 --out sim.csv
+    """
     from balancer_id.errors import UsageError
     from balancer_id.identify.api import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
@@ -332,6 +397,8 @@ def compare(
 
     With --trajectory it also sets the vibration of each log's move side by side
     (human against robot: band power around the coupled mode).
+
+    Example: balancer-id compare sample_logs/paper_balancer.csv -m viscous,karnopp
     """
     from balancer_id.diagnostics.api import compare as run_compare
     from balancer_id.errors import UsageError
@@ -345,12 +412,13 @@ def compare(
         overwrite,
     )
     trials = _load(logs, options, trajectory_text)
-    results = run_compare(
-        trials,
-        specs,
-        fixed=assignments(fix, "--fix"),
-        effects_files=effects_file or (),
-    )
+    with stage(f"fitting {len(specs)} model(s): {', '.join(specs)}"):
+        results = run_compare(
+            trials,
+            specs,
+            fixed=assignments(fix, "--fix"),
+            effects_files=effects_file or (),
+        )
     out = {"models": [r.to_dict() for r in results]}
     if trajectory_text is not None:  # issue 9: the vibration of each move, side by side
         from balancer_id.diagnostics.vibration import compare_vibration
@@ -361,10 +429,12 @@ def compare(
             from balancer_id.report.vibration_plot import plot_vibration
 
             plot_vibration(vib, vibration_plot)
+            typer.echo(f"wrote {vibration_plot}", err=True)
     if plot is not None:
         from balancer_id.report.sections import plot_comparison
 
         plot_comparison(results, plot)
+        typer.echo(f"wrote {plot}", err=True)
     if json_out:
         from balancer_id.jsonsafe import json_ready
 
@@ -389,13 +459,15 @@ def _fit(
     from balancer_id.identify.api import fit as run_fit
 
     fixed = assignments(fix, "--fix")
-    return run_fit(
-        _load(logs, options, trajectory_text),
-        model=model,
-        fixed=fixed,
-        effects_files=effects_file or (),
-        per_trial=per_trial,
-    )
+    trials = _load(logs, options, trajectory_text)
+    with stage(f"fitting {model or 'variable_viscosity'}"):
+        return run_fit(
+            trials,
+            model=model,
+            fixed=fixed,
+            effects_files=effects_file or (),
+            per_trial=per_trial,
+        )
 
 
 @app.command()
@@ -410,19 +482,22 @@ def diagnose(
     trajectory_text: TrajectoryOpt = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Residual tests and ranked suggestions of missing effects."""
+    """Residual tests and ranked suggestions of missing effects.
+
+    Example: balancer-id diagnose sample_logs/paper_balancer.csv
+    """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
 
-    result = run_diagnose(
-        _fit(
-            logs,
-            options,
-            model=model,
-            fix=fix,
-            effects_file=effects_file,
-            trajectory_text=trajectory_text,
-        )
+    fitted = _fit(
+        logs,
+        options,
+        model=model,
+        fix=fix,
+        effects_file=effects_file,
+        trajectory_text=trajectory_text,
     )
+    with stage("diagnosing: residual tests and candidate effects"):
+        result = run_diagnose(fitted)
     out = result.to_dict()
     if json_out:
         emit_json(out)
@@ -451,7 +526,10 @@ def improve(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Add effects one by one while the error falls and BIC and held-out trials improve."""
+    """Add effects one by one while the error falls and BIC and held-out trials improve.
+
+    Example: balancer-id improve sample_logs/paper_balancer.csv --report improve.html
+    """
     from balancer_id.diagnostics.improve import improve as run_improve
 
     at_least(max_steps, 0, "--max-steps")
@@ -468,27 +546,29 @@ def improve(
         from balancer_id.report.document import check_report_path
 
         check_report_path(report, logs)
-    result = run_improve(
-        _fit(
-            logs,
-            options,
-            model=start,
-            fix=fix,
-            effects_file=effects_file,
-            trajectory_text=trajectory_text,
-        ),
-        max_steps=max_steps,
+    fitted = _fit(
+        logs,
+        options,
+        model=start,
+        fix=fix,
+        effects_file=effects_file,
+        trajectory_text=trajectory_text,
     )
+    with stage(f"improving {fitted.model}: adding effects (at most {max_steps})"):
+        result = run_improve(fitted, max_steps=max_steps)
     out = result.to_dict()
     if plot is not None:
         from balancer_id.report.plots import plot_error_ladder
 
         plot_error_ladder(out["steps"], plot)
+        typer.echo(f"wrote {plot}", err=True)
     if report is not None:
         from balancer_id.report.sections import write_improve_report
 
         _advised(result.steps[-1].fit)
-        write_improve_report(result, report)
+        with stage(f"writing {report}"):
+            write_improve_report(result, report)
+        typer.echo(f"wrote {report}", err=True)
     if json_out:
         emit_json(out)
     else:
@@ -510,7 +590,10 @@ def report(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """The full report: identification, paper's method, diagnosis and per-trial plots."""
+    """The full report: identification, paper's method, diagnosis and per-trial plots.
+
+    Example: balancer-id report sample_logs/paper_balancer.csv --out report.html
+    """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
     from balancer_id.report.document import check_report_path
     from balancer_id.report.sections import write_full_report
@@ -527,7 +610,10 @@ def report(
         per_trial=True,
     )
     _advised(result)
-    write_full_report(result, run_diagnose(result), out)
+    with stage("diagnosing: residual tests and candidate effects"):
+        diagnosis = run_diagnose(result)
+    with stage(f"writing {out}"):
+        write_full_report(result, diagnosis, out)
     typer.echo(f"wrote {out}", err=True)
 
 
@@ -557,7 +643,10 @@ def batch(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
+    """Identify many logs in parallel; summary.csv plus one JSON per log in OUT.
+
+    Example: balancer-id batch logs/ --out results/
+    """
     from balancer_id.batch import run_batch
 
     result = run_batch(
@@ -591,7 +680,10 @@ def effects(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
 ) -> None:
-    """List the effects available, built in and user-supplied, with their parameters."""
+    """List the effects available, built in and user-supplied, with their parameters.
+
+    Example: balancer-id effects --effects-file my_effects.py
+    """
     from balancer_id.model.effects.base_model import Base
     from balancer_id.model.registry import default_registry
 

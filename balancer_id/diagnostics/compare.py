@@ -9,17 +9,28 @@ from balancer_id.diagnostics.context import build_context
 from balancer_id.diagnostics.residual_tests import worst_windows
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
+from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
 
-@dataclass
-class ModelComparison:
+@dataclass(repr=False)
+class ModelComparison(Displayable):
     """One model's fit and errors."""
 
     match: MatchResult
     worst: list[dict[str, object]]
+
+    def _shown_match(self) -> MatchResult:
+        return self.match
+
+    def _headline(self) -> str:
+        m = self.match.metrics
+        return (
+            f"{self.match.model.spec}: RMSE {m['rmse']:.4g} m/s^2, BIC {m['bic']:.1f},"
+            f" fit {m['nrmse_fit_percent']:.1f} %"
+        )
 
     def trial_rows(self) -> list[dict[str, object]]:
         """RMSE and NRMSE fit % per trial."""

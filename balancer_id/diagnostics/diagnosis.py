@@ -18,6 +18,7 @@ from balancer_id.diagnostics.residual_tests import (
 )
 from balancer_id.diagnostics.signatures import Signature, signature_of
 from balancer_id.identify.data import TrialData
+from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
 
@@ -127,8 +128,8 @@ class ResidualTests:
         }
 
 
-@dataclass
-class Diagnosis:
+@dataclass(repr=False)
+class Diagnosis(Displayable):
     """Everything ``balancer-id diagnose`` reports.
 
     Attributes
@@ -157,10 +158,37 @@ class Diagnosis:
     summary: str
     failures: list[str] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
+        # full lmfit-style text (as every result of the API has)
+        self.summary = CallableText(str(self.summary), self._summary_text)
+
     @property
     def match(self) -> MatchResult:
         """The simulation-matching fit diagnosed."""
         return self.fit.match
+
+    def _shown_match(self) -> MatchResult:
+        return self.fit.match
+
+    def _headline(self) -> str:
+        top = f"; top suggestion: {self.suggestions[0].label}" if self.suggestions else ""
+        return f"{self.fit.model}: {self.verdict}{top}"
+
+    def _summary_warnings(self) -> list[str]:
+        return list(self.fit.warnings)
+
+    def _summary_extra(self) -> list[str]:
+        lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]
+        if self.suggestions:
+            lines.append("[[Suggestions]] (best first)")
+            for k, s in enumerate(self.suggestions[:5], 1):
+                lines.append(
+                    f"    {k}. {s.label}: score {s.score:.1f}, RMSE {s.rmse:.4g} m/s^2;"
+                    f" {s.signature.evidence}"
+                )
+                lines.append(f"       {s.command}")
+        return lines
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object."""

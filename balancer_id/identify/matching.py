@@ -10,6 +10,7 @@ import numpy as np
 
 from balancer_id.errors import IdentificationError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
+from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
@@ -44,8 +45,8 @@ class ParameterEstimate:
         }
 
 
-@dataclass
-class MatchResult:
+@dataclass(repr=False)
+class MatchResult(Displayable):
     """The outcome of :func:`match_trials`."""
 
     model: Model
@@ -60,6 +61,14 @@ class MatchResult:
     message: str
     nfev: int
     warnings: list[str] = field(default_factory=list)
+
+    def _shown_match(self) -> MatchResult:
+        return self
+
+    def _headline(self) -> str:
+        values = ", ".join(f"{k}={p.value:.4g}" for k, p in list(self.parameters.items())[:4])
+        fit = self.metrics.get("nrmse_fit_percent", float("nan"))
+        return f"{self.model.spec}: {values}; fit {fit:.1f} %"
 
     def values(self) -> dict[str, float]:
         """Parameter name -> value."""
