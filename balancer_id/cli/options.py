@@ -190,7 +190,9 @@ def emit_json(obj: object) -> None:
     sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
 
 
-def fail(message: str, code: int, exc: BaseException | None = None, json_out: bool = False) -> None:
+def fail(
+    message: str, code: int, exc: BaseException | None = None, json_out: bool = False
+) -> None:
     """Print one error line (and the ``--json`` error object) and exit with ``code``.
 
     Parameters
