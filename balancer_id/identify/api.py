@@ -104,6 +104,7 @@ def fit(
     n_starts: int = 1,
     seed: int = 0,
     max_nfev: int = 2000,
+    profile: bool = True,
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -133,6 +134,9 @@ def fit(
         Seed of the extra starts.
     max_nfev : int
         Budget of model evaluations per start.
+    profile : bool
+        For each fitted parameter whose Wald 95 % interval crosses its bounds, compute
+        the profile-likelihood interval and report it instead (``ci95_method``).
 
     Returns
     -------
@@ -179,6 +183,15 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
+    if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
+        from balancer_id.identify.intervals import attach_profile_intervals
+
+        for name in attach_profile_intervals(match):
+            lo, hi = match.parameters[name].ci95
+            notes.append(
+                f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
+                f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
+            )
     result = fit_match(match, ts, classic=classic, fixed=fixed, effects_files=effects_files)
     result.warnings = notes
     if per_trial:

@@ -25,13 +25,28 @@ class ParameterEstimate:
     unit: str
     vary: bool
     at_bound: str | None = None
+    #: The profile-likelihood 95 % interval, where the Wald one crosses a bound
+    #: (:func:`~balancer_id.identify.intervals.attach_profile_intervals`).
+    profile: tuple[float, float] | None = None
 
     @property
-    def ci95(self) -> tuple[float, float] | None:
-        """Approximate 95 % confidence interval (value ± 1.96 stderr)."""
+    def wald_ci95(self) -> tuple[float, float] | None:
+        """The Wald 95 % confidence interval (value ± 1.96 stderr)."""
         if self.stderr is None or not np.isfinite(self.stderr):
             return None
         return (self.value - 1.96 * self.stderr, self.value + 1.96 * self.stderr)
+
+    @property
+    def ci95(self) -> tuple[float, float] | None:
+        """The 95 % confidence interval: the profile one when computed, else Wald's."""
+        return self.profile if self.profile is not None else self.wald_ci95
+
+    @property
+    def ci95_method(self) -> str | None:
+        """``"profile"`` or ``"wald"`` (None without an interval)."""
+        if self.profile is not None:
+            return "profile"
+        return "wald" if self.wald_ci95 is not None else None
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict."""
@@ -41,6 +56,7 @@ class ParameterEstimate:
             "unit": self.unit,
             "vary": self.vary,
             "ci95": list(self.ci95) if self.ci95 else None,
+            "ci95_method": self.ci95_method,
             "at_bound": self.at_bound,
         }
 

@@ -99,7 +99,12 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             name,
             _fmt(p["value"]),
             _fmt(p["stderr"], 2),
-            f"{ci[0]:.4g} .. {ci[1]:.4g}" if ci else "-",
+            (
+                f"{ci[0]:.4g} .. {ci[1]:.4g}"
+                + (" (profile)" if p.get("ci95_method") == "profile" else "")
+            )
+            if ci
+            else "-",
             p.get("unit", ""),
             note,
         )
