@@ -137,6 +137,55 @@ def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
     return load_trials(logs, options, trajectory(trajectory_text), trajectory_text)
 
 
+def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
+    """``NAME=MIN:MAX`` items (``--bounds``) as a dict."""
+    from balancer_id.errors import UsageError
+
+    out: dict[str, tuple[float, float]] = {}
+    for item in items or []:
+        name, sep, span = item.partition("=")
+        lo, colon, hi = span.partition(":")
+        try:
+            if not (sep and colon):
+                raise ValueError
+            out[name.strip()] = (float(lo), float(hi))
+        except ValueError:
+            raise UsageError(f"--bounds '{item}': expected NAME=MIN:MAX, e.g. m_a=5:30") from None
+    return out
+
+
+def _write_series(frame, path: Path) -> None:
+    """``--series``: per trial, time, measured, simulated and residual, as CSV."""
+    from balancer_id.files import atomic_write_text
+
+    atomic_write_text(path, frame.to_csv(index=False))
+    typer.echo(f"wrote {path}", err=True)
+
+
+def _write_json(obj: object, path: Path) -> None:
+    """``--save``: the command's JSON object to a file."""
+    import json
+
+    from balancer_id.files import atomic_write_text
+
+    atomic_write_text(path, json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
+    typer.echo(f"wrote {path}", err=True)
+
+
+def _params_model(path: Path, model: str | None) -> str | None:
+    """The model of ``--params FILE`` (its ``model`` key) unless ``--model`` names one."""
+    import json
+
+    if model is not None:
+        return model
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None  # read_params_file says what is wrong with it
+    spec = data.get("model") if isinstance(data, dict) else None
+    return spec if isinstance(spec, str) else None
+
+
 # Commands -----------------------------------------------------------------------------
 @app.command()
 @guarded
@@ -206,6 +255,22 @@ def fit(
         Path | None,
         typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
     ] = None,
+    start_values: Annotated[
+        list[str] | None,
+        typer.Option("--start", help="Start value of a parameter: NAME=VALUE (repeatable)."),
+    ] = None,
+    bounds: Annotated[
+        list[str] | None,
+        typer.Option("--bounds", help="Narrower bounds: NAME=MIN:MAX (repeatable)."),
+    ] = None,
+    save: Annotated[
+        Path | None,
+        typer.Option("--save", help="Write the fit (JSON) to FILE, for --params of compare."),
+    ] = None,
+    series: Annotated[
+        Path | None,
+        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
@@ -222,7 +287,12 @@ def fit(
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
     at_least(starts, 1, "--starts")
-    check_outputs({"--report": report}, inputs_of(logs, effects_file, trajectory_text), overwrite)
+    user_start = assignments(start_values, "--start")
+    user_bounds = _bounds(bounds)
+    ins = inputs_of(logs, effects_file, trajectory_text)
+    if params is not None:
+        ins.append(params)
+    check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
 
     request = FitRequest(
         logs=tuple(str(p) for p in logs),
@@ -234,10 +304,11 @@ def fit(
         trajectory=trajectory_text,
         effects_files=tuple(str(p) for p in effects_file or ()),
     )
-    key = None if no_cache else request.cache_key()
+    tuned = bool(user_start or user_bounds)
+    key = None if (no_cache or tuned) else request.cache_key()
     from balancer_id import cache
 
-    out = cache.load(key) if report is None else None
+    out = cache.load(key) if report is None and series is None else None
     if out is None:
         from balancer_id.identify.api import fit as run_fit
 
@@ -253,6 +324,8 @@ def fit(
                 effects_files=request.effects_files,
                 per_trial=per_trial,
                 n_starts=starts,
+                start=user_start,
+                bounds=user_bounds,
             )
         out = result.to_dict()
         advice = _advised(result)
@@ -265,6 +338,10 @@ def fit(
             with stage(f"writing {report}"):
                 write_fit_report(result, report)
             typer.echo(f"wrote {report}", err=True)
+        if series is not None:
+            _write_series(result.to_frame(), series)
+    if save is not None:
+        _write_json(out, save)
     if json_out:
         emit_json(out)
     else:
@@ -305,6 +382,10 @@ def simulate(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="The model and values of 'fit --save' (or --json)."),
+    ] = None,
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
 
@@ -314,8 +395,15 @@ def simulate(
     from balancer_id.identify.api import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
+    known: dict[str, float] = {}
+    if params is not None:  # issue 11: simulate an identified model
+        from balancer_id.identify.params_file import read_params_file
+
+        model = _params_model(params, model)
+        mdl = resolve_model(model, effects_file or ())
+        known = {k: v for k, v in read_params_file(params).items() if k in mdl.param_names}
     mdl = resolve_model(model, effects_file or ())
-    values = mdl.resolve(assignments(param, "--param"))
+    values = mdl.resolve({**known, **assignments(param, "--param")})
     thrusts = floats(thrust, "--thrust") or []
     if not thrusts:
         raise UsageError("--thrust: give at least one thrust")
@@ -379,8 +467,11 @@ def simulate(
 def compare(
     logs: LogsArg,
     model: Annotated[
-        str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
-    ] = "viscous,variable_viscosity",
+        str | None,
+        typer.Option(
+            "--model", "-m", help="Models to compare: SPEC[,SPEC2...] (viscous,variable_viscosity)."
+        ),
+    ] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
     vibration_plot: Annotated[
         Path | None,
@@ -390,6 +481,14 @@ def compare(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="Validate the model of 'fit --save' on LOGS (no refit)."),
+    ] = None,
+    series: Annotated[
+        Path | None,
+        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
@@ -403,20 +502,28 @@ def compare(
     from balancer_id.diagnostics.api import compare as run_compare
     from balancer_id.errors import UsageError
 
+    fixed = assignments(fix, "--fix")
+    if params is not None:  # issue 11: an identified model on new logs, as MATLAB's compare
+        from balancer_id.identify.params_file import read_params_file
+
+        model = _params_model(params, model)
+        fixed = {**read_params_file(params), **fixed}
+    model = model or "viscous,variable_viscosity"
     specs = [m.strip() for m in model.split(",") if m.strip()]
     if not specs:
         raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
+    ins = inputs_of(logs, effects_file, trajectory_text)
+    if params is not None:
+        ins.append(params)
     check_outputs(
-        {"--plot": plot, "--vibration-plot": vibration_plot},
-        inputs_of(logs, effects_file, trajectory_text),
-        overwrite,
+        {"--plot": plot, "--vibration-plot": vibration_plot, "--series": series}, ins, overwrite
     )
     trials = _load(logs, options, trajectory_text)
     with stage(f"fitting {len(specs)} model(s): {', '.join(specs)}"):
         results = run_compare(
             trials,
             specs,
-            fixed=assignments(fix, "--fix"),
+            fixed=fixed,
             effects_files=effects_file or (),
         )
     out = {"models": [r.to_dict() for r in results]}
@@ -435,6 +542,11 @@ def compare(
 
         plot_comparison(results, plot)
         typer.echo(f"wrote {plot}", err=True)
+    if series is not None:
+        import pandas as pd
+
+        frames = [r.to_frame().assign(model=r.match.model.spec) for r in results]
+        _write_series(pd.concat(frames, ignore_index=True), series)
     if json_out:
         from balancer_id.jsonsafe import json_ready
 

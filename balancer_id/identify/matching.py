@@ -121,6 +121,7 @@ def match_trials(
     seed: int = 0,
     max_nfev: int = 2000,
     diff_step: float | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> MatchResult:
     """Fit every free parameter of ``model`` to all ``trials`` at once.
 
@@ -146,6 +147,9 @@ def match_trials(
         :func:`scipy.optimize.least_squares` (the actual step is ``x * diff_step``);
         None uses its default, the square root of the machine epsilon for the two-point
         differences used here.
+    bounds : mapping of str to (float, float), optional
+        Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``), inside the
+        model's own.
 
     Returns
     -------
@@ -174,6 +178,15 @@ def match_trials(
     values = dict(start or {})
     values.update(fixed)
     params = model.lmfit_parameters(values, fixed=tuple(fixed))
+    for name, (lo, hi) in (bounds or {}).items():
+        spec = model.param(name)
+        if not (spec.min <= lo < hi <= spec.max):
+            raise IdentificationError(
+                f"--bounds {name}={lo:g}:{hi:g}: give MIN < MAX inside the parameter's own "
+                f"range {spec.min:g}:{spec.max:g}"
+            )
+        params[name].set(min=lo, max=hi)
+        params[name].set(value=float(np.clip(params[name].value, lo, hi)))
     data = FitData.build(trials)
     residual = _residual_function(model, data)
 
@@ -222,6 +235,54 @@ def match_trials(
             "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
         )
     return _collect(model, best, data, notes)
+
+
+def evaluate_trials(
+    model: Model, trials: Sequence[TrialData], values: Mapping[str, float]
+) -> MatchResult:
+    """Simulate ``model`` at known ``values`` on ``trials``, without fitting (validation).
+
+    What MATLAB's ``compare(valdata, sys)`` does: a model identified on some logs, run on
+    others; its errors (fit %, RMSE) and residual say whether it still holds.
+
+    Parameters
+    ----------
+    model : Model
+        The identified model.
+    trials : sequence of TrialData
+        New trials.
+    values : mapping of str to float
+        Every parameter of ``model`` (those missing take their defaults).
+
+    Returns
+    -------
+    MatchResult
+        Every parameter held (``vary`` False, no standard error), one evaluation.
+
+    Raises
+    ------
+    IdentificationError
+        No trial, or the model gives a non-finite acceleration at ``values``.
+    """
+    from types import SimpleNamespace
+
+    if not trials:
+        raise IdentificationError("no trial to simulate; check the log with 'balancer-id inspect'")
+    params = model.lmfit_parameters(dict(values), fixed=tuple(model.param_names))
+    data = FitData.build(trials)
+    residual = _residual_function(model, data)(params)
+    if np.any(np.abs(residual) >= 1e3):
+        raise IdentificationError(
+            f"model '{model.spec}' gives a non-finite acceleration at the given values"
+        )
+    out = SimpleNamespace(
+        residual=residual,
+        params=params,
+        success=True,
+        message="evaluated at the given values (no fit)",
+        nfev=1,
+    )
+    return _collect(model, out, data, [])
 
 
 def _collect(model: Model, out, data: FitData, notes: list[str]) -> MatchResult:
