@@ -724,8 +724,12 @@ def report(
     _advised(result)
     with stage("diagnosing: residual tests and candidate effects"):
         diagnosis = run_diagnose(result)
+    from balancer_id.diagnostics.improve import improve as run_improve
+
+    with stage("improving: adding the suggested effects while they help"):
+        improved = run_improve(result, diagnosis=diagnosis)
     with stage(f"writing {out}"):
-        write_full_report(result, diagnosis, out)
+        write_full_report(result, diagnosis, out, improved)
     typer.echo(f"wrote {out}", err=True)
 
 

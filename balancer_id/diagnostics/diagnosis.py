@@ -168,6 +168,32 @@ class Diagnosis(Displayable):
         """The simulation-matching fit diagnosed."""
         return self.fit.match
 
+    def fit_warnings(self) -> list[str]:
+        """The fit's warnings, read in the light of the verdict.
+
+        When an effect is missing, a parameter the data "cannot determine" is a symptom
+        of the missing effect (the model bends its parameters to follow what it lacks):
+        the advice to hold it with ``--fix`` is replaced by the top suggestion.
+
+        Returns
+        -------
+        list of str
+        """
+        warnings = [*self.fit.warnings, *self.fit.match.warnings]
+        if self.verdict == "adequate" or not self.suggestions:
+            return warnings
+        top = self.suggestions[0]
+        out = []
+        for w in warnings:
+            if "cannot determine" in w and "--fix" in w:
+                head = w.split(";")[0]
+                w = (
+                    f"{head}: a symptom of the missing effect, not a reason to hold it with "
+                    f"--fix; add the effect first ({top.label}: {top.command})"
+                )
+            out.append(w)
+        return out
+
     def _shown_match(self) -> MatchResult:
         return self.fit.match
 
@@ -176,7 +202,7 @@ class Diagnosis(Displayable):
         return f"{self.fit.model}: {self.verdict}{top}"
 
     def _summary_warnings(self) -> list[str]:
-        return list(self.fit.warnings)
+        return self.fit_warnings()
 
     def _summary_extra(self) -> list[str]:
         lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]

@@ -86,7 +86,7 @@ class ImproveResult(Displayable):
         return f"{ladder}: final {self.final_model} ({self.final.verdict})"
 
     def _summary_warnings(self) -> list[str]:
-        return list(self.steps[-1].fit.warnings)
+        return self.final.fit_warnings()
 
     def _summary_extra(self) -> list[str]:
         lines = ["[[Ladder]] (error and BIC as effects are added)"]

@@ -174,7 +174,7 @@ def match_report(match: MatchResult, *, warnings: list[str] | None = None) -> st
     match : MatchResult
         The fit.
     warnings : list of str, optional
-        Warnings to list after the statistics (the fit's own are always listed).
+        The warnings to list after the statistics; None lists the fit's own.
 
     Returns
     -------
@@ -206,7 +206,7 @@ def match_report(match: MatchResult, *, warnings: list[str] | None = None) -> st
     corr = _correlation_lines(match)
     if corr:
         lines += ["[[Correlations]] (unreported correlations are < 0.100)", *corr]
-    all_warnings = list(warnings or []) + [w for w in match.warnings if w not in (warnings or [])]
+    all_warnings = list(match.warnings) if warnings is None else list(warnings)
     if all_warnings:
         lines += ["[[Warnings]]", *(f"    {w}" for w in all_warnings)]
     return "\n".join(lines)
@@ -274,7 +274,7 @@ class Displayable:
         raise NotImplementedError
 
     def _summary_warnings(self) -> list[str]:
-        return []
+        return list(self._shown_match().warnings)
 
     def _summary_extra(self) -> list[str]:
         return []

@@ -81,7 +81,7 @@ class FitResult(Displayable):
         return f"{self.model}: {values}{more}; fit {fit:.1f} % over {n} trials"
 
     def _summary_warnings(self) -> list[str]:
-        return list(self.warnings)
+        return [*self.warnings, *self.match.warnings]
 
     @property
     def model(self) -> str:

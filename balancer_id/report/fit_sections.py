@@ -47,13 +47,17 @@ TRIALS_PER_FIGURE = 6
 STRONG_CORRELATION = 0.9
 
 
-def fit_sections(result: FitResult) -> list[Section]:
+def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[Section]:
     """The sections of a fit report, for composing a bigger report.
 
     Parameters
     ----------
     result : FitResult
         A fit.
+    warnings : list of str, optional
+        The warnings to show (a diagnosis reads them in the light of its verdict:
+        :meth:`~balancer_id.diagnostics.diagnosis.Diagnosis.fit_warnings`); None shows
+        the fit's own.
 
     Returns
     -------
@@ -62,7 +66,8 @@ def fit_sections(result: FitResult) -> list[Section]:
         (when present), correlations, robot coupling (when present).
     """
     sections = [_summary_section(result)]
-    warnings = [*result.warnings, *result.match.warnings]
+    if warnings is None:
+        warnings = [*result.warnings, *result.match.warnings]
     if warnings:
         sections.append(Section("Warnings", blocks=[Paragraph(f"⚠ {w}") for w in warnings]))
     sections += [
