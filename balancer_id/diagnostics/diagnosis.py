@@ -85,6 +85,8 @@ class ResidualTests:
         ``m_a``, ``intercept_N`` and ``free_slope`` of the paper's method.
     parameter_drift : list of dict
         Per-trial refits: each parameter's slope against thrust and up/down difference.
+    input_cross_correlation_curve : dict
+        :attr:`input_cross_correlation` with its curve (``lag_s``, ``mean_residual``).
     """
 
     noise_floor: float
@@ -96,6 +98,9 @@ class ResidualTests:
     worst_windows: list[dict[str, object]]
     paper_line: dict[str, float]
     parameter_drift: list[dict[str, object]]
+    #: The cross-correlation with its ``lag_s`` and ``mean_residual`` curve (for the
+    #: report's plot; the JSON keeps the peak and the band only).
+    input_cross_correlation_curve: dict[str, object] = field(default_factory=dict, repr=False)
 
     def __getitem__(self, key: str) -> object:
         """The test named ``key``, as in :meth:`to_dict`.
@@ -180,16 +185,21 @@ class Diagnosis(Displayable):
         list of str
         """
         warnings = [*self.fit.warnings, *self.fit.match.warnings]
-        if self.verdict == "adequate" or not self.suggestions:
+        if self.verdict == "adequate":
             return warnings
-        top = self.suggestions[0]
+        missing = [s for s in self.suggestions if is_missing(s)]
+        first = (
+            f"add the effect first ({missing[0].label}: {missing[0].command})"
+            if missing
+            else "find the effect first (no library effect explains it: see the diagnosis)"
+        )
         out = []
         for w in warnings:
             if "cannot determine" in w and "--fix" in w:
                 head = w.split(";")[0]
                 w = (
                     f"{head}: a symptom of the missing effect, not a reason to hold it with "
-                    f"--fix; add the effect first ({top.label}: {top.command})"
+                    f"--fix; {first}"
                 )
             out.append(w)
         return out
@@ -260,10 +270,12 @@ def diagnose(fit: FitResult) -> Diagnosis:
     trials: list[TrialData] = list(match.data.trials)
     classic = fit.classic
     fixed = fit.fixed or None
+    xcorr = input_correlation(ctx)
     tests = ResidualTests(
         noise_floor=ctx.noise_floor,
         whiteness=whiteness(ctx),
-        input_cross_correlation=_thin(input_correlation(ctx)),
+        input_cross_correlation=_thin(xcorr),
+        input_cross_correlation_curve=xcorr,
         spectrum={"peaks": spectrum_peaks(ctx)["peaks"]},
         regimes=regime_table(ctx),
         state_correlation=state_correlations(ctx),

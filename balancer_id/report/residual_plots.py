@@ -107,7 +107,7 @@ def plot_residual_analysis(diagnosis: Diagnosis) -> Figure:
         "whiteness" + (f": Ljung-Box p = {p:.2g}" if p is not None else ""), fontsize=9
     )
 
-    xc = diagnosis.tests.input_cross_correlation
+    xc = diagnosis.tests.input_cross_correlation_curve or diagnosis.tests.input_cross_correlation
     _format_axes(ax_xc)
     lag_s = np.asarray(xc.get("lag_s") or [], dtype=float)
     mean = np.asarray(xc.get("mean_residual") or [], dtype=float)

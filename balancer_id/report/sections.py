@@ -177,8 +177,11 @@ def finding_section(diagnosis: Diagnosis) -> Section:
         ),
         Paragraph(str(diagnosis.summary)),
     ]
-    if diagnosis.verdict != "adequate" and diagnosis.suggestions:
-        top = diagnosis.suggestions[0]
+    from balancer_id.diagnostics.diagnosis import is_missing
+
+    missing = [s for s in diagnosis.suggestions if is_missing(s)]
+    if diagnosis.verdict != "adequate" and missing:
+        top = missing[0]
         blocks.append(
             Paragraph(
                 f"Top suggestion: {top.label} (BIC better by {top.score:.1f}, "
@@ -187,6 +190,16 @@ def finding_section(diagnosis: Diagnosis) -> Section:
             )
         )
         blocks.append(Preformatted(top.command))
+    elif diagnosis.verdict != "adequate" and diagnosis.suggestions:
+        best = diagnosis.suggestions[0]
+        blocks.append(
+            Paragraph(
+                f"No effect of the library passes the test (the best candidate, {best.label}, "
+                f"improves BIC by {best.score:.1f} only). The residual analysis in the "
+                "Diagnosis shows what the missing effect depends on."
+            )
+        )
+    if diagnosis.verdict != "adequate":
         symptoms = [w for w in diagnosis.fit_warnings() if "a symptom of the missing" in w]
         blocks += [Paragraph(f"⚠ {w.split(';')[0]}.") for w in symptoms]
     return Section("Finding", blocks=blocks)
