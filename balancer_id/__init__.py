@@ -22,7 +22,13 @@ so ``import balancer_id`` is quick.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from typing import Any
+
+if "numpy" not in sys.modules:  # a fit's matrices are tall and thin: BLAS threads only cost
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
 
 __version__ = "0.1.0"
 

@@ -65,8 +65,9 @@ class ReadOptions:
 
         if self.force_sign not in (None, 1, -1):
             raise UsageError("--force-sign must be +1 or -1")
-        if self.vertical not in VERTICAL_AXES:
-            raise UsageError("--vertical must be auto, x, y or z")
+        axis = self.vertical.lstrip("+-")
+        if axis not in VERTICAL_AXES or (axis == "auto" and self.vertical != "auto"):
+            raise UsageError("--vertical must be auto or an axis with an optional sign: x, -z, +y")
         try:
             g = float(self.g)
         except (TypeError, ValueError):
@@ -512,6 +513,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
                 "t_last": float(rec.time[-1]) if rec.n_samples else None,
                 "channels": channels,
                 "saturated": dict(rec.saturated),
+                **_vertical_of(rec.name, trials),
             }
         )
         gaps += [{"run": rec.name, **g.to_dict()} for g in rec.gaps]
@@ -525,3 +527,11 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "warnings": list(log.warnings),
         "trials": [t.to_dict() for t in trials],
     }
+
+
+def _vertical_of(run: str, trials: Sequence[Trial]) -> dict[str, object]:
+    """The up axis of a run and whether its sign is known, from its trials."""
+    for t in trials:
+        if t.recording == run and t.vertical:
+            return {"vertical": t.vertical, "vertical_sign_known": t.vertical_sign_known}
+    return {}

@@ -47,6 +47,9 @@ def main() -> None:
     packed.run(model, pvec)
     first = time.perf_counter() - t0
     fast = best_time(lambda: packed.run(model, pvec), repeat=7, number=300)
+    cols = list(range(pvec.size))
+    packed.run_sens(model, pvec, cols)
+    sens = best_time(lambda: packed.run_sens(model, pvec, cols), repeat=7, number=50)
     ref = best_time(lambda: simulate_reference(model, PARAMS, trial, max_step=0.01), 3, 1)
     code = (
         "import time; t0 = time.perf_counter();"
@@ -63,6 +66,10 @@ def main() -> None:
     print(f"first call in this process (load or compile): {first:.2f} s")
     print(f"new process, kernel from the disk cache:     {cold:.2f} s")
     print(f"compiled simulator:                          {fast * 1e6:.0f} us  (target <= 200 us)")
+    print(
+        f"with forward sensitivities ({len(cols)} parameters):  {sens * 1e6:.0f} us "
+        f"({sens / fast:.1f}x one simulation; finite differences cost {len(cols) + 1}x)"
+    )
     print(f"solve_ivp (DOP853, max_step=0.01 s):         {ref * 1e3:.0f} ms")
     print(f"ratio:                                       {ref / fast:.0f}x  (target >= 200x)")
 

@@ -49,8 +49,10 @@ def _check(trials, truth, rate, *, onset_samples=ONSET_SAMPLES):
     assert len(trials) == len(truth.onsets), [t.t_step for t in trials]
     for tr, t0, f in zip(trials, truth.onsets, truth.thrusts, strict=True):
         assert abs(tr.t_step - t0) * rate <= onset_samples
-        assert tr.thrust_N == pytest.approx(f, abs=0.05 + 0.01 * abs(f))
-        assert tr.direction == ("up" if f > 0 else "down")
+        assert tr.change_N == pytest.approx(f, abs=0.05 + 0.01 * abs(f))
+        if not tr.continues:  # a step from rest: its level is its change
+            assert tr.thrust_N == tr.change_N
+        assert tr.direction == ("up" if tr.thrust_N > 0 else "down")
         assert tr.t_start < tr.t_step < tr.t_end
         assert tr.time.size == tr.accel.size == tr.force.size
 
@@ -143,9 +145,10 @@ def test_force_sign_fixes_the_direction_and_given_thrusts_replace_the_magnitudes
     # the wrong force sign is believed: it is the user's statement
     flipped = find_trials(make_log(rec), force_sign=1)
     assert [t.direction for t in flipped] == ["down", "up"]
-    # a given negative thrust that disagrees with the motion is noted
+    # a given negative thrust that disagrees with the motion is kept, with a warning
     noted = find_trials(make_log(rec), thrusts=[-5.0, -2.5])
-    assert noted[0].thrust_N == 5.0 and any("motion is up" in n for n in noted[0].notes)
+    assert noted[0].thrust_N == -5.0 and noted[0].direction == "down"
+    assert any(n.startswith("warning:") and "motion" in n for n in noted[0].notes)
 
 
 def test_thrust_count_mismatch_is_a_log_read_error():
@@ -197,7 +200,7 @@ def test_force_only_log_takes_the_direction_from_the_force_sign(seed):
     assert len(trials) == len(truth.onsets)
     for tr, t0, f in zip(trials, truth.onsets, truth.thrusts, strict=True):
         assert abs(tr.t_step - t0) * kw["rate"] <= ONSET_SAMPLES
-        assert tr.thrust_N == pytest.approx(f, abs=0.05 + 0.01 * abs(f))
+        assert tr.change_N == pytest.approx(f, abs=0.05 + 0.01 * abs(f))
         assert np.isnan(tr.accel).all() and "no acceleration channel" in tr.notes
     assert all("assumed" not in n for t in trials for n in t.notes)
     unsigned = find_trials(make_log(rec))

@@ -272,6 +272,10 @@ def fit(
         typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
     ] = None,
     overwrite: OverwriteOpt = False,
+    group_by: Annotated[
+        str | None,
+        typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
+    ] = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS.
@@ -293,6 +297,25 @@ def fit(
     if params is not None:
         ins.append(params)
     check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
+    if group_by is not None:
+        if user_start or user_bounds or save is not None or series is not None:
+            from balancer_id.errors import UsageError
+
+            raise UsageError(
+                "--start, --bounds, --save and --series are for one fit: not with --group-by"
+            )
+        _fit_groups(
+            _load(logs, options, trajectory_text),
+            group_by,
+            json_out=json_out,
+            report=report,
+            model=model,
+            fixed=fixed,
+            effects_files=tuple(str(p) for p in effects_file or ()),
+            per_trial=per_trial,
+            n_starts=starts,
+        )
+        return
 
     request = FitRequest(
         logs=tuple(str(p) for p in logs),
@@ -348,6 +371,30 @@ def fit(
         from balancer_id.report.terminal import print_fit
 
         print_fit(_console(), printable(out))
+
+
+def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
+    """``fit --group-by``: one identification per group of trials."""
+    from balancer_id.errors import UsageError
+    from balancer_id.identify.api import fit as run_fit
+    from balancer_id.identify.api import trial_data
+    from balancer_id.identify.data import group_trials
+
+    if report is not None:
+        raise UsageError("--report takes one model: give it without --group-by")
+    groups = group_trials(trial_data(trial_set), group_by)
+    out: dict[str, object] = {"group_by": group_by, "groups": []}
+    for label, group in groups:
+        out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
+    if json_out:
+        emit_json(out)
+        return
+    from balancer_id.report.terminal import print_fit
+
+    console = _console()
+    for item in out["groups"]:  # type: ignore[attr-defined]
+        console.print(f"[bold]group {printable(item['group'])}[/bold]")
+        print_fit(console, printable(item))
 
 
 @app.command()

@@ -41,7 +41,7 @@ ForceSignOpt = Annotated[
     int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
 ]
 VerticalOpt = Annotated[
-    str, typer.Option("--vertical", help="auto|x|y|z: vertical axis of logs without gravity.")
+    str, typer.Option("--vertical", help="auto|x|y|z|-z|...: up axis of logs without gravity.")
 ]
 ColumnsOpt = Annotated[
     str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from balancer_id.diagnostics.candidates import Refit, candidates, quick_refit
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
+from balancer_id.diagnostics.groups import detect_groups
 from balancer_id.diagnostics.residual_tests import (
     input_correlation,
     regime_table,
@@ -21,6 +23,7 @@ from balancer_id.identify.data import TrialData
 from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
+from balancer_id.simulation.kernel import compile_models
 
 #: BIC improvement a candidate needs before an effect is called missing. Calibrated on
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -85,6 +88,9 @@ class ResidualTests:
         ``m_a``, ``intercept_N`` and ``free_slope`` of the paper's method.
     parameter_drift : list of dict
         Per-trial refits: each parameter's slope against thrust and up/down difference.
+    parameter_groups : dict or None
+        A parameter that changed between runs (payload, setting), with its per-run
+        estimates and the split test; None when none did.
     input_cross_correlation_curve : dict
         :attr:`input_cross_correlation` with its curve (``lag_s``, ``mean_residual``).
     """
@@ -98,6 +104,7 @@ class ResidualTests:
     worst_windows: list[dict[str, object]]
     paper_line: dict[str, float]
     parameter_drift: list[dict[str, object]]
+    parameter_groups: dict[str, object] | None = None
     #: The cross-correlation with its ``lag_s`` and ``mean_residual`` curve (for the
     #: report's plot; the JSON keeps the peak and the band only).
     input_cross_correlation_curve: dict[str, object] = field(default_factory=dict, repr=False)
@@ -130,6 +137,7 @@ class ResidualTests:
             "worst_windows": self.worst_windows,
             "paper_line": self.paper_line,
             "parameter_drift": self.parameter_drift,
+            **({"parameter_groups": self.parameter_groups} if self.parameter_groups else {}),
         }
 
 
@@ -287,10 +295,31 @@ def diagnose(fit: FitResult) -> Diagnosis:
         },
         parameter_drift=parameter_drift(fit),
     )
+    per = fit.per_trial_fits()
+    source_of = {td.index: td.source for td in trials}
+    split = detect_groups(
+        match.model.param_names,
+        [source_of.get(p.index, "") for p in per],
+        [p.values for p in per],
+        [p.stderr for p in per],
+        [p.thrust_N for p in per],
+    )
+    if split is not None:  # say it first; an effect would only mimic it: none is offered
+        tests.parameter_groups = split.to_dict()
+        summary = (
+            split.sentence("kg" if split.parameter == "m_a" else "")
+            + ". Fit each group on its own: "
+            + fit.command()
+            + " --group-by "
+            + shlex.quote(split.group_spec())
+        )
+        return Diagnosis(fit, ctx, tests, [], "parameter changed", summary, [])
     suggestions: list[Suggestion] = []
     failures: list[str] = []
     with_trajectory = fit.trial_set.trajectory is not None
-    for cand in candidates(match.model, with_trajectory=with_trajectory):
+    cands = candidates(match.model, with_trajectory=with_trajectory)
+    compile_models([c.model for c in cands])  # a first run says so, with a count
+    for cand in cands:
         try:
             sig = signature_of(cand.effect, ctx)
         except Exception as exc:  # a user's check must not stop the others

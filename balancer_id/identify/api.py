@@ -7,7 +7,7 @@ from pathlib import Path
 
 from balancer_id.errors import IdentificationError
 from balancer_id.identify.classic import paper_method
-from balancer_id.identify.data import TrialData
+from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
@@ -80,12 +80,9 @@ def trial_data(trials: TrialSet) -> list[TrialData]:
         All trials, their ``index`` renumbered from 0.
     """
     traj = trials.trajectory
-    data = [TrialData.from_trial(t, trajectory=traj) for t in trials.trials]
-    for s in trials.loose:
-        if isinstance(s, Trial):
-            data.append(TrialData.from_trial(s, trajectory=traj))
-        elif isinstance(s, TrialData):
-            data.append(s)
+    data = from_trials(trials.trials, trajectory=traj)  # chains the trials of a session
+    data += from_trials([s for s in trials.loose if isinstance(s, Trial)], trajectory=traj)
+    data += [s for s in trials.loose if isinstance(s, TrialData)]
     for k, td in enumerate(data):
         td.index = k
     return data

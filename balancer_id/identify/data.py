@@ -6,12 +6,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import median_filter
 
-from balancer_id.errors import IdentificationError
+from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.model.spec import Model
 from balancer_id.segment.decimate import decimate_trial
 from balancer_id.segment.trial import Trial
-from balancer_id.simulation.engine import PackedTrials, TrialInput
+from balancer_id.simulation.engine import DEFAULT_SUBSTEPS, PackedTrials, TrialInput
 from balancer_id.simulation.inputs import Thrust, Trapezoid
+
+#: Centred median filter on the measured force before it drives the model (s): removes
+#: spikes and quantization flicker, keeps a step's edge where it is (no time shift).
+FORCE_MEDIAN_S = 0.025
 
 
 @dataclass
@@ -23,17 +29,23 @@ class TrialData:
     index : int
         Trial index (over all logs of a fit).
     thrust_N : float
-        Signed thrust (N).
+        Signed thrust level (N).
     direction : str
         ``"up"`` or ``"down"``.
     t_step : float
         Onset of the thrust (s).
     input : TrialInput
-        What drives the simulation (rest at ``input.time[0]``).
+        What drives the simulation (state ``input.x0`` at ``input.time[0]``).
     accel : numpy.ndarray
         Measured vertical acceleration at ``input.time`` (m/s^2).
     source : str
         File and run the trial came from.
+    continues : bool
+        The simulation continues from the end of the previous trial of the same run (a
+        session): its state at ``input.time[0]`` is where the model left the previous one.
+    lead_in : TrialInput or None
+        For a trial that ``continues``: the session from its start up to this trial, so
+        that the trial can be simulated without the previous trials in the same fit.
     """
 
     index: int
@@ -43,6 +55,8 @@ class TrialData:
     input: TrialInput
     accel: np.ndarray
     source: str = ""
+    continues: bool = False
+    lead_in: TrialInput | None = None
 
     @property
     def time(self) -> np.ndarray:
@@ -53,12 +67,16 @@ class TrialData:
     def from_trial(
         cls, trial: Trial, index: int | None = None, trajectory: Trapezoid | None = None
     ) -> TrialData:
-        """Build from a segmented :class:`~balancer_id.segment.trial.Trial` (step thrust).
+        """Build from one segmented :class:`~balancer_id.segment.trial.Trial`, alone.
 
-        Samples without an acceleration value (blank cells of a multi-rate export) are
-        left out; the simulation runs at the sample times that remain. A trial faster
-        than 400 Hz is first decimated to 200-400 Hz, anti-aliased
-        (:func:`~balancer_id.segment.decimate.decimate_trial`).
+        The model is driven by the trial's measured force (see :func:`measured_thrust`)
+        where there is one, the thrust was not given and no robot move drives the trial
+        (a robot's force is its servo's answer, not an input), else by a step of
+        ``trial.thrust_N`` at ``trial.t_step``. Samples without an acceleration value
+        (blank cells of a multi-rate export) are left out. A trial faster than 400 Hz is
+        first decimated to 200-400 Hz, anti-aliased
+        (:func:`~balancer_id.segment.decimate.decimate_trial`). A trial that continues a
+        session is simulated from rest here; :func:`from_trials` chains it.
 
         Parameters
         ----------
@@ -72,45 +90,183 @@ class TrialData:
         Returns
         -------
         TrialData
-            Driven by a step of ``trial.thrust_N`` (N) at ``trial.t_step`` (s).
 
         Raises
         ------
         IdentificationError
             When the trial has (almost) no acceleration samples.
         """
+        return from_trials([trial], trajectory=trajectory, chain=False, index=index)[0]
+
+
+def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
+    """The measured operating force as the model's input ``u(t)``, never shifted in time.
+
+    A centred median over :data:`FORCE_MEDIAN_S` removes spikes and flicker and keeps
+    step edges in place; each sample is held until the next (the sample at a step's onset
+    carries the new level, as the ideal step at the detected onset does).
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times (s), increasing.
+    force : numpy.ndarray
+        Operating force at those times (N, up positive); NaN samples are interpolated.
+
+    Returns
+    -------
+    Thrust
+        One breakpoint per sample.
+    """
+    time = np.asarray(time, float)
+    u = np.asarray(force, float)
+    ok = np.isfinite(u)
+    if not ok.all():
+        u = np.interp(time, time[ok], u[ok]) if ok.any() else np.zeros_like(time)
+    dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
+    width = max(1, round(FORCE_MEDIAN_S / dt))
+    width += 1 - width % 2
+    if width >= 3 and u.size > width:
+        u = median_filter(u, size=width, mode="nearest")
+    return Thrust.series(time, u)
+
+
+def from_trials(
+    trials: Sequence[Trial],
+    *,
+    trajectory: Trapezoid | None = None,
+    chain: bool = True,
+    index: int | None = None,
+) -> list[TrialData]:
+    """Build the TrialData of segmented trials, chaining the trials of a session.
+
+    A trial that ``continues`` the previous one (same run, the thrust changed while the
+    load moved) keeps only its samples after the previous trial's last one, and the
+    simulation runs on through it from the state the previous trial ended in
+    (:meth:`FitData.build` stitches them); its ``lead_in`` holds the session before it.
+
+    Parameters
+    ----------
+    trials : sequence of Trial
+        Segmented trials, in time order.
+    trajectory : Trapezoid, optional
+        The robot's reference move, evaluated at the sample times (``servo``).
+    chain : bool
+        Chain the trials of a session; False simulates every trial from rest.
+    index : int, optional
+        Index to give a single trial; None keeps each ``trial.index``.
+
+    Returns
+    -------
+    list of TrialData
+        One per trial, in order.
+
+    Raises
+    ------
+    IdentificationError
+        When a trial has (almost) no acceleration samples.
+    """
+    out: list[TrialData] = []
+    history: TrialInput | None = None
+    prev: Trial | None = None
+    for trial in trials:
+        continues = (
+            chain
+            and trial.continues
+            and prev is not None
+            and out
+            and prev.source == trial.source
+            and prev.recording == trial.recording
+            and out[-1].time[-1] < trial.time[-1]
+        )
+        after = out[-1].time[-1] if continues else -np.inf
         trial, _ = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz, noted in trial.notes
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
-        keep = np.isfinite(accel) & np.isfinite(time)
+        keep = np.isfinite(accel) & np.isfinite(time) & (time > after)
         if keep.sum() < 10:
             raise IdentificationError(
                 f"{trial.source} [{trial.recording}], trial at {trial.t_step:.2f} s: no "
                 "acceleration samples; identification needs the acceleration channel"
             )
+        reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
+        if trial.force is not None and not trial.thrust_given and reference is None:
+            thrust = measured_thrust(time, trial.force)
+            if continues:
+                first = np.searchsorted(thrust.times, time[keep][0])
+                thrust = Thrust(thrust.times[first:], thrust.values[first:])
+        elif continues:
+            before = out[-1].thrust_N
+            thrust = Thrust(
+                np.array([time[keep][0], trial.t_step]), np.array([before, trial.thrust_N])
+            )
+        else:
+            thrust = Thrust.step(trial.t_step, trial.thrust_N)
         time, accel = time[keep], accel[keep]
         z_ref = v_ref = None
-        trajectory = getattr(trial, "reference", None) or trajectory  # a robot move's own
-        if trajectory is not None:
-            z_ref, v_ref = trajectory.evaluate(time)
-        return cls(
-            index=trial.index if index is None else index,
-            thrust_N=float(trial.thrust_N),
-            direction=trial.direction,
-            t_step=float(trial.t_step),
-            input=TrialInput(time, Thrust.step(trial.t_step, trial.thrust_N), z_ref, v_ref),
-            accel=accel,
-            source=f"{trial.source} [{trial.recording}]",
+        if reference is not None:
+            z_ref, v_ref = reference.evaluate(time)
+        lead_in = None
+        if continues:
+            assert history is not None
+            lead_in = history
+        here = TrialInput(time, thrust, z_ref, v_ref)
+        history = _join(lead_in, here) if continues else here
+        out.append(
+            TrialData(
+                index=trial.index if index is None else index,
+                thrust_N=float(trial.thrust_N),
+                direction=trial.direction,
+                t_step=float(trial.t_step),
+                input=here,
+                accel=accel,
+                source=f"{trial.source} [{trial.recording}]",
+                continues=bool(continues),
+                lead_in=lead_in,
+            )
         )
+        prev = trial
+    return out
+
+
+def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:
+    """One continuous input: ``first`` then ``second`` (whose samples come later)."""
+    if first is None:
+        return second
+    t0 = second.time[0]
+    cut = np.searchsorted(first.thrust.times, t0)
+    thrust = Thrust(
+        np.concatenate([first.thrust.times[:cut], second.thrust.times]),
+        np.concatenate([first.thrust.values[:cut], second.thrust.values]),
+    )
+    refs = None
+    if first.z_ref is not None and second.z_ref is not None:
+        assert first.v_ref is not None and second.v_ref is not None
+        refs = (
+            np.concatenate([first.z_ref, second.z_ref]),
+            np.concatenate([first.v_ref, second.v_ref]),
+        )
+    return TrialInput(
+        np.concatenate([first.time, second.time]),
+        thrust,
+        None if refs is None else refs[0],
+        None if refs is None else refs[1],
+        first.x0,
+    )
 
 
 def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:
     """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other.
 
+    Each trial counts with ``|thrust_N|``; a trial driven by a measured force also with
+    the 20th and 80th percentiles of ``|u|`` over its samples where ``|u|`` is above a
+    quarter of its peak, so that a guided move, whose force sweeps a range, counts as
+    the range of operating forces it covers.
+
     Parameters
     ----------
     trials : sequence of TrialData
-        The trials; only ``|thrust_N|`` matters.
+        The trials.
     rel_tol : float
         Relative tolerance: a magnitude within ``rel_tol`` above the last level found
         belongs to that level.
@@ -120,19 +276,101 @@ def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[flo
     list of float
         The lowest magnitude of each level (N), ascending.
     """
+    found: list[float] = []
+    for t in trials:
+        found.append(abs(t.thrust_N))
+        if t.input.thrust.times.size > 2:
+            u = np.abs(t.input.thrust.at(t.time))
+            big = u[u >= 0.25 * u.max()] if u.size and u.max() > 0 else u[:0]
+            if big.size:
+                found += [float(q) for q in np.percentile(big, [20, 80])]
     levels: list[float] = []
-    for f in sorted(abs(t.thrust_N) for t in trials):
+    for f in sorted(found):
         if not levels or f > levels[-1] * (1 + rel_tol):
             levels.append(f)
     return levels
 
 
+class SessionPack:
+    """Packed segments whose simulated rows are selected back to the trials' samples.
+
+    Used when a trial is simulated with its session's lead-in (samples that are not
+    fitted); :meth:`run` returns rows aligned with :attr:`FitData.y`, as
+    :meth:`PackedTrials.run` does for trials simulated alone.
+
+    Attributes
+    ----------
+    inner : PackedTrials
+        The continuous segments.
+    rows : numpy.ndarray
+        Row of ``inner``'s output for each fitted sample.
+    offsets : numpy.ndarray
+        Start of each trial in the selected rows (and the total at the end).
+    """
+
+    def __init__(self, inner: PackedTrials, rows: np.ndarray, offsets: np.ndarray) -> None:
+        self.inner = inner
+        self.rows = rows
+        self.offsets = offsets
+        self.t_all = inner.t_all[rows]
+
+    def run(self, model: Model, pvec: np.ndarray, substeps: int = DEFAULT_SUBSTEPS) -> np.ndarray:
+        """Simulate every segment; return the rows of the fitted samples.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order.
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_fitted, 5)``, columns as :meth:`PackedTrials.run`.
+        """
+        return self.inner.run(model, pvec, substeps)[self.rows]
+
+    def run_sens(
+        self, model: Model, pvec: np.ndarray, cols: Sequence[int], substeps: int = DEFAULT_SUBSTEPS
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate with sensitivities (where the engine has them); rows of the fitted samples.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order.
+        cols : sequence of int
+            What to differentiate with respect to (as ``PackedTrials.run_sens``).
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        out : numpy.ndarray
+            As :meth:`run`.
+        sens : numpy.ndarray
+            The sensitivities of the fitted samples' acceleration.
+        """
+        out, sens = self.inner.run_sens(model, pvec, cols, substeps)  # type: ignore[attr-defined]
+        return out[self.rows], sens[self.rows]
+
+
 @dataclass
 class FitData:
-    """Several trials packed once for repeated simulation."""
+    """Several trials packed once for repeated simulation.
+
+    Trials that continue each other (a session) are packed as one continuous segment,
+    so the state runs on from one trial to the next; a continuing trial whose
+    predecessor is not in the set is preceded by its lead-in, simulated but not fitted.
+    """
 
     trials: list[TrialData]
-    packed: PackedTrials
+    packed: PackedTrials | SessionPack
     y: np.ndarray
 
     @classmethod
@@ -147,17 +385,95 @@ class FitData:
         Returns
         -------
         FitData
-            The trials, their inputs packed for :meth:`PackedTrials.run` and the
-            measured accelerations concatenated (m/s^2).
+            The trials, their inputs packed for :meth:`PackedTrials.run` (continuous
+            through a session) and the measured accelerations concatenated (m/s^2).
         """
         trials = list(trials)
-        return cls(
-            trials=trials,
-            packed=PackedTrials.pack([t.input for t in trials]),
-            y=np.concatenate([t.accel for t in trials]),
-        )
+        segments: list[TrialInput] = []
+        rows: list[np.ndarray] = []
+        lead = False
+        n = 0
+        for i, td in enumerate(trials):
+            joined = (
+                td.continues
+                and i > 0
+                and td.lead_in is not None
+                and trials[i - 1].source == td.source
+                and td.lead_in.time[-1] == trials[i - 1].time[-1]
+            )
+            if joined:
+                segments[-1] = _join(segments[-1], td.input)
+            elif td.continues and td.lead_in is not None:
+                segments.append(_join(td.lead_in, td.input))
+                n += td.lead_in.time.size
+                lead = True
+            else:
+                segments.append(td.input)
+            rows.append(np.arange(n, n + td.time.size))
+            n += td.time.size
+        inner = PackedTrials.pack(segments)
+        sizes = np.array([td.time.size for td in trials], dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        packed: PackedTrials | SessionPack = inner
+        if lead:  # lead-in samples are simulated, not fitted
+            packed = SessionPack(inner, np.concatenate(rows), offsets)
+        return cls(trials=trials, packed=packed, y=np.concatenate([t.accel for t in trials]))
 
     def slices(self) -> list[slice]:
-        """The slice of each trial in the packed arrays."""
-        o = self.packed.offsets
+        """The slice of each trial in the packed (fitted) arrays."""
+        sizes = [td.time.size for td in self.trials]
+        o = np.concatenate([[0], np.cumsum(sizes)])
         return [slice(int(o[j]), int(o[j + 1])) for j in range(len(self.trials))]
+
+
+def group_trials(trials: Sequence[TrialData], by: str) -> list[tuple[str, list[TrialData]]]:
+    """Split trials into groups that are identified separately (``fit --group-by``).
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials, in order.
+    by : str
+        ``"run"`` (each run of each log), ``"log"`` (each file), or ``"runs:1-3,4-6"``
+        (runs counted from 1 in recording order over all logs, joined in the groups
+        given; a run not named is left out).
+
+    Returns
+    -------
+    list of (str, list of TrialData)
+        Each group's label and trials, in order of first appearance.
+
+    Raises
+    ------
+    UsageError
+        For an unknown ``by`` or a run number that does not exist.
+    """
+    runs: list[str] = []
+    for t in trials:
+        if t.source not in runs:
+            runs.append(t.source)
+    if by == "run":
+        key = {r: r for r in runs}
+    elif by == "log":
+        key = {r: r.split(" [")[0] for r in runs}
+    elif by.startswith("runs:"):
+        key = {}
+        for part in filter(None, by[5:].split(",")):
+            lo, _, hi = part.partition("-")
+            try:
+                a, b = int(lo), int(hi or lo)
+            except ValueError:
+                raise UsageError(f"--group-by '{by}': '{part}' is not N or N-M") from None
+            if not 1 <= a <= b <= len(runs):
+                raise UsageError(
+                    f"--group-by '{by}': runs {part} not in 1-{len(runs)} (the runs found)"
+                )
+            label = f"runs {a}-{b}" if b > a else f"run {a}"
+            key.update({runs[i - 1]: label for i in range(a, b + 1)})
+    else:
+        raise UsageError(f"--group-by must be run, log or runs:1-3,4-6, not {by!r}")
+    groups: dict[str, list[TrialData]] = {}
+    for t in trials:
+        if t.source in key:
+            groups.setdefault(key[t.source], []).append(t)
+    return list(groups.items())

@@ -96,19 +96,122 @@ class MatchResult(Displayable):
         return self.y - self.y_model
 
 
-def _residual_function(model: Model, data: FitData):
-    y = data.y
+@dataclass
+class _Outcome:
+    """One optimizer run: the point, its residual and Jacobian, and how it ended."""
 
-    def residual(params) -> np.ndarray:
-        vals = params.valuesdict()
-        pvec = np.array([vals[n] for n in model.param_names], dtype=float)
-        out = data.packed.run(model, pvec)
-        r = out[:, 0] - y
-        if not np.all(np.isfinite(r)):
-            r = np.where(np.isfinite(r), r, 1e3)
-        return r
+    x: np.ndarray
+    residual: np.ndarray
+    jac: np.ndarray
+    success: bool
+    message: str
+    nfev: int
 
-    return residual
+    @property
+    def chisqr(self) -> float:
+        return _sumsq(self.residual)
+
+
+def _sumsq(x: np.ndarray) -> float:
+    """``x @ x`` without BLAS (a threaded BLAS dot of 10,000 samples can take 10 ms)."""
+    return float(np.einsum("i,i", x, x))
+
+
+def _gram(a: np.ndarray, rows: int = 2048) -> np.ndarray:
+    """``a.T @ a`` in blocks of rows, each too small for BLAS to start its threads."""
+    g = np.zeros((a.shape[1], a.shape[1]))
+    for i in range(0, a.shape[0], rows):
+        block = a[i : i + rows]
+        g += block.T @ block
+    return g
+
+
+def _triangular(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Upper-triangular ``R`` (``k+1`` square) with ``R^T R = [J | r]^T [J | r]``.
+
+    The Cholesky factor of the small Gram matrix (cheap, one pass over the samples); the
+    QR factorization of ``[J | r]`` where the Gram matrix is too ill-conditioned for it.
+    """
+    aug = np.empty((r.size, jac.shape[1] + 1))
+    aug[:, :-1] = jac
+    aug[:, -1] = r
+    gram = _gram(aug)
+    d = np.sqrt(np.diag(gram))
+    if np.all(d > 0):
+        try:
+            chol = np.linalg.cholesky(gram / np.outer(d, d))
+        except np.linalg.LinAlgError:
+            chol = None
+        if chol is not None and np.min(np.abs(np.diag(chol))) > 1e-5:
+            return chol.T * d
+    return np.asarray(np.linalg.qr(aug, mode="r"))
+
+
+class _Problem:
+    """Residual and Jacobian of one fit, from one simulation with sensitivities.
+
+    Each evaluation simulates once with forward sensitivities, giving the residual ``r``
+    (``n`` samples) and its Jacobian ``J`` (``n x k``) together. The optimizer is handed
+    the same least-squares problem compressed to ``k + 1`` rows: the QR factorization
+    ``[J | r] = Q R`` gives ``r~ = R[:, k]`` and ``J~ = R[:, :k]`` with
+    ``|r~| = |r|``, ``J~^T J~ = J^T J`` and ``J~^T r~ = J^T r``, so every step,
+    cost and stopping test is the full problem's, at a fraction of the optimizer's
+    per-iteration cost on ``n x k`` matrices.
+    """
+
+    def __init__(self, model: Model, data: FitData, base: np.ndarray, free: list[int]):
+        self.model = model
+        self.data = data
+        self.base = base
+        self.free = free
+        self.nfev = 0
+        self._key: bytes | None = None
+        self._jac = np.zeros((len(free) + 1, len(free)))
+        self._best: tuple[float, bytes, np.ndarray, np.ndarray] | None = None
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """The whole parameter vector with the free ones set to ``x``."""
+        p = self.base.copy()
+        p[self.free] = x
+        return p
+
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian over every sample at ``x`` (one simulation)."""
+        self.nfev += 1
+        out, sens = self.data.packed.run_sens(self.model, self.full(x), self.free)
+        r = out[:, 0] - self.data.y
+        if not (np.isfinite(r).all() and np.isfinite(sens).all()):
+            bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
+            r[bad] = 1e3
+            sens[bad] = 0.0
+        cost = _sumsq(r)
+        if self._best is None or cost < self._best[0]:
+            self._best = (cost, np.asarray(x, dtype=float).tobytes(), r, sens)
+        return r, sens
+
+    def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian at ``x``, reusing the best evaluation when it is there."""
+        if self._best is not None and self._best[1] == np.asarray(x, dtype=float).tobytes():
+            return self._best[2], self._best[3]
+        return self.evaluate(x)
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        """The residual over every sample at ``x`` (a plain simulation)."""
+        r = self.data.packed.run(self.model, self.full(x))[:, 0] - self.data.y
+        return np.where(np.isfinite(r), r, 1e3)
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        r, sens = self.evaluate(x)
+        k = len(self.free)
+        aug = _triangular(sens, r)
+        self._key = np.asarray(x, dtype=float).tobytes()
+        self._jac = aug[:, :k].copy()
+        return aug[:, k].copy()
+
+    def jac(self, x: np.ndarray, *_: object) -> np.ndarray:
+        if np.asarray(x, dtype=float).tobytes() != self._key:
+            self.fun(x)
+        return self._jac
 
 
 def match_trials(
@@ -143,10 +246,10 @@ def match_trials(
     max_nfev : int
         Budget of model evaluations per start.
     diff_step : float, optional
-        Relative step of the finite-difference Jacobian, passed to
-        :func:`scipy.optimize.least_squares` (the actual step is ``x * diff_step``);
-        None uses its default, the square root of the machine epsilon for the two-point
-        differences used here.
+        None (default) takes the Jacobian from the kernel's forward sensitivities (one
+        simulation gives the residual and its Jacobian); a value uses two-point finite
+        differences of relative step ``diff_step`` instead (see
+        :func:`scipy.optimize.least_squares`).
     bounds : mapping of str to (float, float), optional
         Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``), inside the
         model's own.
@@ -160,7 +263,7 @@ def match_trials(
     IdentificationError
         No trial, or the optimizer failed on every start.
     """
-    import lmfit
+    from scipy.optimize import least_squares
 
     if not trials:
         raise IdentificationError("no trial to fit; check the log with 'balancer-id inspect'")
@@ -177,64 +280,74 @@ def match_trials(
             )
     values = dict(start or {})
     values.update(fixed)
-    params = model.lmfit_parameters(values, fixed=tuple(fixed))
-    for name, (lo, hi) in (bounds or {}).items():
+    full = model.resolve(values)
+    names = model.param_names
+    base = np.array([full[n] for n in names], dtype=float)
+    free = [i for i, n in enumerate(names) if n not in fixed]
+    lo = np.array([model.params[i].min for i in free], dtype=float)
+    hi = np.array([model.params[i].max for i in free], dtype=float)
+    for name, (b_lo, b_hi) in (bounds or {}).items():
         spec = model.param(name)
-        if not (spec.min <= lo < hi <= spec.max):
+        if not (spec.min <= b_lo < b_hi <= spec.max):
             raise IdentificationError(
-                f"--bounds {name}={lo:g}:{hi:g}: give MIN < MAX inside the parameter's own "
-                f"range {spec.min:g}:{spec.max:g}"
+                f"--bounds {name}={b_lo:g}:{b_hi:g}: give MIN < MAX inside the parameter's "
+                f"own range {spec.min:g}:{spec.max:g}"
             )
-        params[name].set(min=lo, max=hi)
-        params[name].set(value=float(np.clip(params[name].value, lo, hi)))
+        i = names.index(name)
+        base[i] = float(np.clip(base[i], b_lo, b_hi))
+        if i in free:
+            lo[free.index(i)], hi[free.index(i)] = b_lo, b_hi
     data = FitData.build(trials)
-    residual = _residual_function(model, data)
+    problem = _Problem(model, data, base, free)
 
-    start_vec = np.array([params[n].value for n in model.param_names], dtype=float)
-    if not np.all(np.isfinite(data.packed.run(model, start_vec)[:, 0])):
+    if not np.all(np.isfinite(data.packed.run(model, base)[:, 0])):
         raise IdentificationError(
             f"model '{model.spec}' gives a non-finite acceleration at its start values; "
             "check the effects' terms (a user effect returning NaN or inf?)"
         )
-    starts = [params]
+    starts = [base[free]]
     rng = np.random.default_rng(seed)
     for _ in range(max(n_starts, 1) - 1):
-        p2 = params.copy()
-        for p in p2.values():
-            if p.vary:
-                lo, hi = p.min, p.max
-                x = (
-                    p.value * float(np.exp(rng.normal(0.0, 0.5)))
-                    if p.value != 0
-                    else rng.normal(0.0, 0.1)
-                )
-                p.value = float(np.clip(x, lo, hi))
-        starts.append(p2)
+        x = base[free].copy()
+        for j in range(x.size):
+            x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else rng.normal(0.0, 0.1)
+        starts.append(np.clip(x, lo, hi))
 
     best = None
-    for p0 in starts:
+    if not free:
+        r = problem.residual(base[free])
+        best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
+    for x0 in starts if free else []:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                out = lmfit.minimize(
-                    residual,
-                    p0,
-                    method="least_squares",
-                    max_nfev=max_nfev,
+                ret = least_squares(
+                    problem.fun if diff_step is None else problem.residual,
+                    x0,
+                    jac=problem.jac if diff_step is None else "2-point",
+                    bounds=(lo, hi),
+                    method="trf",
                     x_scale="jac",
+                    ftol=1e-8,
+                    xtol=1e-8,
+                    gtol=1e-8,
+                    max_nfev=max_nfev,
                     diff_step=diff_step,
                 )
-            except (ValueError, FloatingPointError) as exc:
+            except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
                 notes.append(f"a start failed: {exc}")
                 continue
-        if best is None or out.chisqr < best.chisqr:
-            best = out
+        r, jac = problem.at(ret.x)
+        outcome = _Outcome(ret.x, r, jac, ret.status > 0, str(ret.message), ret.nfev)
+        if best is None or outcome.chisqr < best.chisqr:
+            best = outcome
     if best is None:
         raise IdentificationError(
             f"fit of '{model.spec}' did not converge from any start; "
             "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
         )
-    return _collect(model, best, data, notes)
+    best.nfev = problem.nfev
+    return _collect(model, best, problem, data, notes)
 
 
 def evaluate_trials(
@@ -264,51 +377,65 @@ def evaluate_trials(
     IdentificationError
         No trial, or the model gives a non-finite acceleration at ``values``.
     """
-    from types import SimpleNamespace
-
     if not trials:
         raise IdentificationError("no trial to simulate; check the log with 'balancer-id inspect'")
-    params = model.lmfit_parameters(dict(values), fixed=tuple(model.param_names))
-    data = FitData.build(trials)
-    residual = _residual_function(model, data)(params)
-    if np.any(np.abs(residual) >= 1e3):
-        raise IdentificationError(
-            f"model '{model.spec}' gives a non-finite acceleration at the given values"
-        )
-    out = SimpleNamespace(
-        residual=residual,
-        params=params,
-        success=True,
-        message="evaluated at the given values (no fit)",
-        nfev=1,
-    )
-    return _collect(model, out, data, [])
+    full = model.resolve(dict(values))
+    held = {n: full[n] for n in model.param_names}
+    return match_trials(model, trials, start=held, fixed=held)
 
 
-def _collect(model: Model, out, data: FitData, notes: list[str]) -> MatchResult:
+def _covariance(out: _Outcome) -> np.ndarray | None:
+    """Parameter covariance ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it)."""
+    n, k = out.jac.shape
+    if k == 0 or n <= k:
+        return None
+    try:
+        cov = np.linalg.inv(np.einsum("ij,ik->jk", out.jac, out.jac))
+    except np.linalg.LinAlgError:
+        return None
+    cov *= out.chisqr / (n - k)
+    return cov
+
+
+def _collect(
+    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[str]
+) -> MatchResult:
     y_model = data.y + out.residual
-    n_free = sum(1 for p in out.params.values() if p.vary)
+    values = problem.full(out.x)
+    free_names = [model.param_names[i] for i in problem.free]
+    n_free = len(free_names)
     metrics = error_metrics(data.y, y_model, n_free)
+    cov = _covariance(out)
+    sd = np.sqrt(np.abs(np.diag(cov))) if cov is not None else None
     estimates: dict[str, ParameterEstimate] = {}
     correlations: dict[str, dict[str, float]] = {}
-    for spec in model.params:
-        p = out.params[spec.name]
+    for i, spec in enumerate(model.params):
+        vary = i in problem.free
+        value = float(values[i])
         at_bound = None
-        if p.vary:
+        if vary:
             span = spec.max - spec.min
-            if p.value <= spec.min + 1e-6 * span:
+            if value <= spec.min + 1e-6 * span:
                 at_bound = "min"
-            elif p.value >= spec.max - 1e-6 * span:
+            elif value >= spec.max - 1e-6 * span:
                 at_bound = "max"
-        stderr = float(p.stderr) if (p.vary and p.stderr is not None) else None
+        stderr = None
+        if vary and sd is not None and cov is not None:
+            j = free_names.index(spec.name)
+            stderr = float(sd[j])
+            if n_free > 1:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    correlations[spec.name] = {
+                        other: float(cov[j, m] / (sd[j] * sd[m]))
+                        for m, other in enumerate(free_names)
+                        if m != j
+                    }
         estimates[spec.name] = ParameterEstimate(
-            spec.name, float(p.value), stderr, spec.unit, bool(p.vary), at_bound
+            spec.name, value, stderr, spec.unit, vary, at_bound
         )
-        if p.vary and p.correl:
-            correlations[spec.name] = {k: float(v) for k, v in p.correl.items()}
         if at_bound:
             notes.append(
-                f"{spec.name} stopped at its {at_bound}imum bound ({p.value:g} {spec.unit}): "
+                f"{spec.name} stopped at its {at_bound}imum bound ({value:g} {spec.unit}): "
                 "the data push it out of range or it is not in the data"
             )
     poorly = [

@@ -60,10 +60,24 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             f"{_fmt(run['sample_rate_hz'])} Hz, "
             f"channels: {', '.join(run['channels'])}"
         )
+        if run.get("vertical"):
+            known = (
+                "sign known"
+                if run.get("vertical_sign_known", True)
+                else ("sign is a guess: fix it with --vertical or --force-sign")
+            )
+            console.print(f"    vertical (up): {run['vertical']} ({known})")
     for w in info.get("warnings", []):
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
+    for t in info["trials"]:
+        for note in t.get("notes", []):
+            if note.startswith("warning:"):
+                _stderr(console).print(
+                    f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}"
+                )
     table = Table(title="step trials")
-    for col in ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "direction", "ends by"):
+    cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
+    for col in (*cols, "ends by"):
         table.add_column(col)
     for t in info["trials"]:
         table.add_row(
@@ -72,6 +86,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             f"{t['t_step']:.3f}",
             f"{t['t_start']:.2f} - {t['t_end']:.2f}",
             f"{t['thrust_N']:+.3f}",
+            f"{t.get('thrust_change_N', t['thrust_N']):+.3f}",
             t["direction"],
             str(t.get("end_reason", "")),
         )
@@ -236,6 +251,17 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     )
     console.print(result["summary"])
     tests = result["residual_tests"]
+    groups = tests.get("parameter_groups")
+    if groups:
+        title = f"{groups['parameter']} per run (split test p = {groups['p_value']:.1e})"
+        runs = Table(title=title)
+        for col in ("#", "run", "value", "stderr", "|thrust| (N)"):
+            runs.add_column(col)
+        for k, r in enumerate(groups["runs"], start=1):
+            runs.add_row(
+                str(k), r["run"], f"{r['value']:.4g}", f"{r['stderr']:.2g}", f"{r['thrust_N']:.3g}"
+            )
+        console.print(runs)
     w = tests["whiteness"]
     if w.get("ljung_box_p") is not None:
         console.print(
@@ -278,7 +304,8 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
             f"{s['excess_error_drop']:.0%}",
             s["evidence"],
         )
-    console.print(sug)
+    if result["suggestions"] or not groups:
+        console.print(sug)
     if result["suggestions"]:
         console.print("to try a suggestion, run its command:")
     for k, s in enumerate(result["suggestions"], 1):

@@ -168,7 +168,7 @@ def build_trials(
     first_index : int
         Index of its first trial in the log.
     given : list of float or None
-        The run's given thrusts (magnitudes used, signs checked against the motion).
+        The run's given thrusts: each trial's new level (N); signs, when given, are kept.
     force_sign : int or None
         The user's force sign.
     settings : StepSettings
@@ -188,16 +188,19 @@ def build_trials(
     accel = run.motion.accel if run.motion is not None else None
     force = fill_nan(rec.force) if rec.force is not None else None
     gb = n_samples(settings.guard_before_s, rate_of(rec.time))
-    trials = []
+    trials: list[Trial] = []
+    level_now = 0.0  # the thrust level reached (N, up positive), relative to ref_chain
+    ref_chain = np.nan  # force reading at the rest before the chain's first onset
     for j, (st, win) in enumerate(zip(run.steps, run.windows, strict=True)):
         notes = list(run.notes)
         sign = _direction(st, force_sign, mounting, settings.response_k_sigma, notes)
-        thrust = abs(st.size) * sign
+        change = abs(st.size) * sign
+        if not chained[j]:
+            level_now = 0.0
         if given is not None:
-            thrust = abs(given[j]) * sign
-            notes.append(f"thrust {given[j]:g} N given by the user")
-            if given[j] < 0 < sign:
-                notes.append(f"given thrust {given[j]:g} N is down but the motion is up")
+            change, level_new = _given_level(given, j, sign, level_now, chained[j], notes)
+        else:
+            level_new = level_now + change
         if accel is None:
             notes.append("no acceleration channel")
         bridged = [
@@ -209,8 +212,13 @@ def build_trials(
         sl = slice(win.start, win.stop)
         trial_force = None
         if force is not None and np.isfinite(st.size):
-            ref = level(force[win.start : max(win.start + 1, st.onset - gb)])
-            trial_force = sign * np.sign(st.size) * (force[sl] - ref)
+            if not chained[j] or not np.isfinite(ref_chain):
+                ref_chain = level(force[win.start : max(win.start + 1, st.onset - gb)])
+            orientation = sign * np.sign(st.size)
+            if chained[j] and mounting is not None:
+                orientation = mounting if force_sign is None else force_sign
+            trial_force = orientation * (force[sl] - ref_chain)
+        direction = int(np.sign(level_new)) or sign
         trials.append(
             Trial(
                 index=first_index + j,
@@ -218,8 +226,8 @@ def build_trials(
                 t_step=float(rec.time[st.onset]),
                 t_start=float(rec.time[win.start]),
                 t_end=float(rec.time[win.stop - 1]),
-                thrust_N=float(thrust),
-                direction="up" if sign > 0 else "down",
+                thrust_N=float(level_new),
+                direction="up" if direction > 0 else "down",
                 time=rec.time[sl].copy(),
                 accel=accel[sl].copy()
                 if accel is not None
@@ -228,6 +236,72 @@ def build_trials(
                 end_reason=win.end_reason,
                 source=source,
                 notes=notes,
+                thrust_change_N=float(change),
+                continues=bool(chained[j]),
+                thrust_given=given is not None,
+                vertical=vertical_name(run.motion, rec.accel_axes),
+                vertical_sign_known=run.motion is None or run.motion.sign_known,
             )
         )
+        level_now = level_new
     return trials
+
+
+def _given_level(
+    given: list[float], j: int, sign: int, level_now: float, chained: bool, notes: list[str]
+) -> tuple[float, float]:
+    """The change and the new level of trial ``j`` from the user's thrusts.
+
+    A given thrust is the trial's new level (N). When any given value is negative the
+    user gave signs: they are kept, and a sign the motion disagrees with is noted (a
+    warning, never replaced). With magnitudes only, the sign is the one that makes the
+    change agree with the motion (the previous level's sign when both would).
+    """
+    value = float(given[j])
+    notes.append(f"thrust {value:g} N given by the user")
+    signed = any(v < 0 for v in given)
+    if signed:
+        level_new = value
+    else:
+        candidates = [value, -value]
+        agree = [c for c in candidates if np.sign(c - level_now) == sign]
+        if chained and len(agree) == 2 and level_now != 0:
+            level_new = abs(value) * float(np.sign(level_now))
+        else:
+            level_new = agree[0] if agree else abs(value) * sign
+    change = level_new - level_now
+    if signed and np.sign(change) != sign:
+        word = "up" if sign > 0 else "down"
+        notes.append(
+            f"warning: the given thrust {value:g} N changes the thrust "
+            f"{'up' if change > 0 else 'down'} but the motion after the onset is {word}; "
+            "the given sign is kept (check --thrust or the vertical axis)"
+        )
+    return change, level_new
+
+
+def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
+    """Name the vertical (up) direction in the sensor frame: ``"+z"`` or ``"-x, 12 deg off"``.
+
+    Parameters
+    ----------
+    motion : VerticalMotion or None
+        The run's vertical motion (None: no acceleration channel).
+    axes : tuple of str
+        Names of the acceleration columns.
+
+    Returns
+    -------
+    str
+        The nearest signed axis, with the angle to it when over 1 degree; ``""`` without
+        acceleration.
+    """
+    if motion is None or motion.up.size == 0:
+        return ""
+    up = np.asarray(motion.up, float)
+    names = axes if len(axes) == up.size else ("x", "y", "z")[: up.size]
+    j = int(np.argmax(np.abs(up)))
+    norm = float(np.linalg.norm(up)) or 1.0
+    angle = float(np.degrees(np.arccos(np.clip(abs(up[j]) / norm, -1.0, 1.0))))
+    text = f"{'+' if up[j] >= 0 else '-'}{names[j]}"
+    return text if angle <= 1.0 else f"{text}, {angle:.0f} deg off"

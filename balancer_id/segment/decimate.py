@@ -89,8 +89,6 @@ def decimate_trial(trial: Trial, min_rate_hz: float = MIN_RATE_HZ) -> tuple[Tria
     decimation : Decimation
         The factor and the rates chosen.
     """
-    from scipy import signal  # lazy: scipy.signal costs ~0.5 s to import
-
     time = np.asarray(trial.time, dtype=float)
     rate = rate_of(time) if time.size >= 2 else float("nan")
     q = decimation_factor(rate, min_rate_hz)
@@ -106,6 +104,8 @@ def decimate_trial(trial: Trial, min_rate_hz: float = MIN_RATE_HZ) -> tuple[Tria
     if time.size < 4 * q:
         why = f"kept at {rate:.4g} Hz: too short to decimate by {q}"
         return trial, Decimation(1, rate, rate, why)
+    from scipy import signal  # lazy, only when decimating: it loads scipy.stats (~1 s)
+
     out = [_lowpass_decimate(signal, c, q) for c in channels]
     new_time = time[::q]
     n = min(new_time.size, *(c.size for c in out))

@@ -13,6 +13,7 @@ from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
 from balancer_id.segment.gravity import check_vertical, vertical_motion
+from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, rate_of
 from balancer_id.segment.steps import (
     Detection,
@@ -38,7 +39,9 @@ def find_trials(
     """Find every step trial in every run of a log.
 
     Steps come from the force channel when there is one (confirmed by the motion that
-    follows), else from the vertical acceleration. A trial's direction is the sign of
+    follows), else from the vertical acceleration. A run whose force varies without
+    steps (a person guiding the load) is one excitation window
+    (:func:`~balancer_id.segment.guided.guided_move`). A trial's direction is the sign of
     the acceleration change after its onset, or ``sign(force step * force_sign)`` when
     ``force_sign`` is given. Its thrust is the force step, or the given ``thrusts``.
 
@@ -52,7 +55,7 @@ def find_trials(
         the sign is the motion's, a negative value is checked against it.
     force_sign : {+1, -1}, optional
         Fixes the direction from the force step: up when ``force step * force_sign > 0``.
-    vertical : {"auto", "x", "y", "z"}, optional
+    vertical : {"auto", "x", "y", "z", "-z", ...}, optional
         Vertical axis of a linear-acceleration log (see
         :func:`~balancer_id.segment.gravity.vertical_motion`).
     g : float, optional
@@ -79,6 +82,24 @@ def find_trials(
     settings = StepSettings(min_step_N=float(min_step_N))
     runs = [_detect(rec, vertical, g, settings) for rec in log.recordings]
     total = sum(len(r.steps) for r in runs)
+    if total == 0 and given is None:
+        moves = [
+            guided_move(
+                r.rec,
+                r.motion,
+                r.breaks,
+                force_sign=force_sign,
+                settings=settings,
+                index=0,
+                source=str(log.path),
+            )
+            for r in runs
+        ]
+        found = [m for m in moves if m is not None]
+        for k, m in enumerate(found):
+            m.index = k
+        if found:
+            return found
     if total == 0:
         why = "; ".join(f"{r.rec.name}: {r.why}" for r in runs) or "the log holds no run"
         raise NoTrialError(f"{log.path}: no step trial found ({why})")

@@ -13,7 +13,7 @@ from balancer_id.read.recording import Recording
 from balancer_id.segment.robust import fill_nan, local_std, n_samples, rate_of, smooth
 
 #: Accepted values of the ``vertical`` setting.
-VERTICAL_CHOICES = ("auto", "x", "y", "z")
+VERTICAL_CHOICES = ("auto", "x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
 
 #: Short window (s) of the resting test, and how far |a| may sit from g at rest (fraction).
 REST_WINDOW_S = 0.25
@@ -78,8 +78,9 @@ def vertical_motion(
     ----------
     rec : Recording
         One run of a log.
-    vertical : {"auto", "x", "y", "z"}, optional
-        The vertical axis, or ``"auto"``.
+    vertical : {"auto", "x", "y", "z", "+x", ..., "-z"}, optional
+        The vertical axis, or ``"auto"``; a ``-`` makes that axis point down (linear
+        acceleration; with g, gravity gives the sign).
     g : float, optional
         Gravity (m/s^2) subtracted from the projection of a with-g log.
 
@@ -111,12 +112,16 @@ def vertical_motion(
     w = n_samples(REST_WINDOW_S, rate if np.isfinite(rate) else 200.0, minimum=3)
 
     if vertical != "auto":
-        if vertical not in axes:
+        axis = vertical.lstrip("+-")
+        if axis not in axes:
             raise UsageError(
                 f"vertical axis {vertical!r} is not in the accel columns {', '.join(axes)}"
             )
-        col = axes.index(vertical)
-        return _single_axis(acc, col, w, rec.accel_includes_gravity, f"axis {vertical} as given")
+        col = axes.index(axis)
+        m = _single_axis(acc, col, w, rec.accel_includes_gravity, f"axis {vertical} as given")
+        if vertical.startswith("-") and not rec.accel_includes_gravity:
+            return VerticalMotion(-m.accel, -m.up, m.rest, f"{m.method}; up is -{axis}", True)
+        return m
     if acc.shape[1] == 1:
         return _single_axis(acc, 0, w, rec.accel_includes_gravity, f"single axis {axes[0]}")
     if rec.accel_includes_gravity:
@@ -130,7 +135,7 @@ def check_vertical(vertical: str) -> None:
     Parameters
     ----------
     vertical : str
-        The ``--vertical`` choice: ``"auto"``, ``"x"``, ``"y"`` or ``"z"``.
+        The ``--vertical`` choice: ``"auto"`` or an axis with an optional sign (``"-z"``).
 
     Raises
     ------

@@ -301,3 +301,53 @@ def changepoint(x: np.ndarray) -> int:
     left = c2[k - 1] - c1[k - 1] ** 2 / k
     right = (c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)
     return int(k[np.argmin(left + right)])
+
+
+def find_peaks(x: np.ndarray, height: float, distance: int) -> np.ndarray:
+    """Indices of the peaks of ``x``, as ``scipy.signal.find_peaks(x, height, distance)``.
+
+    Local maxima (the middle sample of a flat top) at least ``height`` high, thinned so
+    that no two are closer than ``distance`` samples, the higher one kept. Written with
+    numpy so that segmentation does not import ``scipy.signal`` (which loads
+    ``scipy.stats``, about a second at start-up).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal.
+    height : float
+        Minimum height of a peak.
+    distance : int
+        Minimum distance between peaks (samples, >= 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        The peaks' indices, increasing.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size < 3:
+        return np.zeros(0, dtype=np.intp)
+    starts = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
+    ends = np.r_[starts[1:] - 1, x.size - 1]
+    v = x[starts]
+    inner = np.arange(1, starts.size - 1)
+    is_peak = (v[inner - 1] < v[inner]) & (v[inner + 1] < v[inner])
+    peaks = (starts[inner[is_peak]] + ends[inner[is_peak]]) // 2
+    peaks = peaks[x[peaks] >= height]
+    distance = int(np.ceil(max(distance, 1)))
+    if distance <= 1 or peaks.size < 2:
+        return peaks
+    keep = np.ones(peaks.size, dtype=bool)
+    for j in np.argsort(x[peaks])[::-1]:  # the same order as scipy, ties included
+        if not keep[j]:
+            continue
+        k = j - 1
+        while k >= 0 and peaks[j] - peaks[k] < distance:
+            keep[k] = False
+            k -= 1
+        k = j + 1
+        while k < peaks.size and peaks[k] - peaks[j] < distance:
+            keep[k] = False
+            k += 1
+    return peaks[keep]

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage, signal
+from scipy import ndimage
 
 from balancer_id.read.recording import Recording
 from balancer_id.segment.robust import (
@@ -26,6 +26,7 @@ from balancer_id.segment.robust import (
     changepoint,
     clipped_mean,
     fill_nan,
+    find_peaks,
     level,
     n_samples,
     odd,
@@ -237,7 +238,7 @@ def detect_force_steps(
     sigma = block_noise(f, n_samples(settings.noise_block_s, rate, 5), floor=1e-3)
     thr = max(settings.min_step_N, 6.0 * sigma * np.sqrt(2.0 / w))
     det = Detection([], float(np.max(np.abs(d))) if n else 0.0, thr, "N")
-    peaks, _ = signal.find_peaks(np.abs(d), height=thr, distance=w)
+    peaks = find_peaks(np.abs(d), thr, w)
     win = n_samples(settings.level_window_s, rate, 3)
     gb = n_samples(settings.guard_before_s, rate)
     ga = n_samples(settings.guard_after_s, rate)

@@ -12,8 +12,9 @@ class Trial:
     """One step trial, ready for identification.
 
     Times are on the recording's own time base. ``accel`` is the vertical acceleration
-    with gravity removed (up positive); ``force`` is the change of the operating force
-    since the rest before the step, signed so that up is positive (MODEL.md).
+    with gravity removed (up positive); ``force`` is the operating force, signed so that
+    up is positive (MODEL.md), less its reading at the rest before the step (before the
+    first step of the session when the trial ``continues`` the previous one's motion).
 
     Attributes
     ----------
@@ -26,7 +27,8 @@ class Trial:
     t_start, t_end : float
         The analysis window (s): a little rest before the onset, up to the next event.
     thrust_N : float
-        Signed size of the step (N), up positive.
+        The signed thrust level from the onset on (N), up positive: the size of the step
+        for a step from rest, the new level of the session for a change while moving.
     direction : str
         ``"up"`` or ``"down"``; agrees with the sign of ``thrust_N``.
     time : numpy.ndarray
@@ -40,7 +42,24 @@ class Trial:
     source : str
         The file the trial was read from.
     notes : list of str
-        Anything unusual (thrust given by the user, saturation in the window, ...).
+        Anything unusual (thrust given by the user, saturation in the window, ...);
+        a note starting with ``warning:`` is shown to the user.
+    thrust_change_N : float or None
+        The signed change of thrust at the onset (N); None: equal to ``thrust_N``.
+    continues : bool
+        The thrust changed while the previous trial's motion went on (a session): the
+        trial starts in the state the previous one ended in.
+    thrust_given : bool
+        ``thrust_N`` was given by the user (``--thrust``); the model is then driven by
+        the given levels rather than by the force channel.
+    kind : str
+        ``"step"`` (a thrust step), ``"guided"`` (a person's guided move: the force
+        varies without steps; ``thrust_N`` is its signed peak) or ``"move"`` (a robot's
+        reference move, :class:`~balancer_id.segment.move.MoveTrial`).
+    vertical : str
+        The up direction in the sensor frame (``"+z"``, ``"-x, 12 deg off"``).
+    vertical_sign_known : bool
+        False when the up sign is a convention (linear acceleration, nothing fixed it).
     """
 
     index: int
@@ -56,6 +75,17 @@ class Trial:
     end_reason: str = "end of run"
     source: str = ""
     notes: list[str] = field(default_factory=list)
+    thrust_change_N: float | None = None
+    continues: bool = False
+    thrust_given: bool = False
+    kind: str = "step"
+    vertical: str = ""
+    vertical_sign_known: bool = True
+
+    @property
+    def change_N(self) -> float:
+        """The signed change of thrust at the onset (N)."""
+        return float(self.thrust_N if self.thrust_change_N is None else self.thrust_change_N)
 
     def to_dict(self) -> dict[str, object]:
         """Return the CONTRACT.md ``inspect`` trial record."""
@@ -66,7 +96,13 @@ class Trial:
             "t_start": round(float(self.t_start), 6),
             "t_end": round(float(self.t_end), 6),
             "thrust_N": round(float(self.thrust_N), 4),
+            "thrust_change_N": round(self.change_N, 4),
+            "continues": self.continues,
+            "kind": self.kind,
             "direction": self.direction,
             "end_reason": self.end_reason,
             "n_samples": int(self.time.size),
+            "vertical": self.vertical,
+            "vertical_sign_known": self.vertical_sign_known,
+            "notes": list(self.notes),
         }

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from balancer_id.model.spec import Model
 from balancer_id.simulation.inputs import Thrust
 from balancer_id.simulation.kernel import OUT_COLUMNS, get_kernel
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Internal RK4 steps per sample interval.
 DEFAULT_SUBSTEPS = 1
@@ -43,6 +46,8 @@ class Simulation:
 
     def to_frame(self) -> pd.DataFrame:
         """The signals as a DataFrame indexed by time."""
+        import pandas as pd
+
         return pd.DataFrame(
             {
                 "accel": self.accel,
@@ -220,6 +225,65 @@ class PackedTrials:
             out,
         )
         return out
+
+    def run_sens(
+        self,
+        model: Model,
+        pvec: np.ndarray,
+        cols: Sequence[int],
+        substeps: int = DEFAULT_SUBSTEPS,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate every trial and the sensitivities of its output, in one pass.
+
+        The forward sensitivities ``d state / d theta`` are integrated alongside the state
+        with the same RK4 steps (the derivatives of the right-hand side are directional
+        differences inside the kernel, so user hooks need no derivative code); the
+        friction stick/slip events, the speed limit and the dead time's moving
+        breakpoints change the sensitivities as they change the state.
+
+        Parameters
+        ----------
+        model : Model
+            The model; its kernel is compiled on first use.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order (SI units).
+        cols : sequence of int
+            What to differentiate with respect to: ``k < len(pvec)`` is parameter ``k``;
+            ``len(pvec) + s`` (``s`` = 0, 1, 2) is the initial drive force, velocity or
+            position of each trial (its column is then nonzero only in that trial's rows:
+            the derivative of each trial's output with respect to its own ``x0[s]``).
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        out : numpy.ndarray
+            As :meth:`run`.
+        sens : numpy.ndarray
+            ``(n_total, len(cols))``: the derivative of the output acceleration (column 0
+            of ``out``) with respect to each of ``cols``.
+        """
+        cols_arr = np.ascontiguousarray(cols, dtype=np.int64).reshape(-1)
+        if cols_arr.size and (cols_arr.min() < 0 or cols_arr.max() >= pvec.size + 3):
+            raise ValueError(f"sensitivity columns must lie in 0..{pvec.size + 2}")
+        out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
+        sens = np.empty((self.t_all.size, cols_arr.size))
+        get_kernel(model).simulate_batch_sens(
+            self.t_all,
+            self.offsets,
+            self.bt_all,
+            self.bu_all,
+            self.boffsets,
+            self.zr_all,
+            self.vr_all,
+            self.x0_all,
+            np.ascontiguousarray(pvec, dtype=float),
+            substeps,
+            cols_arr,
+            out,
+            sens,
+        )
+        return out, sens
 
 
 def simulate_many(

@@ -25,7 +25,9 @@ except ImportError:  # pragma: no cover
     HAVE_NUMBA = False
 
 
-def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
+def jit(
+    func: Callable[..., Any] | None = None, *, cache: bool = False, inline: bool = False
+) -> Any:
     """Compile ``func`` in numba's nopython mode, or return it unchanged without numba.
 
     Usable bare (``@jit``), with options (``@jit(cache=True)``) or as a call
@@ -39,6 +41,9 @@ def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
     cache : bool
         Let numba cache the machine code on disk (the function must live in an
         importable file).
+    inline : bool
+        Inline the function into its callers at numba's IR level (``inline="always"``):
+        no call, no reference counting of array arguments, at some compile time.
 
     Returns
     -------
@@ -50,6 +55,11 @@ def jit(func: Callable[..., Any] | None = None, *, cache: bool = False) -> Any:
     def wrap(f: Callable[..., Any]) -> Any:
         if not HAVE_NUMBA:
             return f
-        return numba.njit(cache=cache, error_model="numpy", fastmath=FASTMATH)(f)
+        return numba.njit(
+            cache=cache,
+            error_model="numpy",
+            fastmath=FASTMATH,
+            inline="always" if inline else "never",
+        )(f)
 
     return wrap if func is None else wrap(func)

@@ -1,0 +1,134 @@
+"""The compiled-kernel cache cannot lie: checked before import, repaired, private."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+
+import numpy as np
+import pytest
+
+from balancer_id.model import parse_model
+from balancer_id.simulation import Thrust, simulate
+from balancer_id.simulation import kernel as K
+
+T = np.arange(0.0, 2.0, 0.005)
+PARAMS = {"m_a": 15.1, "T_a": 0.33}
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory):
+    """A cache holding the compiled 'base' kernel (plain and sensitivities), made once."""
+    root = tmp_path_factory.mktemp("compiled")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("BALANCER_ID_CACHE", str(root))
+        mp.setattr(K, "_KERNELS", {})
+        _forget()
+        accel = _accel()
+        _forget()
+    return root, accel
+
+
+@pytest.fixture
+def warm_cache(compiled, tmp_path, monkeypatch):
+    """A copy of the compiled cache (what a second run finds); the expected output."""
+    root, accel = compiled
+    shutil.copytree(root, tmp_path / "cache", copy_function=shutil.copy2)
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(K, "_KERNELS", {})
+    monkeypatch.setattr(K, "_warm", lambda *a: None)  # recompile the plain kernel only
+    _forget()
+    yield tmp_path / "cache" / "kernels", accel
+    _forget()
+
+
+@pytest.fixture
+def fresh_cache(tmp_path, monkeypatch):
+    """An empty kernel cache and no kernel memoized in this process."""
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(K, "_KERNELS", {})
+    _forget()
+    yield tmp_path / "cache" / "kernels"
+    _forget()
+
+
+def _accel() -> np.ndarray:
+    return simulate(parse_model("base"), PARAMS, T, Thrust.step(0.5, 4.9)).accel
+
+
+def _forget() -> None:
+    """What a new process would see: nothing memoized, nothing imported."""
+    K._KERNELS.clear()
+    for name in [n for n in sys.modules if n.startswith("bid_kernel_")]:
+        del sys.modules[name]
+
+
+def test_a_new_cache_folder_is_private_and_a_first_compile_is_announced(fresh_cache, capfd):
+    K.compile_models([parse_model("base")])
+    assert "compiling the simulation kernel of 'base' (1/1; once)" in capfd.readouterr().err
+    K.compile_models([parse_model("base")])  # already there: nothing to say
+    assert capfd.readouterr().err == ""
+    _forget()
+    want = _accel()
+    assert fresh_cache.is_dir() and (fresh_cache.stat().st_mode & 0o777) == 0o700
+    (src,) = fresh_cache.glob("bid_kernel_*.py")
+    assert (src.stat().st_mode & 0o077) == 0
+    _forget()
+    assert np.allclose(
+        _accel(), want, rtol=1e-12, atol=1e-15
+    )  # loaded from the cache: nothing announced
+    err = capfd.readouterr().err
+    assert "compiling" not in err, err
+
+
+def test_a_tampered_kernel_source_is_never_imported(warm_cache, capfd):
+    folder, want = warm_cache
+    (src,) = folder.glob("bid_kernel_*.py")
+    marker = folder.parent / "pwned"
+    src.write_text(f"open({str(marker)!r}, 'w').close()\n" + src.read_text())
+    _forget()
+    capfd.readouterr()
+    assert np.allclose(_accel(), want, rtol=1e-12, atol=1e-15)
+    assert not marker.exists()
+    assert "did not match its model; rewriting it" in capfd.readouterr().err
+    assert "open(" not in src.read_text()
+
+
+def test_a_corrupted_kernel_file_is_regenerated(warm_cache, capfd):
+    folder, want = warm_cache
+    (src,) = folder.glob("bid_kernel_*.py")
+    src.write_bytes(b"\xff\xfe garbage \x00")
+    _forget()
+    assert np.allclose(_accel(), want, rtol=1e-12, atol=1e-15)
+    assert "rewriting it" in capfd.readouterr().err
+
+
+def test_a_damaged_numba_cache_is_recompiled_not_blamed_on_the_effects(warm_cache, capfd):
+    folder, want = warm_cache
+    damaged = list((folder / "__pycache__").glob("bid_kernel_*"))
+    assert any(p.suffix == ".nbc" for p in damaged)
+    for p in damaged:
+        p.write_bytes(b"\x80\x04 not a pickle")
+    _forget()
+    assert np.allclose(_accel(), want, rtol=1e-12, atol=1e-15)
+    _forget()
+    assert np.allclose(
+        _accel(), want, rtol=1e-12, atol=1e-15
+    )  # and the repaired cache serves the next run
+
+
+def test_a_cache_writable_by_others_is_refused(tmp_path, monkeypatch, capfd):
+    shared = tmp_path / "shared"
+    (shared / "kernels").mkdir(parents=True)
+    os.chmod(shared / "kernels", 0o777)
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(shared))
+    monkeypatch.setattr(K, "_KERNELS", {})
+    monkeypatch.setattr(K, "_REFUSED", set())
+    _forget()
+    accel = _accel()
+    assert np.all(np.isfinite(accel)) and accel.max() > 0
+    assert not list((shared / "kernels").iterdir())  # nothing written, nothing imported
+    err = capfd.readouterr().err
+    assert "kernel cache not used" in err and "writable by others" in err
+    assert err.count("\n") == 1
