@@ -168,7 +168,7 @@ class Diagnosis(Displayable):
     tests: ResidualTests
     suggestions: list[Suggestion]
     verdict: str
-    summary: str
+    summary: str  # type: ignore[assignment]  # also callable: CallableText
     failures: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:

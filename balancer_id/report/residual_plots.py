@@ -93,7 +93,7 @@ def plot_residual_analysis(diagnosis: Diagnosis) -> Figure:
     if acf.size:
         lags = np.arange(1, acf.size + 1) * dt
         ax_acf.vlines(lags, 0.0, acf, color="#0072B2", lw=1.0)
-        band = w.get("band")
+        band = float(w.get("band") or 0.0)  # type: ignore[arg-type]
         if band:
             ax_acf.axhspan(-band, band, color="#E69F00", alpha=0.2, label="95 % band")
             ax_acf.legend(fontsize=7, loc="upper right")
@@ -113,7 +113,7 @@ def plot_residual_analysis(diagnosis: Diagnosis) -> Figure:
     mean = np.asarray(xc.get("mean_residual") or [], dtype=float)
     if lag_s.size:
         ax_xc.plot(lag_s, mean, color="#0072B2", lw=1.2)
-        band = float(xc.get("band") or 0.0)
+        band = float(xc.get("band") or 0.0)  # type: ignore[arg-type]
         ax_xc.axhspan(-band, band, color="#E69F00", alpha=0.2, label="95 % band")
         ax_xc.axvline(0.0, color="0.5", lw=0.6, ls="--")
         ax_xc.legend(fontsize=7, loc="upper right")
