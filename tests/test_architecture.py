@@ -152,6 +152,23 @@ def test_the_cache_key_changes_with_every_option(tmp_path, monkeypatch):
         keys.add(key)
 
 
+def test_the_cache_key_changes_with_the_trajectory_files_content(tmp_path, monkeypatch):
+    from balancer_id.cli.request import FitRequest
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.csv").write_text("x")
+    move = tmp_path / "move.csv"
+    move.write_text("time,position\n0,0\n1,0.2\n")
+    request = FitRequest(logs=("a.csv",), trajectory=str(move))
+    assert request.trajectory_files() == [str(move)]
+    before = request.cache_key()
+    move.write_text("time,position\n0,0\n1,0.3\n")
+    after = request.cache_key()
+    assert before is not None and after is not None and before != after
+    spec = FitRequest(logs=("a.csv",), trajectory="trapezoid:distance=0.2,speed=0.1,accel=0.5")
+    assert spec.trajectory_files() == []
+
+
 def test_a_cached_fit_is_not_returned_for_another_accel_unit(cli, small_log, tmp_path, monkeypatch):
     from balancer_id import cache
 

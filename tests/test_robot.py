@@ -299,3 +299,39 @@ def test_trajectory_option_errors(cli, robot_log, tmp_path):
     bad.write_text("0,0\n0.5,0.05\nx,y\n")
     code, _, err = cli("fit", robot_log, "--model", SERVO_MODEL, "--trajectory", bad)
     assert code == 3 and "line 3" in err
+
+
+def test_inspect_titles_its_table_by_what_it_found(cli, robot_log):
+    from balancer_id.report.terminal import trials_title
+
+    spec = "trapezoid:distance=0.2,speed=0.1,accel=0.5"
+    code, out, err = cli("inspect", robot_log, "--trajectory", spec)
+    assert code == 0, err
+    assert "robot move" in out and "step trials" not in out
+    assert trials_title([{"kind": "step"}, {}]) == "step trials"
+    assert trials_title([{"kind": "guided"}]) == "guided move"
+    assert trials_title([{"kind": "guided"}, {"kind": "step"}]) == "1 guided move, 1 step trial"
+
+
+def test_diagnose_suggestion_of_a_robot_log_runs_as_printed(cli, robot_log, tmp_path):
+    import shlex
+
+    move = tmp_path / "move.csv"
+    tt = np.arange(0.0, 2.5, 0.01)
+    z, _ = MOVE_NO_START.evaluate(tt)
+    rows = "".join(f"{a:.3f},{b:.6f}\n" for a, b in zip(tt, z, strict=True))
+    move.write_text("time,position\n" + rows)
+    code, out, err = cli(
+        "diagnose", robot_log, "--model", "viscous+servo", "--trajectory", move,
+        "--json",
+    )  # fmt: skip
+    assert code in (0, 1), err
+    suggestions = json.loads(out)["suggestions"]
+    assert suggestions
+    command = suggestions[0]["command"]
+    assert "--trajectory" in command and str(move) in command
+    argv = shlex.split(command)
+    assert argv[:2] == ["balancer-id", "fit"]
+    code, out, err = cli(*argv[1:], "--json")
+    assert code == 0, err
+    assert json.loads(out)["model"] == suggestions[0]["model"]

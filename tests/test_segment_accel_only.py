@@ -90,3 +90,38 @@ def test_high_rate_log_gives_the_onsets_of_the_200hz_log(seed):
         assert len(trials) == len(groups)
         found[rate] = np.array([t.t_step for t in trials]) - np.array(truth.onsets)
     assert np.max(np.abs(found[5000.0] - found[200.0])) <= 1.0 / 200.0
+
+
+def _session_without_force(truth, levels, holds, seed, tilt):
+    import dataclasses
+
+    from balancer_id.model import parse_model
+    from balancer_id.simulation.sessions import record, session_thrust
+    from balancer_id.simulation.synth import SensorSettings
+
+    holds = np.broadcast_to(np.asarray(holds, float), (len(levels),))
+    rec = record(
+        parse_model("variable_viscosity"), truth, session_thrust(levels, holds),
+        2.0 + float(holds.sum()) + 1.0, sensor=SensorSettings(tilt_deg=tilt), seed=seed,
+    )  # fmt: skip
+    onsets = 2.0 + np.concatenate([[0.0], np.cumsum(holds)[:-1]])
+    return make_log(dataclasses.replace(rec, force=None)), onsets
+
+
+@pytest.mark.parametrize(
+    ("truth", "levels", "holds", "seed"),
+    [
+        # the 70 s session of benchmarks/bench_sessions.py: six changes while moving
+        ({"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4},
+         [2.45, 4.9, -2.45, -4.9, 7.35, -7.35], 68.0 / 6, 1),
+        # another balancer, levels and holds: nothing of the detector is tuned to the first
+        ({"m_a": 26.4, "T_a": 0.48, "D0": 4.3, "A": 0.12},
+         [9.46, -12.36, 10.31, 13.01, -6.58], [7.78, 7.48, 7.6, 7.21, 6.0], 0),
+    ],
+)  # fmt: skip
+def test_thrust_changes_while_moving_are_found_from_the_acceleration(truth, levels, holds, seed):
+    log, onsets = _session_without_force(truth, levels, holds, seed, tilt=14.0)
+    trials = find_trials(log, thrusts=levels)
+    assert len(trials) == len(levels)
+    np.testing.assert_allclose([t.t_step for t in trials], onsets, atol=0.25)
+    assert [t.direction for t in trials] == ["up" if x > 0 else "down" for x in levels]

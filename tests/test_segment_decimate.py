@@ -65,3 +65,29 @@ def test_trial_with_nan_is_not_decimated():
     trial.accel[5] = np.nan
     out, info = decimate_trial(trial)
     assert out is trial and info.factor == 1 and "non-finite" in info.reason
+
+
+def test_fit_says_at_which_rate_it_fitted_a_decimated_log(cli, tmp_path):
+    import json
+
+    from balancer_id.model import parse_model
+    from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
+
+    path = tmp_path / "fast.csv"
+    write_synthetic_log(
+        path, parse_model("variable_viscosity"), {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4},
+        [2.45, -4.9, 7.35], sensor=SensorSettings(rate_hz=1000.0), seed=3, duration_s=3,
+    )  # fmt: skip
+    code, out, err = cli("fit", path, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    for trial in data["trials"]:
+        assert trial["fit_rate_hz"] == pytest.approx(200.0, rel=1e-3)
+        assert trial["decimated_from_hz"] == pytest.approx(1000.0, rel=1e-3)
+    assert data["notes"] == [
+        f"{len(data['trials'])} trials fitted at 200 Hz, decimated from 1000 Hz "
+        "(factor 5, anti-aliased)"
+    ]
+    code, out, err = cli("fit", path)
+    assert code == 0, err
+    assert "fitted at 200 Hz, decimated from 1000 Hz" in " ".join(out.split())

@@ -57,8 +57,26 @@ def request_key(
 
     request = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
     if trajectory is not None:
-        request["trajectory"] = repr(trajectory)
+        request["trajectory"] = _trajectory_digest(trajectory)
     return result_key("batch", [path, *effects_files], request)
+
+
+def _trajectory_digest(trajectory: Any) -> str:
+    """A reference move as key material: a table by its values (numpy's repr elides the
+    middle of a long array, so two tables could share a repr), a trapezoid by its repr."""
+    import hashlib
+
+    import numpy as np
+
+    time = getattr(trajectory, "time", None)
+    position = getattr(trajectory, "position", None)
+    if isinstance(time, np.ndarray) and isinstance(position, np.ndarray):
+        h = hashlib.sha256()
+        for arr in (time, position):
+            h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+        start = (getattr(trajectory, "start", None), getattr(trajectory, "start_given", None))
+        return f"table:{h.hexdigest()}:{start!r}"
+    return repr(trajectory)
 
 
 def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:

@@ -104,9 +104,29 @@ def _identify(
         return {"status": "ok", "result": data, "seconds": time.perf_counter() - start}
     except BalancerIdError as exc:
         return _failure(str(exc), exc.exit_code, time.perf_counter() - start)
-    except Exception as exc:
-        return _failure(
-            f"internal error: {type(exc).__name__}: {exc}",
-            INTERNAL_EXIT_CODE,
-            time.perf_counter() - start,
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # SystemExit too: user code may exit (issue 13)
+        message, code = _unexpected(exc, effects_files)
+        return _failure(message, code, time.perf_counter() - start)
+
+
+def _unexpected(exc: BaseException, effects_files: Sequence[str]) -> tuple[str, int]:
+    """The row's error and exit code for an exception that is not one of ours.
+
+    With user effects loaded, the fit runs their code: an exception or exit there is the
+    effect's failure on this log (exit 4, identification impossible), said with the file.
+    Without them it is an internal error.
+    """
+    what = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    if isinstance(exc, SystemExit):
+        what = f"exit({exc.code!r})"
+    if effects_files:
+        files = ", ".join(str(f) for f in effects_files)
+        return (
+            f"the fit stopped with {what} while running the user effects of {files}; "
+            "fix the effect (or leave its --effects-file out) and run the batch again with "
+            "--resume",
+            4,
         )
+    return f"internal error: {what}", INTERNAL_EXIT_CODE

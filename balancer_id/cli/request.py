@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from balancer_id.trials import ReadOptions
@@ -64,4 +65,18 @@ class FitRequest:
         """
         from balancer_id import cache
 
-        return cache.result_key("fit", [*self.logs, *self.effects_files], self.to_dict())
+        return cache.result_key("fit", [*self.logs, *self.effects_files, *self.trajectory_files()],
+                                self.to_dict())
+
+    def trajectory_files(self) -> list[str]:
+        """The ``--trajectory`` CSV file, when the trajectory is one (its bytes are an input).
+
+        Returns
+        -------
+        list of str
+            ``[path]`` when ``trajectory`` names an existing file rather than a spec, else ``[]``.
+        """
+        text = self.trajectory
+        if text is None or text.startswith("trapezoid") or not Path(text).exists():
+            return []
+        return [text]

@@ -10,7 +10,9 @@ from scipy.ndimage import median_filter
 
 from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.model.spec import Model
-from balancer_id.segment.decimate import decimate_trial
+from balancer_id.segment.decimate import Decimation, decimate_trial
+from balancer_id.segment.robust import rate_of
+from balancer_id.segment.steps import StepSettings
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.engine import DEFAULT_SUBSTEPS, PackedTrials, TrialInput
 from balancer_id.simulation.inputs import Thrust, Trapezoid
@@ -46,6 +48,8 @@ class TrialData:
     lead_in : TrialInput or None
         For a trial that ``continues``: the session from its start up to this trial, so
         that the trial can be simulated without the previous trials in the same fit.
+    decimation : Decimation or None
+        How the trial was decimated for fitting (None: fitted at the log's own rate).
     """
 
     index: int
@@ -57,11 +61,17 @@ class TrialData:
     source: str = ""
     continues: bool = False
     lead_in: TrialInput | None = None
+    decimation: Decimation | None = None
 
     @property
     def time(self) -> np.ndarray:
         """Sample times (s)."""
         return self.input.time
+
+    @property
+    def rate_hz(self) -> float:
+        """The rate the trial is fitted at (Hz): its samples' median rate."""
+        return rate_of(self.input.time) if self.input.time.size >= 2 else float("nan")
 
     @classmethod
     def from_trial(
@@ -169,6 +179,7 @@ def from_trials(
     out: list[TrialData] = []
     history: TrialInput | None = None
     prev: Trial | None = None
+    motion = _Motion()
     for trial in trials:
         continues = (
             chain
@@ -180,10 +191,22 @@ def from_trials(
             and out[-1].time[-1] < trial.time[-1]
         )
         after = out[-1].time[-1] if continues else -np.inf
-        trial, _ = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz, noted in trial.notes
+        trial, decimation = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
         keep = np.isfinite(accel) & np.isfinite(time) & (time > after)
+        kept = np.flatnonzero(keep)
+        # a drop-out longer than the bridging limit: the model cannot be carried across it
+        # (its input may have changed unseen); the trial ends before it, and a trial after
+        # it starts from the state estimated from the data (_Motion)
+        long_gaps = np.flatnonzero(np.diff(time[kept]) > LONG_GAP_S) if kept.size else kept
+        tail = np.zeros_like(keep)
+        if long_gaps.size and kept[long_gaps[0]] >= np.searchsorted(time, trial.t_step) + 10:
+            tail[kept[long_gaps[0] + 1 :]] = True  # not fitted; the motion goes on through it
+            keep[kept[long_gaps[0] + 1] :] = False
+        restart = bool(
+            continues and keep.any() and time[keep][0] - out[-1].time[-1] > LONG_GAP_S
+        )
         if keep.sum() < 10:
             raise IdentificationError(
                 f"{trial.source} [{trial.recording}], trial at {trial.t_step:.2f} s: no "
@@ -206,11 +229,20 @@ def from_trials(
         z_ref = v_ref = None
         if reference is not None:
             z_ref, v_ref = reference.evaluate(time)
+        x0 = None
+        if restart:
+            x0 = motion.state_at(time, accel, float(thrust.at(time[:1])[0]))
+            continues = False
+        elif not continues:
+            motion = _Motion()
+        motion.add(time, accel, trial.t_step if not (continues or restart) else None)
+        if tail.any():
+            motion.add(np.asarray(trial.time, float)[tail], np.asarray(trial.accel, float)[tail])
         lead_in = None
         if continues:
             assert history is not None
             lead_in = history
-        here = TrialInput(time, thrust, z_ref, v_ref)
+        here = TrialInput(time, thrust, z_ref, v_ref, x0)
         history = _join(lead_in, here) if continues else here
         out.append(
             TrialData(
@@ -223,10 +255,89 @@ def from_trials(
                 source=f"{trial.source} [{trial.recording}]",
                 continues=bool(continues),
                 lead_in=lead_in,
+                decimation=decimation if decimation.factor > 1 else None,
             )
         )
         prev = trial
     return out
+
+
+#: A drop-out longer than this (s) is not simulated across (the bridging limit of
+#: segmentation, :class:`~balancer_id.segment.steps.StepSettings`).
+LONG_GAP_S = StepSettings().bridge_gap_s
+
+
+class _Motion:
+    """Velocity and position of a run's motion, integrated from its measured acceleration.
+
+    The motion starts from rest (v = 0) at its first trial; the acceleration is the
+    segmentation's vertical acceleration, whose resting level is already removed over the
+    whole run (a mean over the short rest before an onset would be noisier). Between
+    samples, and across a drop-out, the acceleration is taken as linear. Used to start a
+    trial that follows a drop-out in motion.
+    """
+
+    def __init__(self) -> None:
+        self.t: float | None = None
+        self.a: float | None = None
+        self.v = self.z = 0.0
+
+    def add(self, time: np.ndarray, accel: np.ndarray, onset: float | None = None) -> None:
+        """Integrate the samples ``time, accel`` (after those added before).
+
+        Parameters
+        ----------
+        time, accel : numpy.ndarray
+            Sample times (s) and vertical acceleration (m/s^2), finite.
+        onset : float, optional
+            A motion from rest starts here (the state is reset to rest).
+        """
+        if time.size == 0:
+            return
+        if onset is not None:
+            self.t, self.a, self.v, self.z = None, None, 0.0, 0.0
+        a = accel
+        if self.t is not None and self.a is not None:
+            self._advance(time[0], a[0])
+        dt = np.diff(time)
+        dv = 0.5 * (a[1:] + a[:-1]) * dt
+        v = self.v + np.concatenate([[0.0], np.cumsum(dv)])
+        self.z += float(np.sum(0.5 * (v[1:] + v[:-1]) * dt))
+        self.v, self.t, self.a = float(v[-1]), float(time[-1]), float(a[-1])
+
+    def _advance(self, t1: float, a1: float) -> None:
+        assert self.t is not None and self.a is not None
+        h = t1 - self.t
+        self.z += self.v * h + (2.0 * self.a + a1) * h * h / 6.0
+        self.v += 0.5 * (self.a + a1) * h
+        self.t, self.a = t1, a1
+
+    def state_at(
+        self, time: np.ndarray, accel: np.ndarray, thrust: float
+    ) -> tuple[float, float, float]:
+        """The state at ``time[0]``, after a drop-out: ``(f, v, z)``.
+
+        The acceleration at the end of the drop-out is the mean of the first 0.1 s after
+        it; the drive force is the thrust at ``time[0]`` (its steady state: a thrust
+        held longer than a few drive lags).
+
+        Parameters
+        ----------
+        time, accel : numpy.ndarray
+            The samples after the drop-out (s, m/s^2).
+        thrust : float
+            The thrust at ``time[0]`` (N).
+
+        Returns
+        -------
+        tuple of float
+            Drive force (N), velocity (m/s) and position (m) at ``time[0]``.
+        """
+        if self.t is None:
+            return (thrust, 0.0, 0.0)
+        first = accel[time <= time[0] + 0.1]
+        self._advance(float(time[0]), float(np.mean(first)))
+        return (thrust, self.v, self.z)
 
 
 def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:

@@ -170,6 +170,27 @@ class FitResult(Displayable):
         args += self.trial_set.option_args()
         return shlex.join(args)
 
+    def sampling_notes(self) -> list[str]:
+        """At which rate the trials were fitted, when any was decimated (one line per rate).
+
+        Returns
+        -------
+        list of str
+            E.g. ``"3 trials fitted at 250 Hz, decimated from 1000 Hz (factor 4)"``; empty
+            when every trial was fitted at its log's own rate.
+        """
+        groups: dict[tuple[float, float, int], int] = {}
+        for td in self.match.data.trials:
+            d = td.decimation
+            if d is not None:
+                key = (round(d.rate_in_hz, 6), round(d.rate_out_hz, 6), d.factor)
+                groups[key] = groups.get(key, 0) + 1
+        return [
+            f"{n} trial{'s' if n > 1 else ''} fitted at {out:.4g} Hz, decimated from "
+            f"{rate:.4g} Hz (factor {q}, anti-aliased)"
+            for (rate, out, q), n in groups.items()
+        ]
+
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""
         trials = []
@@ -181,6 +202,8 @@ class FitResult(Displayable):
                     "direction": td.direction,
                     "rmse": rmse,
                     "source": td.source,
+                    "fit_rate_hz": td.rate_hz,
+                    "decimated_from_hz": td.decimation.rate_in_hz if td.decimation else None,
                 }
             )
         out: dict[str, object] = {
@@ -194,6 +217,7 @@ class FitResult(Displayable):
             "converged": self.match.success,
             "optimizer_message": self.match.message,
             "warnings": self.warnings + self.match.warnings,
+            "notes": self.sampling_notes(),
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()

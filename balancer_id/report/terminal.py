@@ -75,7 +75,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 _stderr(console).print(
                     f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}"
                 )
-    table = Table(title="step trials")
+    table = Table(title=trials_title(info["trials"]))
     cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
     for col in (*cols, "ends by"):
         table.add_column(col)
@@ -91,6 +91,40 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             str(t.get("end_reason", "")),
         )
     console.print(table)
+
+
+_KIND_TITLES = {"step": ("step trial", "step trials"), "move": ("robot move", "robot moves"),
+                "guided": ("guided move", "guided moves")}
+
+
+def trials_title(trials: list[dict[str, Any]]) -> str:
+    """The title of ``inspect``'s table: what it found (step trials, a robot or guided move).
+
+    Parameters
+    ----------
+    trials : list of dict
+        The ``inspect`` trial records (their ``kind``; a record without one is a step trial).
+
+    Returns
+    -------
+    str
+        E.g. ``"step trials"``, ``"robot move"``, ``"1 guided move, 4 step trials"``.
+    """
+    counts: dict[str, int] = {}
+    for t in trials:
+        kind = str(t.get("kind", "step"))
+        counts[kind] = counts.get(kind, 0) + 1
+    if not counts:
+        return "step trials (none found)"
+    if len(counts) == 1:
+        kind, n = next(iter(counts.items()))
+        one, many = _KIND_TITLES.get(kind, (kind, f"{kind} windows"))
+        return one if n == 1 and kind != "step" else many
+    parts = []
+    for kind, n in counts.items():
+        one, many = _KIND_TITLES.get(kind, (kind, f"{kind} windows"))
+        parts.append(f"{n} {one if n == 1 else many}")
+    return ", ".join(parts)
 
 
 def print_fit(console: Console, result: dict[str, Any]) -> None:
@@ -161,6 +195,8 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
                 _fmt(row["rmse"]),
             )
         console.print(per)
+    for note in result.get("notes", []):
+        console.print(f"note: {note}")
     err = _stderr(console)
     for w in result.get("warnings", []):
         err.print(f"[yellow]warning:[/yellow] {w}")

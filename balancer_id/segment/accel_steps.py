@@ -35,6 +35,10 @@ BASELINE_S = 30.0
 #: Time constants (s) tried when placing the onset of a first-order rise.
 _RISE_T = np.geomspace(0.1, 1.0, 25)
 
+#: Half-width (s) of the window over which a change of the acceleration while moving is
+#: measured (:func:`step_trend`): longer than the drive lags (0.1-1 s) take to show.
+CHANGE_HALF_S = 1.0
+
 #: Highest rate (Hz) of the onset search; faster logs are searched on block means first.
 SEARCH_HZ = 200
 
@@ -83,16 +87,20 @@ def detect_accel_steps(
     rest = _resting_level(mean, thr, rate)
     det = Detection([], float(np.max(np.abs(mean - rest))) if n else 0.0, thr, "m/s^2")
     edges = np.concatenate([[0], breaks, [n]]).astype(int)
+    half = n_samples(CHANGE_HALF_S, rate, 3)
     for lo, hi in itertools.pairwise(edges):
         if hi - lo < 2 * w:
             continue
         stretches = _active(mean[lo:hi] - rest[lo:hi], thr, n_samples(settings.merge_s, rate))
         awaiting = 0  # sign of a trial not yet caught
+        first = len(det.steps)
+        catches: list[int] = []
         for st in stretches:
             start, stop = lo + st.start, lo + st.stop
             length = (stop - start) / rate
             if awaiting and st.sign == -awaiting and length < settings.max_catch_s:
                 awaiting = 0
+                catches.append(start)
                 det.reject("a catch")
                 continue
             if start - lo < w or length < settings.min_trial_s:
@@ -109,7 +117,144 @@ def detect_accel_steps(
             z = abs(dep) / (sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
             det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
             awaiting = 0 if st.reverses else st.sign
+        if hi - lo > 4 * half:
+            kept = _changes_while_moving(
+                time, a, rest, lo, hi, det.steps[first:], catches, half, thr, sigma, clip, rate,
+                settings,
+            )  # fmt: skip
+            det.steps[first:] = kept
     return det
+
+
+def step_trend(accel: np.ndarray, half: int) -> tuple[np.ndarray, float]:
+    """The step of the acceleration at every sample, over its local linear trend.
+
+    Fits ``b + m (x - k) + s H(x - k)`` by least squares over the ``2 half`` samples
+    ``[k - half, k + half)`` and returns ``s``: a thrust change while moving makes a
+    first-order change of the acceleration toward a new level on top of a slow trend
+    (the viscous decay), which ``s`` measures and the trend does not bias.
+
+    Parameters
+    ----------
+    accel : numpy.ndarray
+        Acceleration without NaN (m/s^2).
+    half : int
+        Half-width of the window (samples).
+
+    Returns
+    -------
+    step : numpy.ndarray
+        ``s`` at every sample (NaN within ``half`` of the ends).
+    gain : float
+        The standard error of ``s`` for unit white noise (``s``'s noise is ``gain sigma``).
+    """
+    n = accel.size
+    out = np.full(n, np.nan)
+    if n <= 2 * half:
+        return out, float("nan")
+    x = np.arange(n, dtype=float)
+    c0 = np.concatenate([[0.0], np.cumsum(accel)])
+    c1 = np.concatenate([[0.0], np.cumsum(accel * x)])
+    ks = np.arange(half, n - half)
+    u = np.arange(-half, half, dtype=float)
+    normal = np.array(
+        [
+            [2.0 * half, u.sum(), half],
+            [u.sum(), u @ u, u[half:].sum()],
+            [half, u[half:].sum(), half],
+        ]
+    )
+    inv = np.linalg.inv(normal)
+    sy = c0[ks + half] - c0[ks - half]
+    suy = (c1[ks + half] - c1[ks - half]) - ks * sy
+    shy = c0[ks + half] - c0[ks]
+    out[ks] = inv[2, 0] * sy + inv[2, 1] * suy + inv[2, 2] * shy
+    return out, float(np.sqrt(inv[2, 2]))
+
+
+def _changes_while_moving(
+    time: np.ndarray,
+    a: np.ndarray,
+    rest: np.ndarray,
+    lo: int,
+    hi: int,
+    steps: list[Step],
+    catches: list[int],
+    half: int,
+    thr: float,
+    sigma: float,
+    clip: float,
+    rate: float,
+    settings: StepSettings,
+) -> list[Step]:
+    """The onsets of one gap-free stretch, with the thrust changes made while moving.
+
+    The departures from rest (``steps``) start the motions; a motion lasts until a catch
+    (or the stretch's end). Inside a motion, a thrust change is a peak of
+    :func:`step_trend` above the threshold (the largest first; others within two
+    half-widths of it are its side lobes), after which the acceleration does not sit at
+    the resting level (a stop is no change). A departure inside a motion that no such
+    peak confirms is the resting level following the slow decay, not an onset.
+    """
+    step, gain = step_trend(a[lo:hi], half)
+    level = max(settings.min_accel_step, settings.accel_k_sigma * sigma * gain)
+    mag = np.nan_to_num(np.abs(step))
+    peaks: list[int] = []
+    order = np.argsort(-mag)
+    taken = np.zeros(mag.size, dtype=bool)
+    for j in order:
+        if mag[j] <= level:
+            break
+        if taken[j]:
+            continue
+        peaks.append(lo + int(j))
+        taken[max(0, j - 2 * half) : j + 2 * half] = True
+    peaks.sort()
+    # a catch is abrupt: a "catch" the step does not confirm is the level following the decay
+    def abrupt(k: int) -> bool:
+        return bool(np.any(mag[max(0, k - lo - half) : k - lo + half] > level))
+
+    catch_s = n_samples(settings.max_catch_s, rate)
+    events = sorted(
+        [(st.onset, 0, st) for st in steps]
+        + [(c, 1, None) for c in catches if abrupt(c)]
+        + [(p, 2, None) for p in peaks]
+    )
+    out: list[Step] = []
+    moving = False
+    caught = -(10**12)  # start of the last catch
+    after, span = n_samples(0.5, rate), n_samples(settings.response_s, rate)
+    for k, kind, st in events:
+        if kind == 1:
+            moving, caught = False, k
+        elif kind == 0:
+            # a departure from rest starts a motion; one while moving must be abrupt (else
+            # it is the resting level following the slow decay) and not already found
+            near = bool(out) and abs(k - out[-1].onset) <= 2 * half
+            if not moving or (abrupt(k) and not near):
+                out.append(st)
+                moving = True
+        else:
+            last = out[-1].onset if out else None
+            if last is not None and abs(k - last) <= 2 * half:
+                continue  # the change that started this motion, or its side lobe
+            if caught - half <= k <= caught + catch_s + half:
+                continue  # the catch itself
+            if not moving and (out or any(abs(k - d.onset) <= 2 * half for d in steps)):
+                continue  # at rest, departures are found from the resting level
+            start = out[-1].onset if moving and out else k  # the motion's first onset
+            pre = a[max(lo, start - 2 * half) : max(lo, start - half // 2)]
+            still = clipped_mean(pre, clip) if pre.size >= half // 2 else rest[k]
+            seg = a[k + after : min(hi, k + span)]
+            if seg.size < 3 or abs(clipped_mean(seg, clip) - still) <= thr:
+                continue  # the motion stopped: back at the resting level, no new level
+            onset = rise_onset(time, a, lo, hi, k, half)
+            if onset - lo < 3 or hi - onset < 3:
+                continue
+            dep = float(step[k - lo])
+            out.append(Step(int(onset), float("nan"), dep, abs(dep) / (sigma * gain), "accel"))
+            moving = True
+    return sorted(out, key=lambda st: st.onset)
 
 
 def _resting_level(mean: np.ndarray, thr: float, rate: float) -> np.ndarray:
