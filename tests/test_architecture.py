@@ -265,10 +265,16 @@ def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
     monkeypatch.chdir(REPO)
     code = _readme_api_code()
     for _ in range(2):
-        exec(compile(code, "README.md", "exec"), {})
+        env: dict = {}
+        exec(compile(code, "README.md", "exec"), env)
         assert callable(balancer_id.fit) and callable(balancer_id.diagnose)
+        # issue 11: the results it shows are the notebook's
+        assert len(repr(env["result"]).splitlines()) == 1
+        assert len(env["frame"]) == len(env["result"].match.y)
+        assert env["fig"].axes
     out = capsys.readouterr().out
     assert out.count("m_a") >= 2
+    assert out.count("[[Variables]]") >= 2 and out.count("[[Diagnosis]]") >= 2
 
 
 def test_an_effects_guess_hook_starts_its_refit_and_a_failing_one_is_named(small_log):

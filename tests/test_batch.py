@@ -140,6 +140,11 @@ def test_summary_has_one_row_per_log(batch: tuple[BatchResult, list[str]], logs:
     assert [r["exit_code"] for r in table] == ["0", "0", "0", "3", "4"]
     assert float(table[2]["m_a"]) == pytest.approx(GOOD["c.csv"], rel=0.03)
     assert table[3]["m_a"] == "" and "garbage.csv" in table[3]["error"]
+    # issue 11: a verdict and the fit's warnings, so "ok" never hides a doubtful fit
+    assert [r["verdict"] for r in table][3:] == ["failed", "failed"]
+    for r, row in zip(table[:3], result.rows[:3], strict=True):
+        assert r["verdict"] == ("identified, check the warnings" if row.warnings else "identified")
+        assert r["warnings"] == " | ".join(row.warnings)
 
 
 def test_output_folder_is_clean(batch: tuple[BatchResult, list[str]], logs: Path) -> None:
@@ -243,3 +248,13 @@ def test_dask_local_cluster(logs: Path, tmp_path: Path) -> None:
             assert p["stderr"] == pytest.approx(ll.parameters[name]["stderr"], rel=1e-6)
         for name, v in d.metrics.items():
             assert v == pytest.approx(ll.metrics[name], rel=1e-9)
+
+
+def test_a_fit_that_cannot_determine_m_a_does_not_read_just_ok() -> None:
+    from balancer_id.batch.rows import BatchRow
+
+    row = BatchRow(file="x.csv", status="ok", warnings=["the data cannot determine m_a"])
+    rec = row.summary_record(["m_a"])
+    assert rec["verdict"] == "identified, check the warnings"
+    assert "cannot determine m_a" in str(rec["warnings"])
+    assert BatchRow(file="y.csv", status="ok").summary_record([])["verdict"] == "identified"

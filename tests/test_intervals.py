@@ -42,3 +42,19 @@ def test_profile_stops_at_the_bound_when_the_data_allow_it(rng):
     assert not interval.high_at_bound
     assert interval.high > fit.parameters["D0"].value
     assert interval.low <= truth["D0"] <= interval.high
+
+
+def test_fit_reports_the_profile_interval_where_wald_crosses_a_bound(rng):
+    # issue 11: the interval the user sees (JSON ci95, the summary) respects the bounds
+    from balancer_id.identify.api import fit
+
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 0.2}
+    trials = step_trials("viscous", truth, [2.45, -4.9], 0.05, rng, seconds=2.5)
+    result = fit(trials, model="viscous")
+    d0 = result.to_dict()["parameters"]["D0"]
+    assert d0["ci95_method"] == "profile"
+    assert d0["ci95"][0] >= 0.0  # D0 >= 0: the bound, not "-0.3"
+    assert result.match.parameters["D0"].wald_ci95[0] < 0.0
+    m_a = result.to_dict()["parameters"]["m_a"]
+    assert m_a["ci95_method"] == "wald"
+    assert "profile" in result.summary() and any("profile" in w for w in result.warnings)

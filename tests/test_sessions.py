@@ -229,8 +229,9 @@ def test_given_thrust_sign_against_the_motion_is_kept_and_shown(cli, tmp_path, m
     first = json.loads(out)["trials"][0]
     assert first["thrust_N"] == -4.9 and first["direction"] == "down"
     assert any(n.startswith("warning:") and "motion" in n for n in first["notes"])
-    code, out, _ = cli("inspect", path, "--thrust", "-4.9,-2.45")
-    assert code == 0 and "warning: trial 0" in out.replace("\n", " ")
+    code, _, err = cli("inspect", path, "--thrust", "-4.9,-2.45")
+    # warnings go to stderr (issue 11), whole
+    assert code == 0 and "warning: trial 0" in err.replace("\n", " ")
 
 
 def test_vertical_sign_is_named_and_can_be_given():

@@ -108,6 +108,7 @@ def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
             for name, p in doc.get("parameters", {}).items()
         }
         row.metrics = {k: doc.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
+        row.warnings = [str(w) for w in doc.get("warnings", [])]
     else:
         row.error = str(doc.get("error", "failed"))
         row.exit_code = int(doc.get("exit_code") or INTERNAL_EXIT_CODE)

@@ -64,6 +64,8 @@ class BatchRow:
         ``rmse``, ``nrmse_fit_percent``, ``aic``, ``bic``.
     seconds : float or None
         Wall time of the fit in its worker (None when the worker died).
+    warnings : list of str
+        The fit's warnings (poorly determined parameters, bounds reached, ...).
     """
 
     file: str
@@ -76,11 +78,22 @@ class BatchRow:
     parameters: dict[str, dict[str, float | None]] = field(default_factory=dict)
     metrics: dict[str, float | None] = field(default_factory=dict)
     seconds: float | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
         """Whether the log was identified."""
         return self.status == "ok"
+
+    @property
+    def verdict(self) -> str:
+        """``identified``, ``identified, check the warnings`` or ``failed`` (summary.csv).
+
+        A fit that cannot determine a parameter (or stops at a bound) is not just "ok".
+        """
+        if not self.ok:
+            return "failed"
+        return "identified, check the warnings" if self.warnings else "identified"
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict."""
@@ -95,6 +108,8 @@ class BatchRow:
             "parameters": {k: dict(v) for k, v in self.parameters.items()},
             "metrics": dict(self.metrics),
             "seconds": self.seconds,
+            "verdict": self.verdict,
+            "warnings": list(self.warnings),
         }
 
     def summary_record(self, parameter_names: Sequence[str]) -> dict[str, object]:
@@ -126,6 +141,8 @@ class BatchRow:
             rec[name] = self.metrics.get(name)
         rec["seconds"] = self.seconds
         rec["json"] = self.json
+        rec["verdict"] = self.verdict
+        rec["warnings"] = " | ".join(self.warnings) or None
         return rec
 
 
@@ -251,6 +268,7 @@ def _write_log_result(
             for name, p in data.get("parameters", {}).items()
         }
         row.metrics = {k: data.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
+        row.warnings = [str(w) for w in data.get("warnings", [])]
     else:
         error = str(payload.get("error") or "failed")
         if task.display not in error:
@@ -280,7 +298,8 @@ def _describe(row: BatchRow) -> str:
     m_a = row.parameters.get("m_a", {}).get("value")
     mass = f", m_a = {m_a:.3g} kg" if isinstance(m_a, float) else ""
     took = f", {row.seconds:.1f} s" if row.seconds is not None else ""
-    return f"{row.file}: ok ({row.n_trials} trials{mass}{took})"
+    warn = f"; {len(row.warnings)} warning(s)" if row.warnings else ""
+    return f"{row.file}: ok ({row.n_trials} trials{mass}{took}{warn})"
 
 
 def summary_columns(rows: Sequence[BatchRow]) -> tuple[list[str], list[str]]:
@@ -296,7 +315,8 @@ def summary_columns(rows: Sequence[BatchRow]) -> tuple[list[str], list[str]]:
     columns : list of str
         ``file, status, error, exit_code, model, n_trials``, then ``NAME, NAME_stderr``
         for ``m_a``, ``T_a`` and every other parameter fitted in any row (in order of
-        appearance), then ``rmse, nrmse_fit_percent, aic, bic, seconds, json``.
+        appearance), then ``rmse, nrmse_fit_percent, aic, bic, seconds, json, verdict,
+        warnings``.
     parameters : list of str
         The parameter names, in column order.
     """
@@ -306,7 +326,7 @@ def summary_columns(rows: Sequence[BatchRow]) -> tuple[list[str], list[str]]:
     columns = ["file", "status", "error", "exit_code", "model", "n_trials"]
     for name in names:
         columns += [name, f"{name}_stderr"]
-    columns += [*METRIC_COLUMNS, "seconds", "json"]
+    columns += [*METRIC_COLUMNS, "seconds", "json", "verdict", "warnings"]
     return columns, names
 
 

@@ -36,12 +36,55 @@ from balancer_id.cli.options import (
     read_options,
     trajectory,
 )
+from balancer_id.cli.progress import stage
 
 if TYPE_CHECKING:
     from balancer_id.trials import ReadOptions
 
+_TYPE_WORDS = {
+    "str": "TEXT",
+    "int": "INTEGER",
+    "float": "NUMBER",
+    "path": "FILE",
+    "Path": "FILE",
+    "bool": "",
+}
+
+
+def _in_words(label: str | None) -> str | None:
+    """``<list[Path]>`` -> ``FILE...``, ``<str>`` -> ``TEXT``, a flag's ``<bool>`` -> nothing."""
+    if not label or not (label.startswith("<") and ">" in label):
+        return label
+    inner, rest = label[1:].split(">", 1)
+    many = inner.startswith("list[") and inner.endswith("]")
+    inner = inner[5:-1] if many else inner
+    word = _TYPE_WORDS.get(inner, inner.upper())
+    if not word:
+        return None
+    return word + ("..." if many or rest else "")
+
+
+def _help_types_in_words() -> None:
+    """Typer >= 0.20 shows option types as ``<list[Path]>``; show them as words."""
+    import typer.core as tc
+
+    for cls in (getattr(tc, "TyperOption", None), getattr(tc, "TyperArgument", None)):
+        shown = getattr(cls, "display_type_rich", None)
+        if shown is None or getattr(shown, "_in_words", False):
+            continue
+
+        def in_words(self, ctx, _shown=shown):
+            return _in_words(_shown(self, ctx))
+
+        in_words._in_words = True  # type: ignore[attr-defined]
+        cls.display_type_rich = in_words  # type: ignore[method-assign]
+
+
+_help_types_in_words()
+
 app = typer.Typer(
-    add_completion=False,
+    add_completion=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Identify a passive balancer's dynamics from force/acceleration step logs.",
@@ -62,14 +105,23 @@ def _main(
         bool,
         typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
     ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="No progress messages on stderr.")
+    ] = False,
 ) -> None:
-    """Identify a passive balancer's dynamics from force/acceleration step logs."""
+    """Identify a passive balancer's dynamics from force/acceleration step logs.
+
+    Example: balancer-id fit sample_logs/paper_balancer.csv
+    """
+    from balancer_id.cli import progress
+
+    progress.QUIET = quiet
 
 
 def _console():
     from rich.console import Console
 
-    return Console(width=max(100, Console().width))
+    return Console()  # the terminal's real width (80 when stdout is not a terminal)
 
 
 def _advised(result):
@@ -85,6 +137,55 @@ def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
     return load_trials(logs, options, trajectory(trajectory_text), trajectory_text)
 
 
+def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
+    """``NAME=MIN:MAX`` items (``--bounds``) as a dict."""
+    from balancer_id.errors import UsageError
+
+    out: dict[str, tuple[float, float]] = {}
+    for item in items or []:
+        name, sep, span = item.partition("=")
+        lo, colon, hi = span.partition(":")
+        try:
+            if not (sep and colon):
+                raise ValueError
+            out[name.strip()] = (float(lo), float(hi))
+        except ValueError:
+            raise UsageError(f"--bounds '{item}': expected NAME=MIN:MAX, e.g. m_a=5:30") from None
+    return out
+
+
+def _write_series(frame, path: Path) -> None:
+    """``--series``: per trial, time, measured, simulated and residual, as CSV."""
+    from balancer_id.files import atomic_write_text
+
+    atomic_write_text(path, frame.to_csv(index=False))
+    typer.echo(f"wrote {path}", err=True)
+
+
+def _write_json(obj: object, path: Path) -> None:
+    """``--save``: the command's JSON object to a file."""
+    import json
+
+    from balancer_id.files import atomic_write_text
+
+    atomic_write_text(path, json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
+    typer.echo(f"wrote {path}", err=True)
+
+
+def _params_model(path: Path, model: str | None) -> str | None:
+    """The model of ``--params FILE`` (its ``model`` key) unless ``--model`` names one."""
+    import json
+
+    if model is not None:
+        return model
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None  # read_params_file says what is wrong with it
+    spec = data.get("model") if isinstance(data, dict) else None
+    return spec if isinstance(spec, str) else None
+
+
 # Commands -----------------------------------------------------------------------------
 @app.command()
 @guarded
@@ -97,7 +198,10 @@ def inspect(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Show what was read from LOG and the step trials (or the robot move) found in it."""
+    """Show what was read from LOG and the step trials (or the robot move) found in it.
+
+    Example: balancer-id inspect sample_logs/paper_balancer.csv --plot channels.png
+    """
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
@@ -115,6 +219,7 @@ def inspect(
         from balancer_id.report.inspect_plot import plot_inspection
 
         plot_inspection(data, trials, plot, g=options.g, vertical=options.vertical)
+        typer.echo(f"wrote {plot}", err=True)
     if json_out:
         emit_json(info)
     else:
@@ -150,6 +255,22 @@ def fit(
         Path | None,
         typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
     ] = None,
+    start_values: Annotated[
+        list[str] | None,
+        typer.Option("--start", help="Start value of a parameter: NAME=VALUE (repeatable)."),
+    ] = None,
+    bounds: Annotated[
+        list[str] | None,
+        typer.Option("--bounds", help="Narrower bounds: NAME=MIN:MAX (repeatable)."),
+    ] = None,
+    save: Annotated[
+        Path | None,
+        typer.Option("--save", help="Write the fit (JSON) to FILE, for --params of compare."),
+    ] = None,
+    series: Annotated[
+        Path | None,
+        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     group_by: Annotated[
         str | None,
@@ -157,7 +278,10 @@ def fit(
     ] = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Identify the parameters of the model over all trials of all LOGS."""
+    """Identify the parameters of the model over all trials of all LOGS.
+
+    Example: balancer-id fit sample_logs/paper_balancer.csv --model viscous+karnopp
+    """
     from balancer_id.cli.request import FitRequest
 
     fixed = assignments(fix, "--fix")
@@ -167,8 +291,19 @@ def fit(
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
     at_least(starts, 1, "--starts")
-    check_outputs({"--report": report}, inputs_of(logs, effects_file, trajectory_text), overwrite)
+    user_start = assignments(start_values, "--start")
+    user_bounds = _bounds(bounds)
+    ins = inputs_of(logs, effects_file, trajectory_text)
+    if params is not None:
+        ins.append(params)
+    check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
     if group_by is not None:
+        if user_start or user_bounds or save is not None or series is not None:
+            from balancer_id.errors import UsageError
+
+            raise UsageError(
+                "--start, --bounds, --save and --series are for one fit: not with --group-by"
+            )
         _fit_groups(
             _load(logs, options, trajectory_text),
             group_by,
@@ -192,10 +327,11 @@ def fit(
         trajectory=trajectory_text,
         effects_files=tuple(str(p) for p in effects_file or ()),
     )
-    key = None if no_cache else request.cache_key()
+    tuned = bool(user_start or user_bounds)
+    key = None if (no_cache or tuned) else request.cache_key()
     from balancer_id import cache
 
-    out = cache.load(key) if report is None else None
+    out = cache.load(key) if report is None and series is None else None
     if out is None:
         from balancer_id.identify.api import fit as run_fit
 
@@ -203,14 +339,17 @@ def fit(
             from balancer_id.report.document import check_report_path
 
             check_report_path(report, logs)
-        result = run_fit(
-            _load(logs, options, trajectory_text),
-            model=model,
-            fixed=request.fixed,
-            effects_files=request.effects_files,
-            per_trial=per_trial,
-            n_starts=starts,
-        )
+        with stage(f"fitting {model or 'variable_viscosity'} ({starts} start(s))"):
+            result = run_fit(
+                _load(logs, options, trajectory_text),
+                model=model,
+                fixed=request.fixed,
+                effects_files=request.effects_files,
+                per_trial=per_trial,
+                n_starts=starts,
+                start=user_start,
+                bounds=user_bounds,
+            )
         out = result.to_dict()
         advice = _advised(result)
         if advice is not None:  # issue 9: advice for the robot-balancer pair
@@ -219,7 +358,13 @@ def fit(
         if report is not None:
             from balancer_id.report.document import write_fit_report
 
-            write_fit_report(result, report)
+            with stage(f"writing {report}"):
+                write_fit_report(result, report)
+            typer.echo(f"wrote {report}", err=True)
+        if series is not None:
+            _write_series(result.to_frame(), series)
+    if save is not None:
+        _write_json(out, save)
     if json_out:
         emit_json(out)
     else:
@@ -284,14 +429,28 @@ def simulate(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="The model and values of 'fit --save' (or --json)."),
+    ] = None,
 ) -> None:
-    """Write a synthetic log in PASCO Capstone CSV format (one run per thrust)."""
+    """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
+
+    Example: balancer-id simulate --param m_a=0.5 --out sim.csv
+    """
     from balancer_id.errors import UsageError
     from balancer_id.identify.api import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
+    known: dict[str, float] = {}
+    if params is not None:  # issue 11: simulate an identified model
+        from balancer_id.identify.params_file import read_params_file
+
+        model = _params_model(params, model)
+        mdl = resolve_model(model, effects_file or ())
+        known = {k: v for k, v in read_params_file(params).items() if k in mdl.param_names}
     mdl = resolve_model(model, effects_file or ())
-    values = mdl.resolve(assignments(param, "--param"))
+    values = mdl.resolve({**known, **assignments(param, "--param")})
     thrusts = floats(thrust, "--thrust") or []
     if not thrusts:
         raise UsageError("--thrust: give at least one thrust")
@@ -355,8 +514,11 @@ def simulate(
 def compare(
     logs: LogsArg,
     model: Annotated[
-        str, typer.Option("--model", "-m", help="Models to compare: SPEC[,SPEC2...].")
-    ] = "viscous,variable_viscosity",
+        str | None,
+        typer.Option(
+            "--model", "-m", help="Models to compare: SPEC[,SPEC2...] (viscous,variable_viscosity)."
+        ),
+    ] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
     vibration_plot: Annotated[
         Path | None,
@@ -366,6 +528,14 @@ def compare(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="Validate the model of 'fit --save' on LOGS (no refit)."),
+    ] = None,
+    series: Annotated[
+        Path | None,
+        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+    ] = None,
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
@@ -373,25 +543,36 @@ def compare(
 
     With --trajectory it also sets the vibration of each log's move side by side
     (human against robot: band power around the coupled mode).
+
+    Example: balancer-id compare sample_logs/paper_balancer.csv -m viscous,karnopp
     """
     from balancer_id.diagnostics.api import compare as run_compare
     from balancer_id.errors import UsageError
 
+    fixed = assignments(fix, "--fix")
+    if params is not None:  # issue 11: an identified model on new logs, as MATLAB's compare
+        from balancer_id.identify.params_file import read_params_file
+
+        model = _params_model(params, model)
+        fixed = {**read_params_file(params), **fixed}
+    model = model or "viscous,variable_viscosity"
     specs = [m.strip() for m in model.split(",") if m.strip()]
     if not specs:
         raise UsageError(f"--model '{model}': give one or more models, e.g. viscous,karnopp")
+    ins = inputs_of(logs, effects_file, trajectory_text)
+    if params is not None:
+        ins.append(params)
     check_outputs(
-        {"--plot": plot, "--vibration-plot": vibration_plot},
-        inputs_of(logs, effects_file, trajectory_text),
-        overwrite,
+        {"--plot": plot, "--vibration-plot": vibration_plot, "--series": series}, ins, overwrite
     )
     trials = _load(logs, options, trajectory_text)
-    results = run_compare(
-        trials,
-        specs,
-        fixed=assignments(fix, "--fix"),
-        effects_files=effects_file or (),
-    )
+    with stage(f"fitting {len(specs)} model(s): {', '.join(specs)}"):
+        results = run_compare(
+            trials,
+            specs,
+            fixed=fixed,
+            effects_files=effects_file or (),
+        )
     out = {"models": [r.to_dict() for r in results]}
     if trajectory_text is not None:  # issue 9: the vibration of each move, side by side
         from balancer_id.diagnostics.vibration import compare_vibration
@@ -402,10 +583,17 @@ def compare(
             from balancer_id.report.vibration_plot import plot_vibration
 
             plot_vibration(vib, vibration_plot)
+            typer.echo(f"wrote {vibration_plot}", err=True)
     if plot is not None:
         from balancer_id.report.sections import plot_comparison
 
         plot_comparison(results, plot)
+        typer.echo(f"wrote {plot}", err=True)
+    if series is not None:
+        import pandas as pd
+
+        frames = [r.to_frame().assign(model=r.match.model.spec) for r in results]
+        _write_series(pd.concat(frames, ignore_index=True), series)
     if json_out:
         from balancer_id.jsonsafe import json_ready
 
@@ -430,13 +618,15 @@ def _fit(
     from balancer_id.identify.api import fit as run_fit
 
     fixed = assignments(fix, "--fix")
-    return run_fit(
-        _load(logs, options, trajectory_text),
-        model=model,
-        fixed=fixed,
-        effects_files=effects_file or (),
-        per_trial=per_trial,
-    )
+    trials = _load(logs, options, trajectory_text)
+    with stage(f"fitting {model or 'variable_viscosity'}"):
+        return run_fit(
+            trials,
+            model=model,
+            fixed=fixed,
+            effects_files=effects_file or (),
+            per_trial=per_trial,
+        )
 
 
 @app.command()
@@ -451,19 +641,22 @@ def diagnose(
     trajectory_text: TrajectoryOpt = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Residual tests and ranked suggestions of missing effects."""
+    """Residual tests and ranked suggestions of missing effects.
+
+    Example: balancer-id diagnose sample_logs/paper_balancer.csv
+    """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
 
-    result = run_diagnose(
-        _fit(
-            logs,
-            options,
-            model=model,
-            fix=fix,
-            effects_file=effects_file,
-            trajectory_text=trajectory_text,
-        )
+    fitted = _fit(
+        logs,
+        options,
+        model=model,
+        fix=fix,
+        effects_file=effects_file,
+        trajectory_text=trajectory_text,
     )
+    with stage("diagnosing: residual tests and candidate effects"):
+        result = run_diagnose(fitted)
     out = result.to_dict()
     if json_out:
         emit_json(out)
@@ -492,7 +685,10 @@ def improve(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Add effects one by one while the error falls and BIC and held-out trials improve."""
+    """Add effects one by one while the error falls and BIC and held-out trials improve.
+
+    Example: balancer-id improve sample_logs/paper_balancer.csv --report improve.html
+    """
     from balancer_id.diagnostics.improve import improve as run_improve
 
     at_least(max_steps, 0, "--max-steps")
@@ -509,27 +705,29 @@ def improve(
         from balancer_id.report.document import check_report_path
 
         check_report_path(report, logs)
-    result = run_improve(
-        _fit(
-            logs,
-            options,
-            model=start,
-            fix=fix,
-            effects_file=effects_file,
-            trajectory_text=trajectory_text,
-        ),
-        max_steps=max_steps,
+    fitted = _fit(
+        logs,
+        options,
+        model=start,
+        fix=fix,
+        effects_file=effects_file,
+        trajectory_text=trajectory_text,
     )
+    with stage(f"improving {fitted.model}: adding effects (at most {max_steps})"):
+        result = run_improve(fitted, max_steps=max_steps)
     out = result.to_dict()
     if plot is not None:
         from balancer_id.report.plots import plot_error_ladder
 
         plot_error_ladder(out["steps"], plot)
+        typer.echo(f"wrote {plot}", err=True)
     if report is not None:
         from balancer_id.report.sections import write_improve_report
 
         _advised(result.steps[-1].fit)
-        write_improve_report(result, report)
+        with stage(f"writing {report}"):
+            write_improve_report(result, report)
+        typer.echo(f"wrote {report}", err=True)
     if json_out:
         emit_json(out)
     else:
@@ -551,7 +749,10 @@ def report(
     overwrite: OverwriteOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """The full report: identification, paper's method, diagnosis and per-trial plots."""
+    """The full report: identification, paper's method, diagnosis and per-trial plots.
+
+    Example: balancer-id report sample_logs/paper_balancer.csv --out report.html
+    """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
     from balancer_id.report.document import check_report_path
     from balancer_id.report.sections import write_full_report
@@ -568,7 +769,14 @@ def report(
         per_trial=True,
     )
     _advised(result)
-    write_full_report(result, run_diagnose(result), out)
+    with stage("diagnosing: residual tests and candidate effects"):
+        diagnosis = run_diagnose(result)
+    from balancer_id.diagnostics.improve import improve as run_improve
+
+    with stage("improving: adding the suggested effects while they help"):
+        improved = run_improve(result, diagnosis=diagnosis)
+    with stage(f"writing {out}"):
+        write_full_report(result, diagnosis, out, improved)
     typer.echo(f"wrote {out}", err=True)
 
 
@@ -606,7 +814,10 @@ def batch(
     ] = None,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
-    """Identify many logs in parallel; summary.csv plus one JSON per log in OUT."""
+    """Identify many logs in parallel; summary.csv plus one JSON per log in OUT.
+
+    Example: balancer-id batch logs/ --out results/
+    """
     from balancer_id.batch import run_batch
     from balancer_id.cli.progress import batch_progress
 
@@ -656,7 +867,10 @@ def effects(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
 ) -> None:
-    """List the effects available, built in and user-supplied, with their parameters."""
+    """List the effects available, built in and user-supplied, with their parameters.
+
+    Example: balancer-id effects --effects-file my_effects.py
+    """
     from balancer_id.model.effects.base_model import Base
     from balancer_id.model.registry import default_registry
 

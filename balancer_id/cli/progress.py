@@ -1,14 +1,53 @@
-"""A batch's progress on stderr: a bar with the rate and the time left, on a terminal only."""
+"""What a command is doing, on stderr, while it takes time (a spinner; a bar for batch).
+
+Shown only when stderr is a terminal and ``--quiet`` was not given; nothing else is ever
+written by it, so pipes, redirections and ``--json`` stay clean.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from typing import Any
 
+#: Set by the global ``--quiet`` option.
+QUIET = False
 
-@contextmanager
+
+def enabled() -> bool:
+    """Whether progress is shown (stderr is a terminal and not ``--quiet``).
+
+    Returns
+    -------
+    bool
+    """
+    return not QUIET and sys.stderr.isatty()
+
+
+@contextlib.contextmanager
+def stage(text: str) -> Iterator[None]:
+    """Show ``text`` with a spinner on stderr while the block runs.
+
+    Parameters
+    ----------
+    text : str
+        What is being done ("fitting variable_viscosity to 2 logs").
+
+    Yields
+    ------
+    None
+    """
+    if not enabled():
+        yield
+        return
+    from rich.console import Console
+
+    with Console(stderr=True).status(text, spinner="dots"):
+        yield
+
+
+@contextlib.contextmanager
 def batch_progress(
     echo: Callable[[str], None],
 ) -> Iterator[tuple[Callable[[str], None], Callable[[int, int], None] | None]]:
@@ -28,7 +67,7 @@ def batch_progress(
     tuple
         ``(say, tick)``.
     """
-    if not sys.stderr.isatty():
+    if not enabled():
         yield echo, None
         return
     from rich.console import Console

@@ -6,20 +6,33 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from balancer_id.diagnostics.context import build_context
-from balancer_id.diagnostics.residual_tests import worst_windows
+from balancer_id.diagnostics.residual_tests import input_correlation, whiteness, worst_windows
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
-from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.display import Displayable
+from balancer_id.identify.matching import MatchResult, evaluate_trials, match_trials
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
 
-@dataclass
-class ModelComparison:
+@dataclass(repr=False)
+class ModelComparison(Displayable):
     """One model's fit and errors."""
 
     match: MatchResult
     worst: list[dict[str, object]]
+    #: Whiteness and cross-correlation with the thrust of the residual (validation).
+    residual_tests: dict[str, object] | None = None
+
+    def _shown_match(self) -> MatchResult:
+        return self.match
+
+    def _headline(self) -> str:
+        m = self.match.metrics
+        return (
+            f"{self.match.model.spec}: RMSE {m['rmse']:.4g} m/s^2, BIC {m['bic']:.1f},"
+            f" fit {m['nrmse_fit_percent']:.1f} %"
+        )
 
     def trial_rows(self) -> list[dict[str, object]]:
         """RMSE and NRMSE fit % per trial."""
@@ -45,6 +58,8 @@ class ModelComparison:
             "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
             "trials": self.trial_rows(),
             "worst": self.worst,
+            "fitted": any(p.vary for p in self.match.parameters.values()),
+            "residual_tests": self.residual_tests,
         }
 
 
@@ -74,6 +89,11 @@ def compare_models(
     for model in models:
         s = classic.start_values(model)
         fx = {k: v for k, v in (fixed or {}).items() if k in model.param_names}
-        match = match_trials(model, trials, start=s, fixed=fx)
-        out.append(ModelComparison(match, worst_windows(build_context(match))))
+        if set(model.param_names) <= set(fx):  # every value known: validate, no fit
+            match = evaluate_trials(model, trials, fx)
+        else:
+            match = match_trials(model, trials, start=s, fixed=fx)
+        ctx = build_context(match)
+        tests = {"whiteness": whiteness(ctx), "input_cross_correlation": input_correlation(ctx)}
+        out.append(ModelComparison(match, worst_windows(ctx), tests))
     return out

@@ -20,6 +20,7 @@ from balancer_id.diagnostics.residual_tests import (
 )
 from balancer_id.diagnostics.signatures import Signature, signature_of
 from balancer_id.identify.data import TrialData
+from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
 from balancer_id.simulation.kernel import compile_models
@@ -90,6 +91,8 @@ class ResidualTests:
     parameter_groups : dict or None
         A parameter that changed between runs (payload, setting), with its per-run
         estimates and the split test; None when none did.
+    input_cross_correlation_curve : dict
+        :attr:`input_cross_correlation` with its curve (``lag_s``, ``mean_residual``).
     """
 
     noise_floor: float
@@ -102,6 +105,9 @@ class ResidualTests:
     paper_line: dict[str, float]
     parameter_drift: list[dict[str, object]]
     parameter_groups: dict[str, object] | None = None
+    #: The cross-correlation with its ``lag_s`` and ``mean_residual`` curve (for the
+    #: report's plot; the JSON keeps the peak and the band only).
+    input_cross_correlation_curve: dict[str, object] = field(default_factory=dict, repr=False)
 
     def __getitem__(self, key: str) -> object:
         """The test named ``key``, as in :meth:`to_dict`.
@@ -135,8 +141,8 @@ class ResidualTests:
         }
 
 
-@dataclass
-class Diagnosis:
+@dataclass(repr=False)
+class Diagnosis(Displayable):
     """Everything ``balancer-id diagnose`` reports.
 
     Attributes
@@ -162,13 +168,71 @@ class Diagnosis:
     tests: ResidualTests
     suggestions: list[Suggestion]
     verdict: str
-    summary: str
+    summary: str  # type: ignore[assignment]  # also callable: CallableText
     failures: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
+        # full lmfit-style text (as every result of the API has)
+        self.summary = CallableText(str(self.summary), self._summary_text)
 
     @property
     def match(self) -> MatchResult:
         """The simulation-matching fit diagnosed."""
         return self.fit.match
+
+    def fit_warnings(self) -> list[str]:
+        """The fit's warnings, read in the light of the verdict.
+
+        When an effect is missing, a parameter the data "cannot determine" is a symptom
+        of the missing effect (the model bends its parameters to follow what it lacks):
+        the advice to hold it with ``--fix`` is replaced by the top suggestion.
+
+        Returns
+        -------
+        list of str
+        """
+        warnings = [*self.fit.warnings, *self.fit.match.warnings]
+        if self.verdict == "adequate":
+            return warnings
+        missing = [s for s in self.suggestions if is_missing(s)]
+        first = (
+            f"add the effect first ({missing[0].label}: {missing[0].command})"
+            if missing
+            else "find the effect first (no library effect explains it: see the diagnosis)"
+        )
+        out = []
+        for w in warnings:
+            if "cannot determine" in w and "--fix" in w:
+                head = w.split(";")[0]
+                w = (
+                    f"{head}: a symptom of the missing effect, not a reason to hold it with "
+                    f"--fix; {first}"
+                )
+            out.append(w)
+        return out
+
+    def _shown_match(self) -> MatchResult:
+        return self.fit.match
+
+    def _headline(self) -> str:
+        top = f"; top suggestion: {self.suggestions[0].label}" if self.suggestions else ""
+        return f"{self.fit.model}: {self.verdict}{top}"
+
+    def _summary_warnings(self) -> list[str]:
+        return self.fit_warnings()
+
+    def _summary_extra(self) -> list[str]:
+        lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]
+        if self.suggestions:
+            lines.append("[[Suggestions]] (best first)")
+            for k, s in enumerate(self.suggestions[:5], 1):
+                lines.append(
+                    f"    {k}. {s.label}: score {s.score:.1f}, RMSE {s.rmse:.4g} m/s^2;"
+                    f" {s.signature.evidence}"
+                )
+                lines.append(f"       {s.command}")
+        return lines
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object."""
@@ -214,10 +278,12 @@ def diagnose(fit: FitResult) -> Diagnosis:
     trials: list[TrialData] = list(match.data.trials)
     classic = fit.classic
     fixed = fit.fixed or None
+    xcorr = input_correlation(ctx)
     tests = ResidualTests(
         noise_floor=ctx.noise_floor,
         whiteness=whiteness(ctx),
-        input_cross_correlation=_thin(input_correlation(ctx)),
+        input_cross_correlation=_thin(xcorr),
+        input_cross_correlation_curve=xcorr,
         spectrum={"peaks": spectrum_peaks(ctx)["peaks"]},
         regimes=regime_table(ctx),
         state_correlation=state_correlations(ctx),

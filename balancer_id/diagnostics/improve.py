@@ -15,6 +15,7 @@ import numpy as np
 from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose, is_missing
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.data import FitData, TrialData
+from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
@@ -69,13 +70,36 @@ class ImproveStep:
         }
 
 
-@dataclass
-class ImproveResult:
+@dataclass(repr=False)
+class ImproveResult(Displayable):
     """The ladder of models and the final diagnosis."""
 
     steps: list[ImproveStep]
     final: Diagnosis
     rejected: list[str] = field(default_factory=list)
+
+    def _shown_match(self) -> MatchResult:
+        return self.steps[-1].match
+
+    def _headline(self) -> str:
+        ladder = " -> ".join(s.added or s.model for s in self.steps)
+        return f"{ladder}: final {self.final_model} ({self.final.verdict})"
+
+    def _summary_warnings(self) -> list[str]:
+        return self.final.fit_warnings()
+
+    def _summary_extra(self) -> list[str]:
+        lines = ["[[Ladder]] (error and BIC as effects are added)"]
+        for s in self.steps:
+            m = s.match.metrics
+            lines.append(
+                f"    {s.model}: RMSE {m['rmse']:.4g} m/s^2, BIC {m['bic']:.1f},"
+                f" fit {m['nrmse_fit_percent']:.1f} %"
+            )
+        if self.rejected:
+            lines.append(f"    rejected: {', '.join(self.rejected)}")
+        lines.append(f"    final verdict: {self.final.verdict}")
+        return lines
 
     @property
     def final_model(self) -> str:

@@ -101,6 +101,9 @@ def fit(
     n_starts: int = 1,
     seed: int = 0,
     max_nfev: int = 2000,
+    profile: bool = True,
+    start: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -130,6 +133,13 @@ def fit(
         Seed of the extra starts.
     max_nfev : int
         Budget of model evaluations per start.
+    profile : bool
+        For each fitted parameter whose Wald 95 % interval crosses its bounds, compute
+        the profile-likelihood interval and report it instead (``ci95_method``).
+    start : mapping of str to float, optional
+        Start values (``--start``), instead of the paper's method's and the defaults.
+    bounds : mapping of str to (float, float), optional
+        Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``).
 
     Returns
     -------
@@ -153,7 +163,16 @@ def fit(
     if not data:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
     classic = paper_method([t for t in data if t.thrust_N != 0])  # moves: no step
-    start = classic.start_values(mdl)
+    user_start = dict(start or {})
+    start = {**classic.start_values(mdl), **user_start}
+    for name in [*user_start, *(bounds or {})]:
+        if name not in mdl.param_names:
+            from balancer_id.errors import UsageError
+
+            raise UsageError(
+                f"{name} is not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
     notes: list[str] = []
     if mdl.needs_reference_move and ts.trajectory is not None:
         from balancer_id.segment.move import start_given
@@ -169,6 +188,7 @@ def fit(
         n_starts=n_starts,
         seed=seed,
         max_nfev=max_nfev,
+        bounds=bounds,
     )
     if not match.success:
         raise IdentificationError(
@@ -176,6 +196,15 @@ def fit(
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
+    if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
+        from balancer_id.identify.intervals import attach_profile_intervals
+
+        for name in attach_profile_intervals(match):
+            lo, hi = match.parameters[name].ci95
+            notes.append(
+                f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
+                f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
+            )
     result = fit_match(match, ts, classic=classic, fixed=fixed, effects_files=effects_files)
     result.warnings = notes
     if per_trial:

@@ -101,7 +101,7 @@ def wald_crosses_bound(match: MatchResult, name: str) -> bool:
     if not est.vary:
         return False
     spec = match.model.param(name)
-    ci = est.ci95
+    ci = est.wald_ci95
     return ci is None or ci[0] < spec.min or ci[1] > spec.max
 
 
@@ -182,3 +182,30 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     low, low_b = end(-1)
     high, high_b = end(+1)
     return ProfileInterval(name, float(low), float(high), level, low_b, high_b)
+
+
+def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[str]:
+    """Replace each Wald interval that crosses a bound by the profile interval.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A fit; its :class:`~balancer_id.identify.matching.ParameterEstimate` s get their
+        ``profile`` interval (``ci95`` then returns it, ``ci95_method`` says
+        ``"profile"``).
+    level : float
+        Confidence level.
+
+    Returns
+    -------
+    list of str
+        The parameters given a profile interval.
+    """
+    done = []
+    for name, est in match.parameters.items():
+        if not wald_crosses_bound(match, name):
+            continue
+        iv = profile_interval(match, name, level)
+        est.profile = (iv.low, iv.high)
+        done.append(name)
+    return done

@@ -10,6 +10,7 @@ import numpy as np
 
 from balancer_id.errors import IdentificationError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
+from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
 
@@ -24,13 +25,28 @@ class ParameterEstimate:
     unit: str
     vary: bool
     at_bound: str | None = None
+    #: The profile-likelihood 95 % interval, where the Wald one crosses a bound
+    #: (:func:`~balancer_id.identify.intervals.attach_profile_intervals`).
+    profile: tuple[float, float] | None = None
 
     @property
-    def ci95(self) -> tuple[float, float] | None:
-        """Approximate 95 % confidence interval (value ± 1.96 stderr)."""
+    def wald_ci95(self) -> tuple[float, float] | None:
+        """The Wald 95 % confidence interval (value ± 1.96 stderr)."""
         if self.stderr is None or not np.isfinite(self.stderr):
             return None
         return (self.value - 1.96 * self.stderr, self.value + 1.96 * self.stderr)
+
+    @property
+    def ci95(self) -> tuple[float, float] | None:
+        """The 95 % confidence interval: the profile one when computed, else Wald's."""
+        return self.profile if self.profile is not None else self.wald_ci95
+
+    @property
+    def ci95_method(self) -> str | None:
+        """``"profile"`` or ``"wald"`` (None without an interval)."""
+        if self.profile is not None:
+            return "profile"
+        return "wald" if self.wald_ci95 is not None else None
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict."""
@@ -40,12 +56,13 @@ class ParameterEstimate:
             "unit": self.unit,
             "vary": self.vary,
             "ci95": list(self.ci95) if self.ci95 else None,
+            "ci95_method": self.ci95_method,
             "at_bound": self.at_bound,
         }
 
 
-@dataclass
-class MatchResult:
+@dataclass(repr=False)
+class MatchResult(Displayable):
     """The outcome of :func:`match_trials`."""
 
     model: Model
@@ -60,6 +77,14 @@ class MatchResult:
     message: str
     nfev: int
     warnings: list[str] = field(default_factory=list)
+
+    def _shown_match(self) -> MatchResult:
+        return self
+
+    def _headline(self) -> str:
+        values = ", ".join(f"{k}={p.value:.4g}" for k, p in list(self.parameters.items())[:4])
+        fit = self.metrics.get("nrmse_fit_percent", float("nan"))
+        return f"{self.model.spec}: {values}; fit {fit:.1f} %"
 
     def values(self) -> dict[str, float]:
         """Parameter name -> value."""
@@ -199,6 +224,7 @@ def match_trials(
     seed: int = 0,
     max_nfev: int = 2000,
     diff_step: float | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> MatchResult:
     """Fit every free parameter of ``model`` to all ``trials`` at once.
 
@@ -224,6 +250,9 @@ def match_trials(
         simulation gives the residual and its Jacobian); a value uses two-point finite
         differences of relative step ``diff_step`` instead (see
         :func:`scipy.optimize.least_squares`).
+    bounds : mapping of str to (float, float), optional
+        Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``), inside the
+        model's own.
 
     Returns
     -------
@@ -257,6 +286,17 @@ def match_trials(
     free = [i for i, n in enumerate(names) if n not in fixed]
     lo = np.array([model.params[i].min for i in free], dtype=float)
     hi = np.array([model.params[i].max for i in free], dtype=float)
+    for name, (b_lo, b_hi) in (bounds or {}).items():
+        spec = model.param(name)
+        if not (spec.min <= b_lo < b_hi <= spec.max):
+            raise IdentificationError(
+                f"--bounds {name}={b_lo:g}:{b_hi:g}: give MIN < MAX inside the parameter's "
+                f"own range {spec.min:g}:{spec.max:g}"
+            )
+        i = names.index(name)
+        base[i] = float(np.clip(base[i], b_lo, b_hi))
+        if i in free:
+            lo[free.index(i)], hi[free.index(i)] = b_lo, b_hi
     data = FitData.build(trials)
     problem = _Problem(model, data, base, free)
 
@@ -308,6 +348,40 @@ def match_trials(
         )
     best.nfev = problem.nfev
     return _collect(model, best, problem, data, notes)
+
+
+def evaluate_trials(
+    model: Model, trials: Sequence[TrialData], values: Mapping[str, float]
+) -> MatchResult:
+    """Simulate ``model`` at known ``values`` on ``trials``, without fitting (validation).
+
+    What MATLAB's ``compare(valdata, sys)`` does: a model identified on some logs, run on
+    others; its errors (fit %, RMSE) and residual say whether it still holds.
+
+    Parameters
+    ----------
+    model : Model
+        The identified model.
+    trials : sequence of TrialData
+        New trials.
+    values : mapping of str to float
+        Every parameter of ``model`` (those missing take their defaults).
+
+    Returns
+    -------
+    MatchResult
+        Every parameter held (``vary`` False, no standard error), one evaluation.
+
+    Raises
+    ------
+    IdentificationError
+        No trial, or the model gives a non-finite acceleration at ``values``.
+    """
+    if not trials:
+        raise IdentificationError("no trial to simulate; check the log with 'balancer-id inspect'")
+    full = model.resolve(dict(values))
+    held = {n: full[n] for n in model.param_names}
+    return match_trials(model, trials, start=held, fixed=held)
 
 
 def _covariance(out: _Outcome) -> np.ndarray | None:

@@ -16,6 +16,7 @@ from typing import Any
 
 from balancer_id.identify.classic import ClassicResult, paper_method
 from balancer_id.identify.coupling import Coupling, coupling_of
+from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
@@ -25,8 +26,8 @@ from balancer_id.trials import TrialSet
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
 
-@dataclass
-class FitResult:
+@dataclass(repr=False)
+class FitResult(Displayable):
     """Everything ``balancer-id fit`` reports, and what it was computed from.
 
     Attributes
@@ -68,6 +69,19 @@ class FitResult:
     warnings: list[str] = field(default_factory=list)
     advice: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
+
+    def _shown_match(self) -> MatchResult:
+        return self.match
+
+    def _headline(self) -> str:
+        values = ", ".join(f"{k}={v:.4g}" for k, v in list(self.values.items())[:4])
+        more = ", ..." if len(self.values) > 4 else ""
+        n = len(self.match.data.trials)
+        fit = self.metrics.get("nrmse_fit_percent", float("nan"))
+        return f"{self.model}: {values}{more}; fit {fit:.1f} % over {n} trials"
+
+    def _summary_warnings(self) -> list[str]:
+        return [*self.warnings, *self.match.warnings]
 
     @property
     def model(self) -> str:

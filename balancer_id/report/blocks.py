@@ -160,6 +160,9 @@ def format_estimate(value: float, stderr: float | None) -> tuple[str, str]:
         ``(value, stderr)`` as shown in the report's tables.
     """
     dec = _decimals(stderr)
+    if dec is not None and np.isfinite(value) and stderr > abs(value):  # type: ignore[operator]
+        # the error swamps the value: no digits the data do not hold ("6 ± 7253")
+        return format_value(value, 2), format_value(stderr, 2)
     if dec is None or not np.isfinite(value) or not 1e-3 <= abs(value) < 1e6:
         return format_value(value), format_value(stderr, 2)
     return f"{value:.{dec}f}", f"{stderr:.{dec}f}"

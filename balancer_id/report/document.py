@@ -71,7 +71,12 @@ __all__ = [
 # the fit report
 # --------------------------------------------------------------------------------------
 def write_fit_report(
-    result: FitResult, path: str | Path, *, extra_sections: list[Section] | None = None
+    result: FitResult,
+    path: str | Path,
+    *,
+    extra_sections: list[Section] | None = None,
+    lead_sections: list[Section] | None = None,
+    warnings: list[str] | None = None,
 ) -> Path:
     """Write the report of a fit as FILE.html or FILE.pdf (chosen by the suffix).
 
@@ -83,6 +88,10 @@ def write_fit_report(
         The report file; ``.html``/``.htm`` or ``.pdf``.
     extra_sections : list of Section, optional
         Sections of other commands (compare, diagnose, improve), placed after the fit's.
+    lead_sections : list of Section, optional
+        Sections placed first (the finding of a diagnosis).
+    warnings : list of str, optional
+        The fit's warnings as a diagnosis reads them; None: the fit's own.
 
     Returns
     -------
@@ -97,7 +106,12 @@ def write_fit_report(
     check_report_path(path, result.sources)
     n_trials = len(result.match.data.trials)
     n_logs = len(result.sources)
-    sections = [*fit_sections(result), *(extra_sections or []), reproduce_section(result)]
+    sections = [
+        *(lead_sections or []),
+        *fit_sections(result, warnings),
+        *(extra_sections or []),
+        reproduce_section(result),
+    ]
     return write_report(
         f"Balancer identification: {result.model}",
         sections,

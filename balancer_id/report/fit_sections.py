@@ -47,13 +47,17 @@ TRIALS_PER_FIGURE = 6
 STRONG_CORRELATION = 0.9
 
 
-def fit_sections(result: FitResult) -> list[Section]:
+def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[Section]:
     """The sections of a fit report, for composing a bigger report.
 
     Parameters
     ----------
     result : FitResult
         A fit.
+    warnings : list of str, optional
+        The warnings to show (a diagnosis reads them in the light of its verdict:
+        :meth:`~balancer_id.diagnostics.diagnosis.Diagnosis.fit_warnings`); None shows
+        the fit's own.
 
     Returns
     -------
@@ -62,7 +66,8 @@ def fit_sections(result: FitResult) -> list[Section]:
         (when present), correlations, robot coupling (when present).
     """
     sections = [_summary_section(result)]
-    warnings = [*result.warnings, *result.match.warnings]
+    if warnings is None:
+        warnings = [*result.warnings, *result.match.warnings]
     if warnings:
         sections.append(Section("Warnings", blocks=[Paragraph(f"⚠ {w}") for w in warnings]))
     sections += [
@@ -96,7 +101,7 @@ def _parameter_table(result: FitResult) -> Table:
                 descriptions.get(name, ""),
                 Cell(value, "strong"),
                 se if p.vary else "-",
-                format_interval(p.value, p.stderr) if p.vary else "-",
+                _interval_text(p) if p.vary else "-",
                 p.unit,
                 Cell(note, "warn") if note else "",
             ]
@@ -105,8 +110,18 @@ def _parameter_table(result: FitResult) -> Table:
         ["parameter", "meaning", "value", "std. error", "95 % interval", "unit", "note"],
         rows,
         "Identified by simulation matching over all trials at once (lmfit, bounded least "
-        "squares). The interval is value ± 1.96 standard errors.",
+        "squares). The interval is value ± 1.96 standard errors (Wald) or, where that "
+        "would cross a parameter's bounds, the profile-likelihood interval (marked "
+        "'profile': the other parameters refitted at each trial value).",
     )
+
+
+def _interval_text(p) -> str:
+    """The 95 % interval of an estimate, saying which kind when it is the profile one."""
+    if p.ci95_method == "profile" and p.ci95 is not None:
+        lo, hi = p.ci95
+        return f"{format_value(lo, 3)} .. {format_value(hi, 3)} (profile)"
+    return format_interval(p.value, p.stderr)
 
 
 def _summary_section(result: FitResult) -> Section:

@@ -127,7 +127,6 @@ class _PdfFlow:
         self.y -= 0.08
 
     def table(self, table: Table) -> None:
-        row_h = 0.22
         ncols = max(len(table.columns), 1)
         longest = max(
             [len(c) for c in table.columns]
@@ -136,56 +135,58 @@ class _PdfFlow:
         )
         size = 7.5 if ncols <= 7 and longest <= 60 else 6.5
         rows = list(table.rows) or [["-"] * ncols]
-        whole = row_h * (len(rows) + 2) + 0.35  # as the chunking below counts
+        layout = _TableLayout(table.columns, rows, size)
+        whole = sum(layout.heights) + 0.35
         if whole <= _PAGE[1] - 2 * _MARGIN - 0.5 and self.y - whole < _MARGIN:
             self.new_page()  # a table that fits on one page is not split
         start = 0
         while start < len(rows):
-            self.need(3 * row_h)
-            fit = max(1, int((self.y - _MARGIN - 0.35) / row_h) - 1)
-            chunk = rows[start : start + fit]
-            self._draw_table(table.columns, chunk, size, row_h)
-            start += len(chunk)
+            self.need(layout.header + 2 * max(layout.heights[start:], default=0.22))
+            room = self.y - _MARGIN - 0.35 - layout.header
+            stop = start + 1
+            used = layout.heights[start]
+            while stop < len(rows) and used + layout.heights[stop] <= room:
+                used += layout.heights[stop]
+                stop += 1
+            self._draw_table(layout, start, stop)
+            start = stop
             if start < len(rows):
                 self.new_page()
         if table.caption:
             self.lines(table.caption, size=7.5, color="0.35", width=120)
         self.y -= 0.1
 
-    def _draw_table(
-        self, columns: list[str], rows: list[list[str | Cell]], size: float, row_h: float
-    ) -> None:
+    def _draw_table(self, layout: _TableLayout, start: int, stop: int) -> None:
+        """Rows ``start:stop`` of a laid-out table (with the header), wrapped to the page."""
         assert self.fig is not None
-        height = row_h * (len(rows) + 1)
-        text = [[_cell_text(c) for c in row] for row in rows]
-        # as wide as the text needs (estimated from the character count), at most the page
-        chars = [
-            max([len(h) for h in columns[j : j + 1]] + [len(r[j]) for r in text if j < len(r)])
-            for j in range(len(columns))
-        ]
-        natural = sum(n * size * 0.6 / 72 + 0.18 for n in chars)
-        width = min(_PAGE[0] - 2 * _MARGIN, max(natural, 2.0))
+        heights = [layout.header, *layout.heights[start:stop]]
+        height = sum(heights)
+        width = sum(layout.widths)
         ax = self.fig.add_axes(
             (_MARGIN / _PAGE[0], (self.y - height) / _PAGE[1], width / _PAGE[0], height / _PAGE[1])
         )
         ax.axis("off")
         from matplotlib.transforms import Bbox
 
+        rows = layout.rows[start:stop]
         tab = ax.table(
-            cellText=text,
-            colLabels=columns or None,
+            cellText=layout.text[start:stop],
+            colLabels=layout.columns or None,
             loc="upper left",
             cellLoc="left",
             bbox=Bbox.from_bounds(0, 0, 1, 1),
         )
         tab.auto_set_font_size(False)
-        tab.set_fontsize(size)
-        tab.auto_set_column_width(list(range(len(columns))))
+        tab.set_fontsize(layout.size)
         for (r, c), cell in tab.get_celld().items():
+            # widths and heights as laid out (the bbox scales them by exactly 1)
+            cell.set_width(layout.widths[c] / width)
+            cell.set_height(heights[r] / height)
             cell.set_edgecolor("#c9d0db")
             cell.set_linewidth(0.5)
-            cell.PAD = 0.025  # fraction of the cell's width (default 0.1 indents wide cells)
+            cell.PAD = 0.06 / layout.widths[c]  # 0.06 in, whatever the column's width
             cell.get_text().set_parse_math(False)
+            cell.get_text().set_linespacing(1.15)
             if r == 0:
                 cell.set_facecolor("#eef2f7")
                 cell.get_text().set_fontweight("bold")
@@ -224,6 +225,58 @@ class _PdfFlow:
         ax.axis("off")
         self.y -= height + 0.1
         self.lines(caption, size=8, color="0.3", width=120)
+
+
+class _TableLayout:
+    """A table's cells wrapped to fit the page width, with each column's width and each
+    row's height (inches).
+
+    Columns keep their natural width (the longest cell) while the table fits the text
+    width; otherwise the narrow columns keep theirs and the wide ones share what is left
+    (water-filling), their cells wrapped onto more lines (long words, paths and commands,
+    are broken).
+    """
+
+    #: Character width as a fraction of the font size (DejaVu Sans, mixed text; generous).
+    CHAR = 0.62
+    #: Horizontal padding of a cell (inches, both sides).
+    PAD = 0.14
+
+    def __init__(self, columns: Sequence[str], rows: Sequence[Sequence[str | Cell]], size: float):
+        self.columns = list(columns)
+        self.rows = [list(r) + [""] * (len(self.columns) - len(r)) for r in rows]
+        self.size = size
+        ncols = max(len(self.columns), 1)
+        raw = [[_cell_text(c) for c in row] for row in self.rows]
+        char_in = size * self.CHAR / 72
+        natural = [
+            max([len(self.columns[j])] + [len(line) for r in raw for line in r[j].splitlines()])
+            for j in range(len(self.columns))
+        ]
+        budget = (_PAGE[0] - 2 * _MARGIN - 0.05) / char_in - ncols * self.PAD / char_in
+        caps = list(natural)
+        if sum(natural) > budget:  # water-filling: narrow columns whole, wide ones share
+            left, order = budget, sorted(range(len(natural)), key=lambda j: natural[j])
+            for k, j in enumerate(order):
+                share = left / (len(order) - k)
+                caps[j] = max(4, min(natural[j], int(share)))
+                left -= caps[j]
+        self.widths = [max(caps[j], 1) * char_in + self.PAD for j in range(len(self.columns))]
+        self.text = [[_wrap(r[j], caps[j]) for j in range(len(self.columns))] for r in raw]
+        self.columns = [_wrap(h, caps[j]) for j, h in enumerate(self.columns)]
+        line = size / 72 * 1.2
+        self.header = max([h.count("\n") + 1 for h in self.columns] + [1]) * line + 0.09
+        self.heights = [
+            max([t.count("\n") + 1 for t in r] + [1]) * line + 0.09 for r in self.text
+        ]
+
+
+def _wrap(text: str, width: int) -> str:
+    """``text`` wrapped to ``width`` characters (long words broken), lines joined by \\n."""
+    out: list[str] = []
+    for raw in text.splitlines() or [""]:
+        out += textwrap.wrap(raw, max(width, 1), break_on_hyphens=False) or [""]
+    return "\n".join(out)
 
 
 def _figure_pixels(figure: Any, width_in: float) -> np.ndarray:

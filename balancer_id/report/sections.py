@@ -6,7 +6,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from balancer_id.report.blocks import Cell, Paragraph, Plot, Section, Table, format_value
+from balancer_id.report.blocks import (
+    Cell,
+    Paragraph,
+    Plot,
+    Preformatted,
+    Section,
+    Table,
+    format_value,
+)
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.compare import ModelComparison
@@ -124,7 +132,77 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     )
     for f in d.get("failed_candidates", []):
         blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
+    from balancer_id.report.residual_plots import plot_residual_analysis
+
+    blocks.append(
+        Plot(
+            plot_residual_analysis(diagnosis),
+            "Residual analysis, as MATLAB's resid: the residual's autocorrelation and its "
+            "cross-correlation with the thrust, each with its 95 % band (bars or a curve "
+            "outside the band: structure the model lacks), and the residual against the "
+            "simulated position, velocity and drive force (the red line is its binned mean; "
+            "a trend names the state the missing effect depends on).",
+        )
+    )
     return Section("Diagnosis", blocks=blocks)
+
+
+def finding_section(diagnosis: Diagnosis) -> Section:
+    """What the report found, first: the verdict, the top suggestion and its evidence.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        The diagnosis of the report's fit.
+
+    Returns
+    -------
+    Section
+        The "Finding" section: verdict, why, the top suggestion with its evidence and the
+        command that tries it, and which poorly determined parameters are symptoms.
+    """
+    style = "good" if diagnosis.verdict == "adequate" else "bad"
+    m = diagnosis.fit.metrics
+    blocks: list[Any] = [
+        Table(
+            ["verdict", "model", "fit (NRMSE %)", "RMSE (m/s²)"],
+            [
+                [
+                    Cell(diagnosis.verdict, style),
+                    diagnosis.fit.model,
+                    format_value(m["nrmse_fit_percent"], 3),
+                    format_value(m["rmse"], 3),
+                ]
+            ],
+        ),
+        Paragraph(str(diagnosis.summary)),
+    ]
+    from balancer_id.diagnostics.diagnosis import is_missing
+
+    missing = [s for s in diagnosis.suggestions if is_missing(s)]
+    if diagnosis.verdict != "adequate" and missing:
+        top = missing[0]
+        blocks.append(
+            Paragraph(
+                f"Top suggestion: {top.label} (BIC better by {top.score:.1f}, "
+                f"{top.excess_drop:.0%} of the error above the noise removed). "
+                f"Evidence: {top.signature.evidence}."
+            )
+        )
+        blocks.append(Preformatted(top.command))
+    elif diagnosis.verdict != "adequate" and diagnosis.suggestions:
+        best = diagnosis.suggestions[0]
+        blocks.append(
+            Paragraph(
+                f"No effect of the library passes the test (the best candidate, {best.label}, "
+                f"improves BIC by {best.score:.1f} only). The residual analysis in the "
+                "Diagnosis shows what the missing effect depends on."
+            )
+        )
+    if diagnosis.verdict != "adequate":
+        symptoms = [w for w in diagnosis.fit_warnings() if "a symptom of the missing" in w]
+        blocks += [Paragraph(f"⚠ {w.split(';')[0]}.") for w in symptoms]
+    return Section("Finding", blocks=blocks)
 
 
 def improve_section(result: ImproveResult) -> Section:
@@ -190,11 +268,18 @@ def write_improve_report(result: ImproveResult, path: str | Path) -> Path:
     return write_fit_report(
         result.steps[-1].fit,
         path,
+        lead_sections=[finding_section(result.final)],
         extra_sections=[improve_section(result), diagnosis_section(result.final)],
+        warnings=result.final.fit_warnings(),
     )
 
 
-def write_full_report(fit: FitResult, diagnosis: Diagnosis, out: str | Path) -> Path:
+def write_full_report(
+    fit: FitResult,
+    diagnosis: Diagnosis,
+    out: str | Path,
+    improved: ImproveResult | None = None,
+) -> Path:
     """The full report (``balancer-id report``): the fit's sections and the diagnosis.
 
     Nothing is computed here: the fit (with its per-trial fits) and its diagnosis are
@@ -208,6 +293,8 @@ def write_full_report(fit: FitResult, diagnosis: Diagnosis, out: str | Path) -> 
         Its diagnosis.
     out : str or Path
         The report file; ``.html``/``.htm`` or ``.pdf``.
+    improved : ImproveResult, optional
+        The improve ladder from this fit (error and BIC as effects are added).
 
     Returns
     -------
@@ -221,4 +308,13 @@ def write_full_report(fit: FitResult, diagnosis: Diagnosis, out: str | Path) -> 
     """
     from balancer_id.report.document import write_fit_report
 
-    return write_fit_report(fit, out, extra_sections=[diagnosis_section(diagnosis)])
+    extra = [diagnosis_section(diagnosis)]
+    if improved is not None:
+        extra.append(improve_section(improved))
+    return write_fit_report(
+        fit,
+        out,
+        lead_sections=[finding_section(diagnosis)],
+        extra_sections=extra,
+        warnings=diagnosis.fit_warnings(),
+    )

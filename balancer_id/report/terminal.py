@@ -8,6 +8,28 @@ from rich.console import Console
 from rich.table import Table
 
 
+def _stderr(console: Console) -> Console:
+    """The console messages and warnings go to: stderr, at the same width and colours."""
+    if console.stderr:
+        return console
+    return Console(stderr=True, width=console.width if console.is_terminal else None)
+
+
+def print_command(console: Console, command: str, indent: str = "    ") -> None:
+    """Print a shell command on a line of its own, never wrapped (so it can be copied).
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    command : str
+        The command line.
+    indent : str
+        Put before it.
+    """
+    console.print(indent + command, soft_wrap=True, markup=False, highlight=False)
+
+
 def _fmt(x: Any, digits: int = 4) -> str:
     if x is None:
         return "-"
@@ -46,11 +68,13 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             )
             console.print(f"    vertical (up): {run['vertical']} ({known})")
     for w in info.get("warnings", []):
-        console.print(f"  [yellow]warning:[/yellow] {w}")
+        _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
     for t in info["trials"]:
         for note in t.get("notes", []):
             if note.startswith("warning:"):
-                console.print(f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}")
+                _stderr(console).print(
+                    f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}"
+                )
     table = Table(title=trials_title(info["trials"]))
     cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
     for col in (*cols, "ends by"):
@@ -124,7 +148,12 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             name,
             _fmt(p["value"]),
             _fmt(p["stderr"], 2),
-            f"{ci[0]:.4g} .. {ci[1]:.4g}" if ci else "-",
+            (
+                f"{ci[0]:.4g} .. {ci[1]:.4g}"
+                + (" (profile)" if p.get("ci95_method") == "profile" else "")
+            )
+            if ci
+            else "-",
             p.get("unit", ""),
             note,
         )
@@ -168,8 +197,9 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         console.print(per)
     for note in result.get("notes", []):
         console.print(f"note: {note}")
+    err = _stderr(console)
     for w in result.get("warnings", []):
-        console.print(f"[yellow]warning:[/yellow] {w}")
+        err.print(f"[yellow]warning:[/yellow] {w}")
 
 
 def print_effects(console: Console, effects: list[dict[str, Any]]) -> None:
@@ -300,20 +330,25 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
         )
     console.print(reg)
     sug = Table(title="suggestions (best first; score = BIC improvement of a quick refit)")
-    for col in ("change", "score", "error drop", "evidence", "command"):
+    for col in ("#", "change", "score", "error drop", "evidence"):
         sug.add_column(col, overflow="fold")
-    for s in result["suggestions"]:
+    for k, s in enumerate(result["suggestions"], 1):
         sug.add_row(
+            str(k),
             s["change"],
             f"{s['score']:.1f}",
             f"{s['excess_error_drop']:.0%}",
             s["evidence"],
-            s["command"],
         )
     if result["suggestions"] or not groups:
         console.print(sug)
+    if result["suggestions"]:
+        console.print("to try a suggestion, run its command:")
+    for k, s in enumerate(result["suggestions"], 1):
+        console.print(f"  {k}. {s['change']}:", markup=False, highlight=False)
+        print_command(console, s["command"])
     for f in result.get("failed_candidates", []):
-        console.print(f"[yellow]candidate failed:[/yellow] {f}")
+        _stderr(console).print(f"[yellow]candidate failed:[/yellow] {f}")
 
 
 def print_improve(console: Console, result: dict[str, Any]) -> None:
@@ -341,6 +376,9 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
     console.print(table)
     for r in result.get("rejected", []):
         console.print(f"[yellow]not taken:[/yellow] {r}")
+    if result["steps"]:
+        console.print("the final model's fit:")
+        print_command(console, result["steps"][-1]["command"])
     console.print(f"final model: [bold]{result['final_model']}[/bold] — {result['final_summary']}")
 
 

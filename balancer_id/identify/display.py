@@ -1,0 +1,356 @@
+"""How results show themselves in a notebook and a terminal.
+
+Every result of the Python API (:class:`~balancer_id.identify.result.FitResult`,
+the diagnosis, improve and compare results) has a short ``repr`` (one or two lines), a
+``summary()`` in the style of lmfit's ``fit_report``, an HTML table for Jupyter
+(``_repr_html_``), ``plot()`` (a matplotlib Figure: measured and simulated acceleration,
+trial by trial, and the residual) and ``to_frame()`` (a pandas DataFrame with one row per
+sample: trial, time, measured, simulated, residual). They render what the fit holds; they
+compute nothing but the per-sample residual.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from balancer_id.identify.matching import MatchResult
+
+__all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
+
+
+def format_with_uncertainty(value: float, stderr: float | None) -> str:
+    """A value rounded to its uncertainty: ``0.1234 ± 0.0056``, ``6 ± 7e+03``.
+
+    Parameters
+    ----------
+    value : float
+        The estimate.
+    stderr : float or None
+        Its standard error; None or not finite prints the value alone (4 digits).
+
+    Returns
+    -------
+    str
+        Two significant digits of the error, the value to the same decimal place.
+    """
+    if stderr is None or not math.isfinite(stderr) or stderr <= 0:
+        return f"{value:.4g}"
+    exp = math.floor(math.log10(stderr)) - 1  # two significant digits of the error
+    if abs(value) > 0 and abs(value) < stderr:
+        # the error swamps the value: say so in scientific notation, no fake digits
+        return f"{value:.2g} ± {stderr:.2g}"
+    decimals = max(0, -exp)
+    if decimals > 8 or abs(value) >= 1e6:
+        return f"{value:.3g} ± {stderr:.2g}"
+    return f"{value:.{decimals}f} ± {stderr:.{decimals}f}"
+
+
+def match_frame(match: MatchResult) -> pd.DataFrame:
+    """Measured, simulated and residual acceleration of every trial, one row per sample.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A simulation-matching fit.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``trial``, ``source``, ``thrust_N``, ``direction``, ``time`` (s),
+        ``measured``, ``simulated``, ``residual`` (m/s^2).
+    """
+    import pandas as pd
+
+    parts = []
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        y, ym = match.y[sl], match.y_model[sl]
+        n = len(y)
+        parts.append(
+            pd.DataFrame(
+                {
+                    "trial": np.full(n, td.index),
+                    "source": [td.source] * n,
+                    "thrust_N": np.full(n, td.thrust_N),
+                    "direction": [td.direction] * n,
+                    "time": np.asarray(td.time, dtype=float)[:n],
+                    "measured": y,
+                    "simulated": ym,
+                    "residual": y - ym,
+                }
+            )
+        )
+    if not parts:
+        cols = ["trial", "source", "thrust_N", "direction", "time", "measured"]
+        return pd.DataFrame(columns=[*cols, "simulated", "residual"])
+    return pd.concat(parts, ignore_index=True)
+
+
+def match_plot(match: MatchResult, title: str = "") -> Figure:
+    """Measured and simulated acceleration of each trial, and the residual below.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A simulation-matching fit.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two axes: the accelerations (trials one after the other, time from each trial's
+        step) and the residual.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    ax, ax_r = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
+    for k, (td, sl) in enumerate(zip(match.data.trials, match.data.slices(), strict=True)):
+        t = np.asarray(td.time, dtype=float)[: sl.stop - sl.start] - td.t_step
+        color = f"C{k % 10}"
+        ax.plot(t, match.y[sl], color=color, lw=0.8, alpha=0.6)
+        ax.plot(t, match.y_model[sl], color=color, lw=1.4, ls="--")
+        ax_r.plot(t, match.y[sl] - match.y_model[sl], color=color, lw=0.8)
+    ax.plot([], [], color="k", lw=0.8, alpha=0.6, label="measured")
+    ax.plot([], [], color="k", lw=1.4, ls="--", label="simulated")
+    ax.legend(loc="best", fontsize="small")
+    ax.set_ylabel("acceleration (m/s²)")
+    ax_r.axhline(0.0, color="0.5", lw=0.6)
+    ax_r.set_ylabel("residual (m/s²)")
+    ax_r.set_xlabel("time from the step (s)")
+    fig.suptitle(
+        title or f"{match.model.spec}: fit {match.metrics.get('nrmse_fit_percent', 0):.1f} %"
+    )
+    return fig
+
+
+def _parameter_lines(match: MatchResult) -> list[str]:
+    lines = []
+    width = max((len(n) for n in match.parameters), default=4)
+    for name, p in match.parameters.items():
+        if not p.vary:
+            lines.append(f"    {name:<{width}}  {p.value:.6g} {p.unit} (fixed)")
+            continue
+        text = format_with_uncertainty(p.value, p.stderr)
+        rel = ""
+        if p.stderr is not None and math.isfinite(p.stderr) and p.value != 0:
+            rel = f" ({100 * abs(p.stderr / p.value):.1f}%)"
+        ci = getattr(p, "ci95", None)
+        ci_text = ""
+        if ci is not None:
+            method = getattr(p, "ci95_method", "wald")
+            ci_text = f"  95% [{ci[0]:.4g}, {ci[1]:.4g}] {method}"
+        bound = f"  at {p.at_bound} bound" if p.at_bound else ""
+        lines.append(f"    {name:<{width}}  {text} {p.unit}{rel}{ci_text}{bound}")
+    return lines
+
+
+def _correlation_lines(match: MatchResult, threshold: float = 0.1) -> list[str]:
+    seen: set[tuple[str, str]] = set()
+    pairs = []
+    for a, row in match.correlations.items():
+        for b, c in row.items():
+            if a == b or (b, a) in seen or c is None or not math.isfinite(c):
+                continue
+            seen.add((a, b))
+            if abs(c) >= threshold:
+                pairs.append((abs(c), f"    C({a}, {b}) = {c:+.3f}"))
+    return [text for _, text in sorted(pairs, reverse=True)]
+
+
+def match_report(match: MatchResult, *, warnings: list[str] | None = None) -> str:
+    """An lmfit ``fit_report``-style text of a simulation-matching fit.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    warnings : list of str, optional
+        The warnings to list after the statistics; None lists the fit's own.
+
+    Returns
+    -------
+    str
+        ``[[Model]]``, ``[[Fit Statistics]]``, ``[[Variables]]``, ``[[Correlations]]``
+        and ``[[Warnings]]`` blocks.
+    """
+    m = match.metrics
+    n_var = sum(p.vary for p in match.parameters.values())
+    lines = [
+        "[[Model]]",
+        f"    {match.model.spec}",
+        "[[Fit Statistics]]",
+        f"    # trials           = {len(match.data.trials)}",
+        f"    # data points      = {len(match.y)}",
+        f"    # variables        = {n_var}",
+        f"    # function evals   = {match.nfev}",
+        f"    converged          = {match.success}",
+    ]
+    for key, label in (
+        ("rmse", "RMSE (m/s²)"),
+        ("nrmse_fit_percent", "fit (NRMSE %)"),
+        ("aic", "AIC"),
+        ("bic", "BIC"),
+    ):
+        if key in m and m[key] is not None:
+            lines.append(f"    {label:<18} = {m[key]:.6g}")
+    lines += ["[[Variables]]", *_parameter_lines(match)]
+    corr = _correlation_lines(match)
+    if corr:
+        lines += ["[[Correlations]] (unreported correlations are < 0.100)", *corr]
+    all_warnings = list(match.warnings) if warnings is None else list(warnings)
+    if all_warnings:
+        lines += ["[[Warnings]]", *(f"    {w}" for w in all_warnings)]
+    return "\n".join(lines)
+
+
+def match_html(match: MatchResult, heading: str = "") -> str:
+    """An HTML table of a fit's parameters and error figures (for Jupyter).
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    heading : str
+        A line above the table (escaped).
+
+    Returns
+    -------
+    str
+        A ``<div>`` with the heading, the error figures and the parameter table.
+    """
+    m = match.metrics
+    rows = []
+    for name, p in match.parameters.items():
+        value = format_with_uncertainty(p.value, p.stderr) if p.vary else f"{p.value:.6g}"
+        ci = getattr(p, "ci95", None)
+        ci_text = f"{ci[0]:.4g} .. {ci[1]:.4g}" if ci and p.vary else "-"
+        note = "fixed" if not p.vary else (f"at {p.at_bound} bound" if p.at_bound else "")
+        rows.append(
+            "<tr>"
+            + "".join(
+                f"<td>{html.escape(str(x))}</td>" for x in (name, value, p.unit, ci_text, note)
+            )
+            + "</tr>"
+        )
+    stats = (
+        f"RMSE {m.get('rmse', float('nan')):.4g} m/s², "
+        f"fit {m.get('nrmse_fit_percent', float('nan')):.1f} %, "
+        f"BIC {m.get('bic', float('nan')):.1f}, {len(match.data.trials)} trials"
+    )
+    warn = "".join(f"<li>{html.escape(w)}</li>" for w in match.warnings)
+    return (
+        "<div>"
+        + (f"<p><b>{html.escape(heading)}</b></p>" if heading else "")
+        + f"<p>{html.escape(stats)}</p>"
+        + "<table><thead><tr><th>parameter</th><th>value</th><th>unit</th>"
+        + "<th>95% interval</th><th>note</th></tr></thead><tbody>"
+        + "".join(rows)
+        + "</tbody></table>"
+        + (f"<ul>{warn}</ul>" if warn else "")
+        + "</div>"
+    )
+
+
+class Displayable:
+    """Mixin: a short ``repr``, ``summary()``, ``_repr_html_``, ``plot()``, ``to_frame()``.
+
+    A subclass provides ``_shown_match()`` (the fit it shows) and ``_headline()`` (one
+    line), and may extend ``_summary_extra()`` and ``_html_extra()``.
+    """
+
+    def _shown_match(self) -> MatchResult:  # pragma: no cover - every subclass overrides
+        raise NotImplementedError
+
+    def _headline(self) -> str:  # pragma: no cover - every subclass overrides
+        raise NotImplementedError
+
+    def _summary_warnings(self) -> list[str]:
+        return list(self._shown_match().warnings)
+
+    def _summary_extra(self) -> list[str]:
+        return []
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self._headline()}>"
+
+    def _summary_text(self) -> str:
+        parts = [match_report(self._shown_match(), warnings=self._summary_warnings())]
+        extra = self._summary_extra()
+        if extra:
+            parts.append("\n".join(extra))
+        return "\n".join(parts)
+
+    def summary(self) -> str:
+        """The fit in the style of lmfit's ``fit_report``.
+
+        Returns
+        -------
+        str
+            Model, fit statistics, variables (value ± standard error, 95 % interval),
+            correlations, warnings, and what the result adds (verdict, suggestions,
+            ladder).
+        """
+        return self._summary_text()
+
+    def _repr_html_(self) -> str:
+        extra = "".join(
+            f"<pre>{html.escape(line)}</pre>" for line in ["\n".join(self._summary_extra())] if line
+        )
+        return match_html(self._shown_match(), heading=self._headline()) + extra
+
+    def plot(self, title: str = "") -> Figure:
+        """Measured and simulated acceleration of each trial, and the residual.
+
+        Parameters
+        ----------
+        title : str
+            The figure's title; empty: the model and its fit %.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        return match_plot(self._shown_match(), title)
+
+    def to_frame(self) -> Any:
+        """One row per sample: trial, source, thrust, direction, time, measured, simulated,
+        residual.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        return match_frame(self._shown_match())
+
+
+class CallableText(str):
+    """A string that, called, returns a longer text (``diagnosis.summary`` and
+    ``diagnosis.summary()``)."""
+
+    _full: Any
+
+    def __new__(cls, text: str, full: Any) -> CallableText:
+        obj = super().__new__(cls, text)
+        obj._full = full
+        return obj
+
+    def __call__(self) -> str:
+        """The full text.
+
+        Returns
+        -------
+        str
+        """
+        return self._full()
+
+    def __reduce__(self):  # pickles as the plain string
+        return (str, (str(self),))

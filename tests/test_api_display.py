@@ -1,0 +1,121 @@
+"""Issue 11: results at home in a notebook (repr, summary, HTML, plot, frame) and the
+terminal (help in words, -h, examples, messages on stderr, copyable commands)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import balancer_id as bid
+from balancer_id.identify.display import format_with_uncertainty
+
+THRUSTS = "2.45,-2.45,4.9,-4.9"
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory) -> Path:
+    """Four short simulated trials (m_a = 0.5 kg by default), written by ``simulate``."""
+    from typer.testing import CliRunner
+
+    from balancer_id.cli import app
+
+    path = tmp_path_factory.mktemp("display") / "small.csv"
+    res = CliRunner().invoke(
+        app, ["simulate", "--thrust", THRUSTS, "--out", str(path), "--duration", "4"]
+    )
+    assert res.exit_code == 0, res.stderr
+    return path
+
+
+@pytest.fixture(scope="module")
+def fitted(small_log):
+    return bid.fit(str(small_log), model="viscous")
+
+
+def test_a_fit_shows_itself_short_and_in_full(fitted):
+    text = repr(fitted)
+    assert text.startswith("<FitResult viscous: m_a=") and len(text) < 200
+    assert "\n" not in text
+    report = fitted.summary()
+    for block in ("[[Model]]", "[[Fit Statistics]]", "[[Variables]]", "[[Correlations]]"):
+        assert block in report
+    for name in fitted.values:
+        assert f"    {name}" in report
+    html = fitted._repr_html_()
+    assert html.startswith("<div>") and "<table>" in html and "m_a" in html
+
+
+def test_to_frame_holds_every_sample_and_its_residual(fitted):
+    frame = fitted.to_frame()
+    assert list(frame.columns[-4:]) == ["time", "measured", "simulated", "residual"]
+    assert len(frame) == len(fitted.match.y)
+    assert sorted(frame["trial"].unique()) == [t.index for t in fitted.match.data.trials]
+    np.testing.assert_allclose(frame["residual"], frame["measured"] - frame["simulated"])
+    # the fit explains the measurement: the residual is far smaller than the signal
+    assert frame["residual"].std() < 0.5 * frame["measured"].std()
+
+
+def test_plot_returns_a_figure_of_measured_simulated_and_residual(fitted):
+    from matplotlib.figure import Figure
+
+    fig = fitted.plot()
+    assert isinstance(fig, Figure)
+    top, bottom = fig.axes
+    assert len(top.lines) >= 2 * len(fitted.match.data.trials)
+    assert bottom.get_ylabel().startswith("residual")
+
+
+def test_diagnosis_compare_and_improve_have_short_reprs_and_summaries(fitted, small_log):
+    diagnosis = bid.diagnose(fitted)
+    assert len(repr(diagnosis)) < 200 and diagnosis.verdict in repr(diagnosis)
+    assert isinstance(diagnosis.summary, str)  # the verdict's paragraph, as before
+    full = diagnosis.summary()
+    assert "[[Diagnosis]]" in full and diagnosis.summary in full
+    assert diagnosis.to_dict()["summary"] == str(diagnosis.summary)
+    rows = bid.compare(str(small_log), ["viscous"])
+    assert repr(rows[0]).startswith("<ModelComparison viscous: RMSE")
+    assert len(rows[0].to_frame()) == len(rows[0].match.y)
+
+
+@pytest.mark.parametrize(
+    ("value", "stderr", "expected"),
+    [
+        (0.123456, 0.00567, "0.1235 ± 0.0057"),
+        (15.1734, 0.035, "15.173 ± 0.035"),
+        (6.0, 7253.0, "6 ± 7.3e+03"),
+        (1.5, None, "1.5"),
+    ],
+)
+def test_numbers_are_rounded_to_their_uncertainty(value, stderr, expected):
+    assert format_with_uncertainty(value, stderr) == expected
+
+
+def test_help_shows_types_in_words_an_example_and_takes_dash_h(cli):
+    for args in (("fit", "-h"), ("diagnose", "--help"), ("simulate", "-h")):
+        code, out, _ = cli(*args)
+        assert code == 0
+        assert "Example: balancer-id" in out
+        assert "<list[" not in out and "<str>" not in out and "<path>" not in out
+    code, out, _ = cli("fit", "-h")
+    assert "FILE..." in out and "TEXT" in out
+
+
+def test_terminal_width_is_not_forced_and_commands_are_copyable(cli, small_log, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = cli("diagnose", small_log, "--model", "viscous")
+    assert code == 0, err
+    commands = [ln.strip() for ln in out.splitlines() if ln.strip().startswith("balancer-id ")]
+    assert commands, out
+    # tables fit the 80 columns; only the commands run longer (never wrapped)
+    assert max(len(ln) for ln in out.splitlines() if ln.strip() not in commands) <= 80
+    for command in commands:  # whole, on a line of its own
+        assert "--model" in command and str(small_log) in command
+
+
+def test_warnings_go_to_stderr_not_stdout(cli, small_log):
+    code, out, err = cli("fit", small_log, "--model", "viscous", "--fix", "m_a=0.5")
+    assert code == 0, err
+    assert "warning:" not in out
+    assert "warning:" in err

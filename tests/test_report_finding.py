@@ -1,0 +1,95 @@
+"""Issue 11: the full report leads with the finding, says poorly determined parameters are
+a symptom of a missing effect, holds the improve ladder and the residual analysis, and
+its PDF tables stay on the page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from balancer_id.diagnostics.diagnosis import diagnose
+from balancer_id.diagnostics.improve import improve
+from balancer_id.identify import fit
+from balancer_id.model.spec import parse_model
+from balancer_id.simulation.synth import write_synthetic_log
+
+#: A balancer with Coulomb friction (karnopp), fitted without it: an effect is missing.
+TRUE = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "F_c": 0.6}
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    path = tmp_path_factory.mktemp("finding") / "friction.csv"
+    model = parse_model("viscous+karnopp")
+    values = {k: v for k, v in TRUE.items() if k in model.param_names}
+    write_synthetic_log(path, model, values, [2.45, -4.9, 7.35], seed=2, duration_s=4)
+    result = fit([path], model="viscous")
+    diagnosis = diagnose(result)
+    return result, diagnosis, improve(result, diagnosis=diagnosis, max_steps=1)
+
+
+def test_the_report_leads_with_the_verdict_and_the_top_suggestion(diagnosed, tmp_path):
+    from balancer_id.report.sections import write_full_report
+
+    result, diagnosis, improved = diagnosed
+    assert diagnosis.verdict == "effect missing"
+    out = write_full_report(result, diagnosis, tmp_path / "r.html", improved)
+    html = Path(out).read_text(encoding="utf-8")
+    first = html.index('id="s-finding"')
+    assert first < html.index('id="s-summary"')  # the finding comes first
+    top = diagnosis.suggestions[0]
+    assert top.label in html[first : html.index('id="s-summary"')]
+    assert 'id="s-improving-the-model"' in html  # the ladder
+    assert "Residual analysis" in html
+
+
+def test_poorly_determined_parameters_are_a_symptom_not_a_reason_to_fix(diagnosed):
+    _, diagnosis, _ = diagnosed
+    warning = "the data cannot determine m_a (standard error ...); fix them with --fix NAME=VALUE"
+    diagnosis.fit.warnings.append(warning)
+    try:
+        (reworded,) = [w for w in diagnosis.fit_warnings() if "cannot determine m_a" in w]
+    finally:
+        diagnosis.fit.warnings.remove(warning)
+    assert "symptom of the missing effect" in reworded
+    assert "not a reason to hold it with --fix" in reworded
+
+
+def test_residual_analysis_draws_the_bands_and_the_states(diagnosed):
+    from balancer_id.report.residual_plots import plot_residual_analysis
+
+    _, diagnosis, _ = diagnosed
+    fig = plot_residual_analysis(diagnosis)
+    acf, xcorr, *states = fig.axes
+    assert len(states) == 3
+    assert acf.patches and xcorr.patches  # the 95 % bands (axhspan)
+    assert xcorr.lines and xcorr.lines[0].get_xdata().size > 10  # the curve itself
+    labels = [ax.get_xlabel() for ax in states]
+    assert any("position" in s for s in labels) and any("velocity" in s for s in labels)
+
+
+def test_every_pdf_table_fits_its_page_width(diagnosed, tmp_path, monkeypatch):
+    from balancer_id.report import pdf
+    from balancer_id.report.sections import write_full_report
+
+    result, diagnosis, improved = diagnosed
+    too_wide: list[tuple[str, float]] = []
+    original = pdf._PdfFlow._draw_table
+
+    def measured(self, *args):
+        original(self, *args)
+        ax = self.fig.axes[-1]
+        self.fig.canvas.draw()  # the table places its cells and texts when drawn
+        renderer = self.fig.canvas.get_renderer()
+        right = self.fig.bbox.x1 - 0.3 * self.fig.dpi  # inside the right margin
+        for cell in ax.tables[0].get_celld().values():
+            box = cell.get_window_extent(renderer)
+            text = cell.get_text().get_window_extent(renderer)
+            # the cell on the page, its text inside the cell (no overlap, nothing cut)
+            if box.x1 > right or text.x1 > box.x1 + 1 or text.x0 < box.x0 - 1:
+                too_wide.append((cell.get_text().get_text()[:40], box.x1 / self.fig.dpi))
+
+    monkeypatch.setattr(pdf._PdfFlow, "_draw_table", measured)
+    write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
+    assert not too_wide, too_wide
