@@ -200,7 +200,10 @@ def fit(
         from balancer_id.identify.intervals import attach_profile_intervals
 
         for name in attach_profile_intervals(match):
-            lo, hi = match.parameters[name].ci95
+            ci = match.parameters[name].ci95
+            if ci is None:
+                continue
+            lo, hi = ci
             notes.append(
                 f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
                 f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
