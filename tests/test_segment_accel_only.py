@@ -125,3 +125,29 @@ def test_thrust_changes_while_moving_are_found_from_the_acceleration(truth, leve
     assert len(trials) == len(levels)
     np.testing.assert_allclose([t.t_step for t in trials], onsets, atol=0.25)
     assert [t.direction for t in trials] == ["up" if x > 0 else "down" for x in levels]
+
+
+@pytest.mark.parametrize("rate", [20.0, 50.0])
+def test_caught_steps_at_low_rates_are_all_found(tmp_path, rate):
+    """Two steps from rest, each caught by hand, tilted sensor, 0.05 m/s^2 noise, written
+    as a generic CSV at 20 and 50 Hz (the lowest rates read): both steps are found, within
+    two samples plus the noise tolerance of this file."""
+    from balancer_id.trials import ReadOptions, read, segment
+
+    rng = np.random.default_rng(7)
+    t = np.arange(round(14.0 * rate)) / rate
+    a_up = np.zeros(t.size)
+    for t0, f in ((2.0, 4.9), (9.0, -4.9)):
+        on = (t >= t0) & (t < t0 + 4.0)
+        a_up[on] += f / 15.1 * -np.expm1(-(t[on] - t0) / 0.33)
+        a_up[(t >= t0 + 4.0) & (t < t0 + 4.4)] -= 2.0 * np.sign(f)
+    up = np.array([np.sin(np.radians(10.0)), 0.0, np.cos(np.radians(10.0))])
+    accel = (9.8 + a_up)[:, None] * up[None, :] + rng.normal(0.0, 0.05, (t.size, 3))
+    path = tmp_path / "low_rate.csv"
+    np.savetxt(path, np.column_stack([t, accel]), delimiter=",", fmt="%.6g",
+               header="time,ax,ay,az", comments="")  # fmt: skip
+    options = ReadOptions(thrusts=[4.9, 4.9])
+    trials = segment(read(path, options), options)
+    assert [round(tr.thrust_N, 2) for tr in trials] == [4.9, -4.9]
+    for tr, t0 in zip(trials, (2.0, 9.0), strict=True):
+        assert abs(tr.t_step - t0) < 0.25 + 2 / rate

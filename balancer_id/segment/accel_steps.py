@@ -39,6 +39,11 @@ _RISE_T = np.geomspace(0.1, 1.0, 25)
 #: measured (:func:`step_trend`): longer than the drive lags (0.1-1 s) take to show.
 CHANGE_HALF_S = 1.0
 
+#: Lowest rate (Hz) at which changes while moving are searched: below it a drive lag of
+#: 0.1-0.3 s spans too few samples for the step-over-trend test to tell a thrust change
+#: from the decay, and only departures from rest are onsets (as before that test existed).
+MIN_TREND_RATE_HZ = 50.0
+
 #: Highest rate (Hz) of the onset search; faster logs are searched on block means first.
 SEARCH_HZ = 200
 
@@ -117,7 +122,7 @@ def detect_accel_steps(
             z = abs(dep) / (sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
             det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
             awaiting = 0 if st.reverses else st.sign
-        if hi - lo > 4 * half:
+        if hi - lo > 4 * half and rate >= MIN_TREND_RATE_HZ:
             kept = _changes_while_moving(
                 time, a, rest, lo, hi, det.steps[first:], catches, half, thr, sigma, clip, rate,
                 settings,
