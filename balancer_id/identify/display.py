@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import html
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -21,7 +21,22 @@ if TYPE_CHECKING:
     import pandas as pd
     from matplotlib.figure import Figure
 
-    from balancer_id.identify.matching import MatchResult
+
+class ShownFit(Protocol):
+    """What the display reads of a fit: a
+    :class:`~balancer_id.identify.matching.MatchResult` (named structurally, so that
+    ``matching``, which builds on :class:`Displayable`, is not imported back here)."""
+
+    correlations: dict[str, dict[str, float]]
+    data: Any
+    metrics: dict[str, float]
+    model: Any
+    nfev: int
+    parameters: dict[str, Any]
+    success: bool
+    warnings: list[str]
+    y: np.ndarray
+    y_model: np.ndarray
 
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
 
@@ -53,12 +68,12 @@ def format_with_uncertainty(value: float, stderr: float | None) -> str:
     return f"{value:.{decimals}f} ± {stderr:.{decimals}f}"
 
 
-def match_frame(match: MatchResult) -> pd.DataFrame:
+def match_frame(match: ShownFit) -> pd.DataFrame:
     """Measured, simulated and residual acceleration of every trial, one row per sample.
 
     Parameters
     ----------
-    match : MatchResult
+    match : ShownFit
         A simulation-matching fit.
 
     Returns
@@ -93,12 +108,12 @@ def match_frame(match: MatchResult) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def match_plot(match: MatchResult, title: str = "") -> Figure:
+def match_plot(match: ShownFit, title: str = "") -> Figure:
     """Measured and simulated acceleration of each trial, and the residual below.
 
     Parameters
     ----------
-    match : MatchResult
+    match : ShownFit
         A simulation-matching fit.
     title : str
         The figure's title.
@@ -132,7 +147,7 @@ def match_plot(match: MatchResult, title: str = "") -> Figure:
     return fig
 
 
-def _parameter_lines(match: MatchResult) -> list[str]:
+def _parameter_lines(match: ShownFit) -> list[str]:
     lines = []
     width = max((len(n) for n in match.parameters), default=4)
     for name, p in match.parameters.items():
@@ -153,7 +168,7 @@ def _parameter_lines(match: MatchResult) -> list[str]:
     return lines
 
 
-def _correlation_lines(match: MatchResult, threshold: float = 0.1) -> list[str]:
+def _correlation_lines(match: ShownFit, threshold: float = 0.1) -> list[str]:
     seen: set[tuple[str, str]] = set()
     pairs = []
     for a, row in match.correlations.items():
@@ -166,12 +181,12 @@ def _correlation_lines(match: MatchResult, threshold: float = 0.1) -> list[str]:
     return [text for _, text in sorted(pairs, reverse=True)]
 
 
-def match_report(match: MatchResult, *, warnings: list[str] | None = None) -> str:
+def match_report(match: ShownFit, *, warnings: list[str] | None = None) -> str:
     """An lmfit ``fit_report``-style text of a simulation-matching fit.
 
     Parameters
     ----------
-    match : MatchResult
+    match : ShownFit
         The fit.
     warnings : list of str, optional
         The warnings to list after the statistics; None lists the fit's own.
@@ -212,12 +227,12 @@ def match_report(match: MatchResult, *, warnings: list[str] | None = None) -> st
     return "\n".join(lines)
 
 
-def match_html(match: MatchResult, heading: str = "") -> str:
+def match_html(match: ShownFit, heading: str = "") -> str:
     """An HTML table of a fit's parameters and error figures (for Jupyter).
 
     Parameters
     ----------
-    match : MatchResult
+    match : ShownFit
         The fit.
     heading : str
         A line above the table (escaped).
@@ -267,7 +282,7 @@ class Displayable:
     line), and may extend ``_summary_extra()`` and ``_html_extra()``.
     """
 
-    def _shown_match(self) -> MatchResult:  # pragma: no cover - every subclass overrides
+    def _shown_match(self) -> ShownFit:  # pragma: no cover - every subclass overrides
         raise NotImplementedError
 
     def _headline(self) -> str:  # pragma: no cover - every subclass overrides
