@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -186,6 +186,18 @@ def _params_model(path: Path, model: str | None) -> str | None:
     return spec if isinstance(spec, str) else None
 
 
+def _render(out: Any, json_out: bool, printer: str) -> None:
+    """``out`` as one JSON object on stdout, or drawn by the terminal renderer ``printer``
+    (a ``print_*`` function of :mod:`balancer_id.report.terminal`) with control characters
+    escaped."""
+    if json_out:
+        emit_json(out)
+        return
+    from balancer_id.report import terminal
+
+    getattr(terminal, printer)(_console(), printable(out))
+
+
 # Commands -----------------------------------------------------------------------------
 @app.command()
 @guarded
@@ -220,12 +232,7 @@ def inspect(
 
         plot_inspection(data, trials, plot, g=options.g, vertical=options.vertical)
         typer.echo(f"wrote {plot}", err=True)
-    if json_out:
-        emit_json(info)
-    else:
-        from balancer_id.report.terminal import print_inspection
-
-        print_inspection(_console(), printable(info))
+    _render(info, json_out, "print_inspection")
     if problem is not None:
         typer.echo(f"balancer-id: error: {one_line(problem)}", err=True)
         raise typer.Exit(problem.exit_code)
@@ -365,12 +372,7 @@ def fit(
             _write_series(result.to_frame(), series)
     if save is not None:
         _write_json(out, save)
-    if json_out:
-        emit_json(out)
-    else:
-        from balancer_id.report.terminal import print_fit
-
-        print_fit(_console(), printable(out))
+    _render(out, json_out, "print_fit")
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
@@ -658,12 +660,7 @@ def diagnose(
     with stage("diagnosing: residual tests and candidate effects"):
         result = run_diagnose(fitted)
     out = result.to_dict()
-    if json_out:
-        emit_json(out)
-    else:
-        from balancer_id.report.terminal import print_diagnosis
-
-        print_diagnosis(_console(), printable(out))
+    _render(out, json_out, "print_diagnosis")
 
 
 @app.command()
@@ -728,12 +725,7 @@ def improve(
         with stage(f"writing {report}"):
             write_improve_report(result, report)
         typer.echo(f"wrote {report}", err=True)
-    if json_out:
-        emit_json(out)
-    else:
-        from balancer_id.report.terminal import print_improve
-
-        print_improve(_console(), printable(out))
+    _render(out, json_out, "print_improve")
 
 
 @app.command()
