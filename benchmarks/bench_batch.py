@@ -1,42 +1,49 @@
-"""Batch identification throughput (issue: batch).
+"""Batch throughput: ``balancer-id batch`` as a user runs it, logs per second and memory.
 
 N simulated 6-trial logs (thrusts ±2.45, ±4.9, ±7.35 N, 6 s after each step, noise
-0.03 m/s^2, m_a spread over 10-20 kg) are identified with ``run_batch``: once in this
-process (``jobs=1``) and once with one worker process per CPU. The parallel run is
-timed twice: the first pays for starting the fork server and each worker's first log,
-the second reuses the fork server (a notebook or a long-lived service sees this).
-Imports and the kernel's compilation are paid before any timing; the in-process and
-the warm parallel runs are the best of ``--repeat``, as other work on the machine
-skews single timings.
+0.03 m/s^2, tilts 5-24 degrees, m_a spread over 10-20 kg) are identified by a fresh
+``python -m balancer_id batch DIR --out OUT --jobs J --overwrite`` process, for N = 21
+and N = 84 (``--logs``), each ``--repeat`` times; the figures are medians.
 
-A fresh ``python`` process running the batch (what the ``batch`` command costs, with
-its imports and its fork server's start) is timed too, for ``jobs=1`` and ``jobs=J``.
+For each run, the process tree (the command, its fork server, the workers) is sampled
+every 20 ms from ``/proc`` (Linux): peak memory is the largest ``VmHWM`` (peak resident
+set) of any one process, and CPU is the sum of each process's user+system time. Printed:
 
-The ceiling: the same ``jobs`` processes spinning a pure-Python loop, against one
-process doing the same work in turn. On an idle machine it equals ``jobs``; a machine
-shared with other work shows less, and the batch's speed-up is bounded by it.
+* ``wall``: the whole command, start-up included, and ``logs/s`` = N / wall;
+* ``steady``: logs per second between the first result and the last (start-up excluded);
+* ``cpu/log``: CPU seconds of the whole tree per log, and ``cpu-bound``: the rate J
+  cores would give if the tree had them to itself (N / (CPU / J)); on a machine shared
+  with other work the wall figures fall, this one does not;
+* ``peak RSS``: the largest process; flat in N means a batch's memory does not grow
+  with the number of logs.
 
-Run: ``python benchmarks/bench_batch.py [--logs N] [--jobs J] [--repeat R]``.
+The load average is printed before each figure, as other work on the machine skews
+the wall figures. The kernel is compiled (into the disk cache) before any timing.
+
+Run: ``python benchmarks/bench_batch.py [--logs 21 84] [--jobs 2] [--repeat 3]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from balancer_id.batch import BatchResult, run_batch, warm_kernel
 from balancer_id.model import parse_model
 from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
 def make_logs(folder: Path, n: int) -> list[Path]:
@@ -59,25 +66,79 @@ def make_logs(folder: Path, n: int) -> list[Path]:
     return paths
 
 
-def timed(paths: list[Path], out: Path, jobs: int, repeat: int = 1) -> tuple[float, BatchResult]:
-    """Best wall time of ``repeat`` batches, and the last result."""
-    best = float("inf")
-    for k in range(repeat):
-        t0 = time.perf_counter()
-        result = run_batch(paths, out / str(k), jobs=jobs)
-        best = min(best, time.perf_counter() - t0)
-    return best, result
+def _children() -> dict[int, list[int]]:
+    """Parent pid -> child pids, of every process now."""
+    tree: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        tree.setdefault(int(fields[1]), []).append(int(entry))
+    return tree
 
 
-def whole_process(folder: Path, out: Path, jobs: int) -> float:
-    """Wall time of a fresh interpreter importing balancer-id and running the batch."""
-    code = (
-        "import sys; from balancer_id.batch import run_batch; "
-        f"sys.exit(run_batch([{str(folder)!r}], {str(out)!r}, jobs={jobs}).exit_code)"
-    )
+def _sample(pid: int) -> tuple[float, int] | None:
+    """(CPU seconds, peak RSS in kB) of one process, or None when it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()
+        with open(f"/proc/{pid}/status") as fh:
+            hwm = next((int(line.split()[1]) for line in fh if line.startswith("VmHWM")), 0)
+    except (OSError, StopIteration, ValueError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _TICK, hwm
+
+
+@dataclass
+class Run:
+    """One batch command's figures."""
+
+    wall: float
+    steady: float
+    cpu: float
+    peak_kb: int
+    n_ok: int
+
+
+def run_batch_command(folder: Path, out: Path, jobs: int) -> Run:
+    """Run the batch command on ``folder``; sample its process tree while it runs."""
+    cmd = [sys.executable, "-m", "balancer_id", "batch", str(folder), "--out", str(out)]
+    cmd += ["--jobs", str(jobs), "--overwrite"]
+    seen: dict[int, tuple[float, int]] = {}
+    stamps: list[float] = []
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", code], check=True)
-    return time.perf_counter() - t0
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+
+    def read_stderr() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            if line.startswith("["):  # "[k/N] log: ok ..." as each log settles
+                stamps.append(time.perf_counter())
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    while proc.poll() is None:
+        tree = _children()
+        todo = [proc.pid]
+        while todo:
+            pid = todo.pop()
+            todo += tree.get(pid, [])
+            got = _sample(pid)
+            if got is not None:
+                seen[pid] = got
+        time.sleep(0.02)
+    wall = time.perf_counter() - t0
+    reader.join(timeout=5)
+    n = len(stamps)
+    steady = (n - 1) / (stamps[-1] - stamps[0]) if n > 1 and stamps[-1] > stamps[0] else 0.0
+    cpu = sum(c for c, _ in seen.values())
+    peak = max((m for _, m in seen.values()), default=0)
+    ok = sum(1 for _ in out.glob("*.json"))
+    return Run(wall, steady, cpu, peak, ok)
 
 
 def spin(n: int) -> float:
@@ -106,57 +167,47 @@ def ceiling(jobs: int, n: int = 4_000_000) -> float:
     return serial / parallel
 
 
-def check(result: BatchResult, masses: np.ndarray) -> str:
-    """Worst relative m_a error over the batch, and the failures."""
-    got = np.array([row.parameters.get("m_a", {}).get("value") or np.nan for row in result.rows])
-    worst = np.nanmax(np.abs(got / masses - 1)) * 100
-    return f"{result.n_ok} ok, {result.n_failed} failed, worst m_a error {worst:.2f} %"
+def _load() -> str:
+    return ", ".join(f"{x:.1f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
 
 def main() -> int:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--logs", type=int, default=12)
-    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--logs", type=int, nargs="+", default=[21, 84])
+    parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    from balancer_id.identify.api import fit  # imports and compilation before any timing
+    if not Path("/proc/self/stat").exists():
+        print("this benchmark samples /proc: run it on Linux")
+        return 1
+    from balancer_id.batch import warm_kernel
 
-    warm_kernel(parse_model("variable_viscosity"))
-    masses = np.linspace(10.0, 20.0, args.logs)
+    warm_kernel(parse_model("variable_viscosity"))  # the disk cache holds the kernel
+    print(
+        f"balancer-id batch, {len(THRUSTS)}-trial logs, --jobs {args.jobs}; "
+        f"{os.cpu_count()} CPUs; medians of {args.repeat} runs"
+    )
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp) / "logs"
-        folder.mkdir()
-        paths = make_logs(folder, args.logs)
-        fit(paths[:1])  # this process's first fit (lazy imports, kernel load)
-        load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-        print(
-            f"{args.logs} logs of {len(THRUSTS)} trials; {os.cpu_count()} CPUs; "
-            f"load average {load} (other work on the machine skews the speed-up)"
-        )
-        serial, res1 = timed(paths, Path(tmp) / "serial", 1, args.repeat)
-        print(
-            f"jobs=1:  {serial:6.2f} s  {args.logs / serial:5.2f} logs/s  ({check(res1, masses)})"
-        )
-        cold, res2 = timed(paths, Path(tmp) / "cold", args.jobs)
-        print(
-            f"jobs={args.jobs}:  {cold:6.2f} s  {args.logs / cold:5.2f} logs/s  "
-            f"speed-up {serial / cold:.2f}x  (first pool: fork server starts; "
-            f"{check(res2, masses)})"
-        )
-        warm, res3 = timed(paths, Path(tmp) / "warm", args.jobs, args.repeat)
-        print(
-            f"jobs={args.jobs}:  {warm:6.2f} s  {args.logs / warm:5.2f} logs/s  "
-            f"speed-up {serial / warm:.2f}x  (fork server running; {check(res3, masses)})"
-        )
-        one = whole_process(folder, Path(tmp) / "proc1", 1)
-        many = whole_process(folder, Path(tmp) / "procN", args.jobs)
-        print(
-            f"fresh process: jobs=1 {one:.2f} s, jobs={args.jobs} {many:.2f} s, "
-            f"speed-up {one / many:.2f}x"
-        )
-        print(f"ceiling: {args.jobs} processes on pure CPU work: {ceiling(args.jobs):.2f}x")
-        fits = [row.seconds for row in res1.rows if row.seconds is not None]
-        print(f"one fit in this process: median {np.median(fits):.2f} s")
+        for n in args.logs:
+            folder = Path(tmp) / f"logs{n}"
+            folder.mkdir()
+            make_logs(folder, n)
+            load = _load()
+            runs = [
+                run_batch_command(folder, Path(tmp) / f"out{n}_{k}", args.jobs)
+                for k in range(args.repeat)
+            ]
+            wall = statistics.median(r.wall for r in runs)
+            steady = statistics.median(r.steady for r in runs)
+            cpu = statistics.median(r.cpu for r in runs) / n
+            peak = max(r.peak_kb for r in runs) / 1024
+            print(
+                f"N={n:3d}: wall {wall:5.2f} s = {n / wall:5.1f} logs/s | steady "
+                f"{steady:5.1f} logs/s | cpu/log {cpu * 1e3:4.0f} ms, cpu-bound "
+                f"{args.jobs / cpu:5.1f} logs/s | peak RSS {peak:4.0f} MB (largest "
+                f"process) | {min(r.n_ok for r in runs)}/{n} results | load {load}"
+            )
+    print(f"ceiling: {args.jobs} processes on pure CPU work: {ceiling(args.jobs):.2f}x (now)")
     return 0
 
 

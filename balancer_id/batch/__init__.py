@@ -11,15 +11,16 @@ cannot be read or identified becomes a failed row; the others go on. Results lan
 the output folder as they arrive: one JSON per log and, at the end, ``summary.csv``
 with one row per log (CONTRACT.md, ``batch``). Every file is written atomically.
 
-Before the pool starts, the model's kernel is compiled once in this process, so
-numba's disk cache is warm and no worker compiles it again; a worker's first log pays
-for loading it (about a second), the next ones do not. Where the platform has it,
-workers are forked from a ``forkserver`` that imports the fitting code once, while this
-process compiles: a new worker costs a fork, not an interpreter start, and forking
-stays safe in a process that runs threads. Elsewhere workers are spawned and import
-lazily. Each worker runs one BLAS/OpenMP thread. As with any ``spawn`` or
-``forkserver`` pool, a script that calls :func:`run_batch` with ``jobs > 1`` needs the
-``if __name__ == "__main__":`` guard.
+Where the platform has it, workers are forked from a ``forkserver`` that, while this
+process goes on, imports the fitting code once and loads the model's kernels (with
+``diagnose``, its candidates' too), compiling them first when numba's disk cache lacks
+them (:mod:`.preload`): a new worker costs a fork, not an interpreter start nor a second
+of kernel loading, and forking stays safe in a process that runs threads. A model with
+user effects is compiled in this process before the pool starts (an effect that cannot
+be compiled stops the batch at once); its workers load it on their first log.
+Elsewhere workers are spawned and import lazily. Each worker runs one BLAS/OpenMP
+thread. As with any ``spawn`` or ``forkserver`` pool, a script that calls
+:func:`run_batch` with ``jobs > 1`` needs the ``if __name__ == "__main__":`` guard.
 """
 
 from __future__ import annotations
@@ -190,9 +191,22 @@ def run_batch(
     _check_out_dir(out, paths, logs)
     n_workers = min(jobs or available_cpus(), len(logs))
     pooled = scheduler is None and n_workers > 1
-    context = _mp_context() if pooled else None  # the fork server starts while we compile
     extra = tuple(str(Path(f).resolve()) for f in effects_files)
-    mdl = _prepare_model(model, fixed, extra, trajectory is not None)
+    # A pool's fork server loads the kernels of a model of built-in effects (and with
+    # ``diagnose`` its candidates') once, while this process goes on, and every worker is
+    # forked with them loaded; user effects are compiled here first, so that an effect
+    # that cannot be compiled stops the batch before any log, and the workers load it.
+    preloaded = pooled and not extra
+    mdl = _prepare_model(model, fixed, extra, trajectory is not None, warm=not preloaded)
+    context = (
+        _mp_context(
+            [mdl.spec] if preloaded else [],
+            diagnose=diagnose,
+            trajectory=trajectory is not None,
+        )
+        if pooled
+        else None
+    )
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -18,14 +18,9 @@ from balancer_id.errors import UsageError
 if TYPE_CHECKING:
     pass
 
-#: Modules a forkserver imports once, so forked workers start with them loaded.
-_PRELOAD = (
-    "balancer_id.batch.worker",
-    "balancer_id.identify.api",
-    "balancer_id.read",
-    "balancer_id.segment",
-    "lmfit",
-)
+#: What a forkserver imports once, so forked workers start with it loaded: the fitting
+#: stack, and the kernels of the models the batch names (see :mod:`.preload`).
+_PRELOAD = ("balancer_id.batch.preload",)
 
 
 #: Each worker process runs one BLAS/OpenMP thread: the pool is the parallelism (and
@@ -90,13 +85,29 @@ def _one_thread_env() -> Iterator[None]:
             os.environ.pop(name, None)
 
 
-def _mp_context() -> Any:
+def _mp_context(
+    models: Sequence[str] = (), *, diagnose: bool = False, trajectory: bool = False
+) -> Any:
     """``forkserver`` with the fitting code preloaded where available, else ``spawn``.
 
     The fork server is launched now (when not running yet), so it imports the fitting
-    code while this process does other work; it then serves every later pool.
+    code and loads the kernels of ``models`` (compiling what numba's disk cache lacks)
+    while this process does other work; it then serves every later pool. A server
+    already running keeps what it loaded; workers load anything else on first use.
+
+    Parameters
+    ----------
+    models : sequence of str
+        Model specs (built-in or installed effects only) whose kernels the server loads.
+    diagnose : bool
+        Load the diagnosis and the kernels of the models' candidates too.
+    trajectory : bool
+        Whether the batch has a robot reference move (which candidates are tried).
     """
+    import json
     import multiprocessing
+
+    from balancer_id.batch.preload import ENV
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
@@ -104,11 +115,20 @@ def _mp_context() -> Any:
 
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(_PRELOAD))
+    saved = os.environ.get(ENV)
+    os.environ[ENV] = json.dumps(
+        {"models": list(models), "diagnose": diagnose, "trajectory": trajectory}
+    )
     try:
         with _one_thread_env():
             forkserver.ensure_running()
     except OSError:  # the pool will try again, and report
         pass
+    finally:
+        if saved is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = saved
     return ctx
 
 

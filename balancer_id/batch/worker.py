@@ -22,11 +22,18 @@ def _prepare_model(
     fixed: Mapping[str, float] | None,
     extra: Sequence[str],
     with_trajectory: bool = False,
+    *,
+    warm: bool = True,
 ) -> Model:
-    """Resolve the model, check ``fixed`` against it and warm the kernel's disk cache."""
-    from balancer_id.identify.api import resolve_model
+    """Resolve the model, check ``fixed`` against it and (with ``warm``) load its kernel.
 
-    mdl = resolve_model(model, extra)
+    Only the model layer is imported: the fitting stack (scipy, pandas, numba) is left to
+    whoever fits, so a batch whose fork server preloads it starts without it.
+    """
+    from balancer_id.model.registry import default_registry
+    from balancer_id.model.spec import DEFAULT_SPEC, parse_model
+
+    mdl = parse_model(model or DEFAULT_SPEC, default_registry(extra))
     unknown = sorted(set(fixed or {}) - set(mdl.param_names))
     if unknown:
         raise UsageError(
@@ -39,15 +46,18 @@ def _prepare_model(
             f"a model with '{names}' needs the robot's reference move: give --trajectory "
             "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
         )
-    warm_kernel(mdl)
+    if warm:
+        warm_kernel(mdl)
     return mdl
 
 
 def warm_kernel(model: Model) -> None:
-    """Compile ``model``'s kernel in this process, so numba's disk cache holds it.
+    """Compile ``model``'s kernels in this process (or load them from numba's disk cache).
 
     ``get_kernel`` alone only builds the dispatchers; numba compiles (or loads from its
-    cache) on the first call, so a tiny simulation is run.
+    cache) on the first call, so a tiny simulation is run, with and without the
+    sensitivities a fit asks for: after this, no fit in this process (or in a process
+    forked from it) loads a kernel of ``model`` again.
 
     Parameters
     ----------
@@ -56,14 +66,40 @@ def warm_kernel(model: Model) -> None:
     """
     import numpy as np
 
-    from balancer_id.simulation.engine import TrialInput, simulate_many
+    from balancer_id.simulation.engine import PackedTrials, TrialInput
     from balancer_id.simulation.inputs import Thrust
     from balancer_id.simulation.kernel import get_kernel
 
     get_kernel(model)
-    simulate_many(
-        model, model.defaults(), [TrialInput(np.array([0.0, 0.005, 0.01]), Thrust.step(0.0, 1.0))]
-    )
+    packed = PackedTrials.pack([TrialInput(np.array([0.0, 0.005, 0.01]), Thrust.step(0.0, 1.0))])
+    pvec = np.array([p.value for p in model.params], dtype=float)
+    packed.run(model, pvec)
+    packed.run_sens(model, pvec, list(range(pvec.size)))
+
+
+_MODELS: dict[tuple[object, ...], Model] = {}
+
+
+def _model(spec: str, effects_files: Sequence[str]) -> Model:
+    """``spec`` resolved once per process (and again when an effects file changes).
+
+    Resolving builds the registry, which scans the installed plug-ins' entry points:
+    milliseconds a log, when the model is the same for the whole batch.
+    """
+    from balancer_id.identify.api import resolve_model
+
+    stamps: list[object] = [spec]
+    for f in effects_files:
+        try:
+            st = os.stat(f)
+            stamps.append((f, st.st_mtime_ns, st.st_size))
+        except OSError:
+            stamps.append((f, None))
+    key = tuple(stamps)
+    found = _MODELS.get(key)
+    if found is None:
+        found = _MODELS[key] = resolve_model(spec, effects_files)
+    return found
 
 
 # Workers ------------------------------------------------------------------------------
@@ -96,7 +132,7 @@ def _identify(
             warnings.simplefilter("default")
             result = fit(
                 [path],
-                model=model,
+                model=_model(model, effects_files),
                 fixed=fixed,
                 options=options,
                 effects_files=effects_files,
