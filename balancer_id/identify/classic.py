@@ -6,6 +6,13 @@ reach the steady value is 3 T_a"; it averages through the sensor's 0.2 m/s^2
 quantization). Then ``f_in = m_a a_zc`` over all trials gives ``m_a`` (Fig. 7) and the
 per-trial ``T_a`` shows its drift with thrust and direction (Fig. 8). The method assumes
 little viscosity during the window (the paper sets D = 0 for it).
+
+The step fit is separable: for a given ``T`` the best ``a_zc`` is a linear
+least-squares slope, so the fit is a search over ``T`` alone (variable projection) --
+a log-spaced grid over the bounds evaluated at once, then a bounded Brent search in the
+grid's best bracket. It finds the least-squares minimum a general solver would, in a
+fraction of its time, and the global one on the bounds rather than the one nearest a
+start value.
 """
 
 from __future__ import annotations
@@ -14,13 +21,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from balancer_id.identify.data import TrialData
 from balancer_id.model.spec import Model
 
 #: Length of the window after the onset used for the first-order fit (s).
 CLASSIC_WINDOW_S = 2.0
+#: Bounds of the per-trial time constant T_a (s).
+T_BOUNDS = (0.005, 5.0)
+#: Points of the log-spaced grid over ``T_BOUNDS`` (about 16 % apart).
+_GRID_POINTS = 48
 
 
 @dataclass
@@ -155,17 +165,63 @@ def first_order_step(trial: TrialData, window_s: float = CLASSIC_WINDOW_S) -> Cl
     tt, aa = t[sel] - trial.t_step, a[sel] - offset
     if tt.size < 5:
         return ClassicTrial(trial.index, trial.thrust_N, trial.direction, np.nan, np.nan, np.nan)
-    tail = aa[tt > 0.6 * tt[-1]]
-    a0 = float(np.mean(tail)) if tail.size else float(np.mean(aa))
-    if not np.isfinite(a0) or not np.all(np.isfinite(aa)):
+    if not np.all(np.isfinite(aa)):
         return ClassicTrial(trial.index, trial.thrust_N, trial.direction, np.nan, np.nan, np.nan)
-
-    def resid(x: np.ndarray) -> np.ndarray:
-        return x[0] * (1.0 - np.exp(-tt / x[1])) - aa
-
-    sol = least_squares(resid, x0=[a0, 0.3], bounds=([-np.inf, 0.005], [np.inf, 5.0]))
-    a_zc, T = float(sol.x[0]), float(sol.x[1])
+    a_zc, T = fit_first_order(tt, aa)
     return ClassicTrial(trial.index, trial.thrust_N, trial.direction, a_zc, T, 3 * T)
+
+
+def fit_first_order(
+    t: np.ndarray, a: np.ndarray, bounds: tuple[float, float] = T_BOUNDS
+) -> tuple[float, float]:
+    """Least-squares ``a_zc (1 - exp(-t/T))`` through ``(t, a)``, ``T`` within ``bounds``.
+
+    For a fixed ``T`` the model is linear in ``a_zc``: with ``phi = 1 - exp(-t/T)`` the
+    best gain is ``phi.a / phi.phi`` and the residual sum of squares is
+    ``a.a - (phi.a)^2 / phi.phi``. The search over ``T`` evaluates that on a log-spaced
+    grid (all at once), then refines the best point by a bounded Brent search between its
+    neighbours (to 1e-9 of ``T``).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Time since the step (s), at least two distinct positive values.
+    a : numpy.ndarray
+        Acceleration, offset removed (m/s^2), finite.
+    bounds : (float, float)
+        Range of ``T`` (s), ``0 < low < high``.
+
+    Returns
+    -------
+    a_zc : float
+        Steady acceleration (m/s^2); 0 when ``a`` is all zero.
+    T : float
+        Time constant (s).
+    """
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = bounds
+    grid = np.geomspace(lo, hi, _GRID_POINTS)
+    phi = -np.expm1(-t[None, :] / grid[:, None])
+    num = phi @ a
+    den = np.einsum("ij,ij->i", phi, phi)
+    gain = np.where(den > 0, num**2 / np.where(den > 0, den, 1.0), 0.0)
+    k = int(np.argmax(gain))
+
+    def explained(T: float) -> float:
+        f = -np.expm1(-t / T)
+        d = float(f @ f)
+        return -(float(f @ a) ** 2) / d if d > 0 else 0.0
+
+    left, right = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+    best = minimize_scalar(
+        explained, bounds=(left, right), method="bounded", options={"xatol": 1e-9 * grid[k]}
+    )
+    T = float(best.x) if best.fun <= -gain[k] else float(grid[k])
+    f = -np.expm1(-t / T)
+    d = float(f @ f)
+    a_zc = float(f @ a) / d if d > 0 else 0.0
+    return a_zc, T
 
 
 def paper_method(trials: Sequence[TrialData], window_s: float = CLASSIC_WINDOW_S) -> ClassicResult:
