@@ -68,6 +68,7 @@ from balancer_id.batch.rows import (
 )
 from balancer_id.batch.worker import _identify, _prepare_model, warm_kernel
 from balancer_id.errors import OutputExistsError, UsageError
+from balancer_id.model.spec import DEFAULT_SPEC
 
 if TYPE_CHECKING:
     from balancer_id.trials import ReadOptions
@@ -196,17 +197,18 @@ def run_batch(
     # ``diagnose`` its candidates') once, while this process goes on, and every worker is
     # forked with them loaded; user effects are compiled here first, so that an effect
     # that cannot be compiled stops the batch before any log, and the workers load it.
+    # The server starts first: its imports are the longest part of a batch's start.
     preloaded = pooled and not extra
-    mdl = _prepare_model(model, fixed, extra, trajectory is not None, warm=not preloaded)
     context = (
         _mp_context(
-            [mdl.spec] if preloaded else [],
+            [model or DEFAULT_SPEC] if preloaded else [],
             diagnose=diagnose,
             trajectory=trajectory is not None,
         )
         if pooled
         else None
     )
+    mdl = _prepare_model(model, fixed, extra, trajectory is not None, warm=not preloaded)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

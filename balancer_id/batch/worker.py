@@ -185,6 +185,10 @@ def _unexpected(exc: BaseException, effects_files: Sequence[str]) -> tuple[str, 
 _DATETIME_HEADER = re.compile(
     r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I
 )
+#: The same at the start of any cell of a row joined with ``\x1f`` (a cheap pre-check).
+_ANY_DATETIME_HEADER = re.compile(
+    r"(?:^|\x1f)\s*(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I
+)
 
 
 def recording_time(path: str) -> dict[str, str | None]:
@@ -215,6 +219,8 @@ def recording_time(path: str) -> dict[str, str | None]:
     except csv.Error:
         head = []
     for k, row in enumerate(head):
+        if not _ANY_DATETIME_HEADER.search("\x1f".join(row)):  # one search a row, not a cell
+            continue
         cols = [j for j, cell in enumerate(row) if _DATETIME_HEADER.match(cell.strip())]
         if not cols:
             continue
