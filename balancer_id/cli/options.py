@@ -445,11 +445,11 @@ def trajectory(text: str | None) -> Any:
     UsageError
         When the text is malformed.
     """
+    if text is None:  # before any import: a batch's start waits for this
+        return None
     from balancer_id.errors import UsageError
     from balancer_id.simulation.inputs import parse_trajectory
 
-    if text is None:
-        return None
     if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
         from balancer_id.segment.move import read_trajectory_csv
 
