@@ -17,7 +17,8 @@ process goes on, imports the fitting code once and loads the model's kernels (wi
 them (:mod:`.preload`): a new worker costs a fork, not an interpreter start nor a second
 of kernel loading, and forking stays safe in a process that runs threads. A model with
 user effects is compiled in this process before the pool starts (an effect that cannot
-be compiled stops the batch at once); its workers load it on their first log.
+be compiled stops the batch at once; with ``diagnose`` its candidates are compiled here
+too); its workers load them on first use.
 Elsewhere workers are spawned and import lazily. Each worker runs one BLAS/OpenMP
 thread. As with any ``spawn`` or ``forkserver`` pool, a script that calls
 :func:`run_batch` with ``jobs > 1`` needs the ``if __name__ == "__main__":`` guard.
@@ -66,7 +67,12 @@ from balancer_id.batch.rows import (
     summary_columns,
     write_summary,
 )
-from balancer_id.batch.worker import _identify, _prepare_model, warm_kernel
+from balancer_id.batch.worker import (
+    _compile_candidates,
+    _identify,
+    _prepare_model,
+    warm_kernel,
+)
 from balancer_id.errors import OutputExistsError, UsageError
 from balancer_id.model.spec import DEFAULT_SPEC
 
@@ -209,6 +215,8 @@ def run_batch(
         else None
     )
     mdl = _prepare_model(model, fixed, extra, trajectory is not None, warm=not preloaded)
+    if pooled and diagnose and not preloaded:  # compiled once here, not in every worker
+        _compile_candidates(mdl, trajectory is not None)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

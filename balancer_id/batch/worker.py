@@ -77,6 +77,18 @@ def warm_kernel(model: Model) -> None:
     packed.run_sens(model, pvec, list(range(pvec.size)))
 
 
+def _compile_candidates(model: Model, with_trajectory: bool) -> None:
+    """Compile (into numba's disk cache) what ``--diagnose`` refits: ``model``'s candidates.
+
+    Only kernels missing from the cache are compiled (with a note and a count on stderr);
+    the workers then load them instead of each compiling them again.
+    """
+    from balancer_id.diagnostics.candidates import candidates
+    from balancer_id.simulation.kernel import compile_models
+
+    compile_models([c.model for c in candidates(model, with_trajectory=with_trajectory)])
+
+
 _MODELS: dict[tuple[object, ...], Model] = {}
 
 
