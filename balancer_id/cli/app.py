@@ -657,7 +657,7 @@ def diagnose(
         effects_file=effects_file,
         trajectory_text=trajectory_text,
     )
-    with stage("diagnosing: residual tests and candidate effects"):
+    with stage("diagnosing"):
         result = run_diagnose(fitted)
     out = result.to_dict()
     _render(out, json_out, "print_diagnosis")
@@ -761,7 +761,7 @@ def report(
         per_trial=True,
     )
     _advised(result)
-    with stage("diagnosing: residual tests and candidate effects"):
+    with stage("diagnosing"):
         diagnosis = run_diagnose(result)
     from balancer_id.diagnostics.improve import improve as run_improve
 
