@@ -841,12 +841,12 @@ def batch(
         from balancer_id.report.fleet import write_fleet_report
 
         write_fleet_report(result.rows, fleet_report)
-        typer.echo(f"fleet report: {fleet_report}", err=True)
+        typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
         emit_json(result.to_dict())
     else:
         typer.echo(
-            f"{result.n_ok} identified, {result.n_failed} failed; summary in {result.summary_path}",
+            f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",
             err=True,
         )
     if result.exit_code:
