@@ -41,7 +41,19 @@ def test_the_report_leads_with_the_verdict_and_the_top_suggestion(diagnosed, tmp
     top = diagnosis.suggestions[0]
     assert top.label in html[first : html.index('id="s-summary"')]
     assert 'id="s-improving-the-model"' in html  # the ladder
+    assert "The error falling as effects are added" in html  # karnopp added: a figure
     assert "Residual analysis" in html
+
+
+def test_a_ladder_that_adds_nothing_says_so_instead_of_drawing_one_bar(diagnosed):
+    from balancer_id.report.blocks import Paragraph, Plot
+    from balancer_id.report.sections import improve_section
+
+    result, diagnosis, _ = diagnosed
+    section = improve_section(improve(result, diagnosis=diagnosis, max_steps=0))
+    assert not [b for b in section.blocks if isinstance(b, Plot)]
+    said = " ".join(b.text for b in section.blocks if isinstance(b, Paragraph))
+    assert "No effect was added" in said
 
 
 def test_poorly_determined_parameters_are_a_symptom_not_a_reason_to_fix(diagnosed):
