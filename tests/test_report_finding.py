@@ -105,3 +105,45 @@ def test_every_pdf_table_fits_its_page_width(diagnosed, tmp_path, monkeypatch):
     monkeypatch.setattr(pdf._PdfFlow, "_draw_table", measured)
     write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
     assert not too_wide, too_wide
+
+
+def test_every_pdf_text_line_stays_on_the_page(diagnosed, tmp_path, monkeypatch):
+    # the suggested commands are long code lines: wrapped shell-style, never cut off
+    from balancer_id.report import pdf
+    from balancer_id.report.sections import write_full_report
+
+    result, diagnosis, improved = diagnosed
+    off_page: list[str] = []
+    commands: list[str] = []
+    original = pdf._PdfFlow.flush
+
+    def checked(self):
+        if self.fig is not None:
+            self.fig.canvas.draw()
+            renderer = self.fig.canvas.get_renderer()
+            right = self.fig.bbox.x1 - 0.3 * self.fig.dpi
+            for text in self.fig.texts:
+                if text.get_window_extent(renderer).x1 > right:
+                    off_page.append(text.get_text()[:60])
+                if text.get_fontfamily()[0] == "monospace":
+                    commands.append(text.get_text())
+        original(self)
+
+    monkeypatch.setattr(pdf._PdfFlow, "flush", checked)
+    write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
+    assert not off_page, off_page
+    joined = " ".join(commands).replace(" \\     ", " ")
+    assert diagnosis.suggestions[0].command in joined  # whole again when unwrapped
+
+
+def test_code_wraps_like_a_shell_continuation():
+    from balancer_id.report.pdf import wrap_code
+
+    line = "balancer-id fit a.csv --model variable_viscosity+karnopp --effects-file e/f.py"
+    pieces = wrap_code(line, 30)
+    # each piece fits, or is one word too long to break
+    assert all(len(p) <= 30 or " " not in p.removesuffix(" \\").strip() for p in pieces)
+    assert len(pieces) > 2
+    assert all(p.endswith(" \\") for p in pieces[:-1])
+    assert " ".join(p.removesuffix(" \\").strip() for p in pieces) == line
+    assert wrap_code("short", 30) == ["short"]
