@@ -21,7 +21,16 @@ set) of any one process, and CPU is the sum of each process's user+system time. 
 The load average is printed before each figure, as other work on the machine skews
 the wall figures. The kernel is compiled (into the disk cache) before any timing.
 
-Run: ``python benchmarks/bench_batch.py [--logs 21 84] [--jobs 2] [--repeat 3]``.
+Run: ``python benchmarks/bench_batch.py [--logs 21 84] [--jobs 2] [--repeat 3]``. To
+compare with another version under the same load, run it again with that version first
+on the path: ``git archive REV balancer_id | tar -x -C /tmp/old`` then
+``PYTHONPATH=/tmp/old python benchmarks/bench_batch.py`` (the batch command and its
+workers then run the old code).
+
+Target (issue 12): >= 20 logs/s at 2 jobs with peak memory flat in N. A cold command
+cannot reach it at N = 21: its start (the CLI's imports, then the fork server's imports
+of numpy, scipy.optimize, scipy.ndimage, pandas and numba and its kernel load, about
+1.7 s of CPU before the first worker exists) alone is longer than 21 / 20 s.
 """
 
 from __future__ import annotations
