@@ -368,14 +368,12 @@ def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:
 
 def _percentiles(x: np.ndarray, qs: Sequence[float]) -> list[float]:
     """``np.percentile(x, qs)`` (linear interpolation) of a 1-D array without its overhead."""
-    xs = np.sort(x)
-    out = []
-    for q in qs:
-        pos = q / 100.0 * (xs.size - 1)
-        lo = int(pos)
-        hi = min(lo + 1, xs.size - 1)
-        out.append(float(xs[lo] + (xs[hi] - xs[lo]) * (pos - lo)))
-    return out
+    pos = [q / 100.0 * (x.size - 1) for q in qs]
+    ends = [(int(p), min(int(p) + 1, x.size - 1)) for p in pos]
+    xs = np.partition(x, sorted({i for pair in ends for i in pair}))
+    return [
+        float(xs[lo] + (xs[hi] - xs[lo]) * (p - lo)) for p, (lo, hi) in zip(pos, ends, strict=True)
+    ]
 
 
 def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:

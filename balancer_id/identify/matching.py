@@ -160,6 +160,8 @@ STOP_STEP = 0.01
 #: 0.25 % to an estimate's variance and saves the last simulation.
 STOP_LINEAR = 0.05
 
+CONVERGED = "converged: the step left is a small fraction of every standard error"
+
 
 class _Problem:
     """Residual and Jacobian of one fit, from one simulation with sensitivities.
@@ -188,6 +190,8 @@ class _Problem:
         self.n_samples = int(data.y.size)
         self._last_key: bytes | None = None
         self._last_q: float | None = None
+        #: The Gauss-Newton step from the point :meth:`converged` last looked at.
+        self.gn_step: np.ndarray | None = None
 
     def full(self, x: np.ndarray) -> np.ndarray:
         """The whole parameter vector with the free ones set to ``x``."""
@@ -269,6 +273,7 @@ class _Problem:
             se = np.sqrt(s2 * np.einsum("ij,ij->i", inv, inv))
             q = float(np.max(np.abs(step) / se))
         prev, self._last_key, self._last_q = self._last_q, key, q
+        self.gn_step = step
         new = x + step
         if not (np.isfinite(q) and np.all(new > lo) and np.all(new < hi)):
             return None
@@ -282,6 +287,47 @@ class _Problem:
         """Forget the step history (a new start)."""
         self._last_key = None
         self._last_q = None
+        self.gn_step = None
+
+    def best_x(self) -> np.ndarray | None:
+        """The free parameters of the lowest-cost evaluation so far."""
+        if self._best is None:
+            return None
+        return np.frombuffer(self._best[1], dtype=float).copy()
+
+    def gauss_newton(
+        self, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Plain Gauss-Newton steps from ``x0`` while they behave; the converged point.
+
+        The common case of a fit costs no optimizer bookkeeping: each full step is taken
+        while it stays strictly inside the bounds and lowers the cost, until
+        :meth:`converged` stops it. Returns ``(x, last_step)`` as :meth:`converged` gives
+        them, or None as soon as a step misbehaves (out of bounds, cost up, not finite,
+        singular), when the caller goes on with a trust-region method from
+        :meth:`best_x`.
+        """
+        x = np.asarray(x0, dtype=float)
+        if not (np.all(x > lo) and np.all(x < hi)):
+            return None
+        self.restart()
+        self.fun(x)
+        cost = _sumsq(self._fun)
+        while True:
+            last = self.converged(x, lo, hi)
+            if last is not None:
+                return x, last
+            step = self.gn_step
+            if step is None or self.nfev >= max_nfev or self._key != x.tobytes():
+                return None
+            new = x + step
+            if not (np.all(np.isfinite(new)) and np.all(new > lo) and np.all(new < hi)):
+                return None
+            self.fun(new)
+            new_cost = _sumsq(self._fun)
+            if not (self.finite and new_cost < cost):
+                return None
+            x, cost = new, new_cost
 
     def linear_step(self, x: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual and Jacobian at ``x + step`` from those at ``x`` (the linear model)."""
@@ -408,6 +454,17 @@ def match_trials(
         r = problem.residual(base[free])
         best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
     for x0 in starts if free else []:
+        used = problem.nfev
+        quick = None if diff_step is not None else problem.gauss_newton(x0, lo, hi, max_nfev)
+        if quick is not None:
+            x_end, last = quick
+            r, jac = problem.linear_step(x_end, last)
+            outcome = _Outcome(x_end + last, r, jac, True, CONVERGED, problem.nfev - used)
+            if best is None or outcome.chisqr < best.chisqr:
+                best = outcome
+            continue
+        if diff_step is None:
+            x0 = problem.best_x() if problem.nfev > used else x0
         problem.restart()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -422,7 +479,7 @@ def match_trials(
                     ftol=1e-8,
                     xtol=1e-8,
                     gtol=1e-8,
-                    max_nfev=max_nfev,
+                    max_nfev=max(max_nfev - (problem.nfev - used), 1),
                     diff_step=diff_step,
                     callback=callback if diff_step is None else None,
                 )
@@ -436,11 +493,10 @@ def match_trials(
             stopped.clear()
             r, jac = problem.linear_step(x_end, last)
             x_end = x_end + last
-            message = "converged: the step left is a small fraction of every standard error"
+            message = CONVERGED
         else:
             r, jac = problem.at(x_end)
-        outcome = _Outcome(x_end, r, jac, ret.status > 0 or bool(message[:9] == "converged"),
-                           message, ret.nfev)
+        outcome = _Outcome(x_end, r, jac, ret.status > 0 or message == CONVERGED, message, ret.nfev)
         if best is None or outcome.chisqr < best.chisqr:
             best = outcome
     if best is None:
@@ -492,7 +548,7 @@ def _covariance(out: _Outcome) -> np.ndarray | None:
     if k == 0 or n <= k:
         return None
     try:
-        cov = np.linalg.inv(np.einsum("ij,ik->jk", out.jac, out.jac))
+        cov = np.linalg.inv(_gram(out.jac, out.residual)[:k, :k])
     except np.linalg.LinAlgError:
         return None
     cov *= out.chisqr / (n - k)
