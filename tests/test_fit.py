@@ -115,3 +115,20 @@ def test_a_fit_that_does_not_converge_says_why(rng):
     with pytest.raises(IdentificationError, match="did not converge") as err:
         fit(trials, max_nfev=1)
     assert "--fix" in str(err.value)
+
+
+@pytest.mark.parametrize("spec", ["variable_viscosity", "variable_viscosity+karnopp"])
+def test_the_early_stop_lands_on_the_least_squares_optimum(spec, rng):
+    # the fit stops once the step left is a small fraction of each standard error; a
+    # fit run to scipy's tight tolerances (finite-difference Jacobian, no early stop)
+    # must agree within 5 % of each standard error
+    model = parse_model(spec)
+    truth = {**PAPER, "f_s": 0.5} if "karnopp" in spec else PAPER
+    trials = step_trials(spec, truth, PAPER_THRUSTS, 0.03, rng)
+    start = {"m_a": 14.0, "T_a": 0.25}
+    quick = match_trials(model, trials, start=start)
+    tight = match_trials(model, trials, start=start, diff_step=1e-7)
+    assert quick.success, quick.message
+    for name, est in quick.parameters.items():
+        assert abs(est.value - tight.parameters[name].value) <= 0.05 * est.stderr, name
+    assert quick.metrics["rmse"] == pytest.approx(tight.metrics["rmse"], rel=1e-5)

@@ -432,8 +432,9 @@ def match_trials(
             "check the effects' terms (a user effect returning NaN or inf?)"
         )
     starts = [base[free]]
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(seed) if n_starts > 1 else None
     for _ in range(max(n_starts, 1) - 1):
+        assert rng is not None
         x = base[free].copy()
         for j in range(x.size):
             x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else rng.normal(0.0, 0.1)
