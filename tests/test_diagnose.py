@@ -165,3 +165,30 @@ def test_a_check_without_data_finds_nothing_and_warns_nothing():
     sig = signature_of(Starved, ctx=None)
     assert sig.strength == 0.0 and "too little data" in sig.evidence
     assert sig.start == {"x": 1.0}
+
+
+def test_parallel_refits_equal_one_by_one_and_tell_each_candidate(monkeypatch):
+    # the candidates are refitted in threads; the ranking must not depend on it, and each
+    # finished refit is told to the status listener ("candidate 3/5: karnopp refitted")
+    from balancer_id.diagnostics import diagnosis as diagnosis_module
+    from balancer_id.status import listening
+
+    fit = fit_paper_model(trials_with("variable_viscosity+bias", {"b": 0.06}, seed=21))
+    told: list[str] = []
+    monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 1)
+    with listening(told.append):
+        serial = diagnose(fit)
+    monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 3)
+    with listening(told.append):
+        threaded = diagnose(fit)
+    assert [(s.effect, s.delta_bic, s.rmse) for s in threaded.suggestions] == [
+        (s.effect, s.delta_bic, s.rmse) for s in serial.suggestions
+    ]
+    assert threaded.suggestions[0].effect == "bias"
+    n = len(serial.suggestions) + len(serial.failures)
+    assert len(told) == 2 * n
+    assert [t.split(":")[0] for t in told[:n]] == [f"candidate {k}/{n}" for k in range(1, n + 1)]
+    assert {t.split(": ")[1] for t in told[:n]} == {s.effect for s in serial.suggestions}
+    assert {t.split(": ")[1].removesuffix(" refitted") for t in told[n:]} == {
+        s.effect for s in serial.suggestions
+    }

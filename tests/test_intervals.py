@@ -58,3 +58,20 @@ def test_fit_reports_the_profile_interval_where_wald_crosses_a_bound(rng):
     m_a = result.to_dict()["parameters"]["m_a"]
     assert m_a["ci95_method"] == "wald"
     assert "profile" in result.summary() and any("profile" in w for w in result.warnings)
+    assert not any("far from quadratic" in w for w in result.warnings)  # a true bound
+
+
+def test_a_profile_far_narrower_than_wald_is_called_out_on_a_misfit():
+    # the hose log fitted without the hose: m_a and T_a trade at first order (corr -1),
+    # the Wald error is many times the profile's half-width, and the note says why
+    from conftest import SAMPLE_LOGS
+
+    from balancer_id.identify.api import fit
+
+    result = fit(SAMPLE_LOGS / "hose_walkthrough.csv")
+    m_a = result.match.parameters["m_a"]
+    low, high = m_a.ci95
+    wald_low, wald_high = m_a.wald_ci95
+    assert (high - low) * 3 < wald_high - wald_low
+    note = next(w for w in result.warnings if w.startswith("m_a:"))
+    assert "far from quadratic" in note and "no uncertainty" in note

@@ -41,7 +41,19 @@ def test_the_report_leads_with_the_verdict_and_the_top_suggestion(diagnosed, tmp
     top = diagnosis.suggestions[0]
     assert top.label in html[first : html.index('id="s-summary"')]
     assert 'id="s-improving-the-model"' in html  # the ladder
+    assert "The error falling as effects are added" in html  # karnopp added: a figure
     assert "Residual analysis" in html
+
+
+def test_a_ladder_that_adds_nothing_says_so_instead_of_drawing_one_bar(diagnosed):
+    from balancer_id.report.blocks import Paragraph, Plot
+    from balancer_id.report.sections import improve_section
+
+    result, diagnosis, _ = diagnosed
+    section = improve_section(improve(result, diagnosis=diagnosis, max_steps=0))
+    assert not [b for b in section.blocks if isinstance(b, Plot)]
+    said = " ".join(b.text for b in section.blocks if isinstance(b, Paragraph))
+    assert "No effect was added" in said
 
 
 def test_poorly_determined_parameters_are_a_symptom_not_a_reason_to_fix(diagnosed):
@@ -93,3 +105,45 @@ def test_every_pdf_table_fits_its_page_width(diagnosed, tmp_path, monkeypatch):
     monkeypatch.setattr(pdf._PdfFlow, "_draw_table", measured)
     write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
     assert not too_wide, too_wide
+
+
+def test_every_pdf_text_line_stays_on_the_page(diagnosed, tmp_path, monkeypatch):
+    # the suggested commands are long code lines: wrapped shell-style, never cut off
+    from balancer_id.report import pdf
+    from balancer_id.report.sections import write_full_report
+
+    result, diagnosis, improved = diagnosed
+    off_page: list[str] = []
+    commands: list[str] = []
+    original = pdf._PdfFlow.flush
+
+    def checked(self):
+        if self.fig is not None:
+            self.fig.canvas.draw()
+            renderer = self.fig.canvas.get_renderer()
+            right = self.fig.bbox.x1 - 0.3 * self.fig.dpi
+            for text in self.fig.texts:
+                if text.get_window_extent(renderer).x1 > right:
+                    off_page.append(text.get_text()[:60])
+                if text.get_fontfamily()[0] == "monospace":
+                    commands.append(text.get_text())
+        original(self)
+
+    monkeypatch.setattr(pdf._PdfFlow, "flush", checked)
+    write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
+    assert not off_page, off_page
+    joined = " ".join(commands).replace(" \\     ", " ")
+    assert diagnosis.suggestions[0].command in joined  # whole again when unwrapped
+
+
+def test_code_wraps_like_a_shell_continuation():
+    from balancer_id.report.pdf import wrap_code
+
+    line = "balancer-id fit a.csv --model variable_viscosity+karnopp --effects-file e/f.py"
+    pieces = wrap_code(line, 30)
+    # each piece fits, or is one word too long to break
+    assert all(len(p) <= 30 or " " not in p.removesuffix(" \\").strip() for p in pieces)
+    assert len(pieces) > 2
+    assert all(p.endswith(" \\") for p in pieces[:-1])
+    assert " ".join(p.removesuffix(" \\").strip() for p in pieces) == line
+    assert wrap_code("short", 30) == ["short"]

@@ -657,7 +657,7 @@ def diagnose(
         effects_file=effects_file,
         trajectory_text=trajectory_text,
     )
-    with stage("diagnosing: residual tests and candidate effects"):
+    with stage("diagnosing"):
         result = run_diagnose(fitted)
     out = result.to_dict()
     _render(out, json_out, "print_diagnosis")
@@ -761,7 +761,7 @@ def report(
         per_trial=True,
     )
     _advised(result)
-    with stage("diagnosing: residual tests and candidate effects"):
+    with stage("diagnosing"):
         diagnosis = run_diagnose(result)
     from balancer_id.diagnostics.improve import improve as run_improve
 
@@ -841,12 +841,12 @@ def batch(
         from balancer_id.report.fleet import write_fleet_report
 
         write_fleet_report(result.rows, fleet_report)
-        typer.echo(f"fleet report: {fleet_report}", err=True)
+        typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
         emit_json(result.to_dict())
     else:
         typer.echo(
-            f"{result.n_ok} identified, {result.n_failed} failed; summary in {result.summary_path}",
+            f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",
             err=True,
         )
     if result.exit_code:

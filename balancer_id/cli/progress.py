@@ -29,6 +29,9 @@ def enabled() -> bool:
 def stage(text: str) -> Iterator[None]:
     """Show ``text`` with a spinner on stderr while the block runs.
 
+    What the analysis tells (:func:`balancer_id.status.tell`, "candidate 3/7: karnopp")
+    is shown after ``text`` as it happens.
+
     Parameters
     ----------
     text : str
@@ -43,7 +46,12 @@ def stage(text: str) -> Iterator[None]:
         return
     from rich.console import Console
 
-    with Console(stderr=True).status(text, spinner="dots"):
+    from balancer_id.status import listening
+
+    with (
+        Console(stderr=True).status(text, spinner="dots") as shown,
+        listening(lambda now: shown.update(f"{text}: {now}")),
+    ):
         yield
 
 

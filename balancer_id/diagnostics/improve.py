@@ -19,6 +19,7 @@ from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
+from balancer_id.status import step
 
 #: Folds of the cross-validation across trials.
 CV_FOLDS = 3
@@ -196,8 +197,9 @@ def improve(
     steps = [ImproveStep(current.model, None, current, cv)]
     rejected: list[str] = []
     if diagnosis is None or diagnosis.fit is not fit:
-        diagnosis = diagnose(current)
-    for _ in range(max_steps):
+        with step(f"step 1: {current.model}"):
+            diagnosis = diagnose(current)
+    for k in range(max_steps):
         chosen = None
         for s in diagnosis.suggestions:
             if not is_missing(s) or s.refit is None:
@@ -222,5 +224,6 @@ def improve(
             effects_files=fit.effects_files,
         )
         steps.append(ImproveStep(current.model, s.effect, current, cv, s.signature.evidence))
-        diagnosis = diagnose(current)
+        with step(f"step {k + 2}: {current.model}"):
+            diagnosis = diagnose(current)
     return ImproveResult(steps, diagnosis, rejected)

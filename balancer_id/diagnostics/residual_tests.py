@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from balancer_id.diagnostics.context import REGIMES, DiagnosisContext
+from balancer_id.diagnostics.spectra import prominent_peaks, welch_psd
 from balancer_id.identify.data import thrust_levels
 
 #: Lags of the whiteness tests (samples).
@@ -53,7 +54,7 @@ def whiteness(ctx: DiagnosisContext, max_lag: int = ACF_LAGS) -> dict[str, objec
         ``outside_band`` (lags beyond it), ``ljung_box_q`` and ``ljung_box_p``; all but
         ``n`` and ``acf`` are None when no trial is long enough.
     """
-    from scipy.stats import chi2
+    from scipy.special import chdtrc
 
     acfs, weights = [], []
     for tv in ctx.trials:
@@ -80,7 +81,7 @@ def whiteness(ctx: DiagnosisContext, max_lag: int = ACF_LAGS) -> dict[str, objec
         "band": float(band),
         "outside_band": int(np.sum(np.abs(acf) > band)),
         "ljung_box_q": q,
-        "ljung_box_p": float(chi2.sf(q, max_lag)),
+        "ljung_box_p": float(chdtrc(max_lag, q)),
     }
 
 
@@ -119,11 +120,11 @@ def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str
         cnt[ok] += 1
         scale.append(np.std(tv.residual))
     mean = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 0)
-    from scipy.stats import norm
+    from scipy.special import ndtri
 
     sigma = float(np.mean(scale)) if scale else 1.0
     # 95 % band for the largest of all lags (Bonferroni over the lags)
-    band = float(norm.isf(0.025 / lags.size)) * sigma / np.sqrt(max(len(ctx.trials), 1))
+    band = float(-ndtri(0.025 / lags.size)) * sigma / np.sqrt(max(len(ctx.trials), 1))
     peak = int(np.argmax(np.abs(mean)))
     return {
         "lag_s": [round(float(x), 4) for x in lags * dt],
@@ -153,13 +154,11 @@ def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, obje
         (the three lowest bins are ignored); ``frequency_hz`` and ``psd``: the spectrum
         averaged over trials.
     """
-    from scipy.signal import find_peaks, welch
-
     fs = 1.0 / ctx.dt
     psds = []
     for tv in ctx.trials:
         if tv.residual.size >= 128:
-            f, p = welch(tv.residual, fs=fs, nperseg=min(256, tv.residual.size), detrend="linear")
+            f, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))
             if psds and p.size != psds[0].size:
                 continue
             psds.append(p)
@@ -167,7 +166,7 @@ def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, obje
         return {"peaks": [], "frequency_hz": [], "psd": []}
     psd = np.mean(psds, axis=0)
     level = float(np.median(psd[1:]))
-    idx, _props = find_peaks(psd, height=factor * level, prominence=factor * level / 2)
+    idx = prominent_peaks(psd, height=factor * level, prominence=factor * level / 2)
     peaks = [
         {"frequency_hz": float(f[i]), "ratio_to_median": float(psd[i] / level)}
         for i in idx

@@ -16,14 +16,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy.signal import periodogram
 
 from balancer_id.segment.trial import Trial
-from balancer_id.trials import ReadOptions, load_trials
 
 #: Where the mode's peak is searched (Hz), and the half-width of the band (factor).
 PEAK_RANGE_HZ = (0.2, 5.0)
@@ -164,29 +162,6 @@ def vibration_lines(vibration: Mapping[str, Any]) -> list[str]:
     if len(a) >= 2 and min(a) > 0:
         out.append(f"  the most vibrating move has {max(a) / min(a):.1f} x the band acceleration")
     return out
-
-
-def vibration_of_logs(
-    paths: Sequence[str | Path], options: ReadOptions | None, trajectory: Any
-) -> VibrationComparison:
-    """Find the move in each log and compare their vibration (``compare --trajectory``).
-
-    Parameters
-    ----------
-    paths : sequence of str or Path
-        The logs (e.g. a human-assist and a robot-assist log of the same move).
-    options : ReadOptions or None
-        How the logs are read.
-    trajectory : Trapezoid or TabulatedMove
-        The reference move.
-
-    Returns
-    -------
-    VibrationComparison
-        One entry per move window, in the order of the logs.
-    """
-    moves = load_trials(paths, options, trajectory).trials
-    return compare_vibration(moves)
 
 
 def spectrum(time: np.ndarray, x: np.ndarray) -> Spectrum:

@@ -30,6 +30,11 @@ __all__ = [
 
 Sources = TrialSet | str | Path | Sequence[str | Path | Trial | TrialData]
 
+#: A profile interval this many times narrower than the Wald one is called out: the
+#: Gauss-Newton covariance leaves out the residuals' curvature, which dominates where
+#: the model misfits and parameters trade at first order (docs/DECISIONS.md).
+NON_QUADRATIC_RATIO = 3.0
+
 
 def resolve_model(
     model: str | Model | None,
@@ -204,10 +209,18 @@ def fit(
             if ci is None:
                 continue
             lo, hi = ci
-            notes.append(
+            note = (
                 f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
                 f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
             )
+            wald = match.parameters[name].wald_ci95
+            if wald is not None and (hi - lo) < (wald[1] - wald[0]) / NON_QUADRATIC_RATIO:
+                note += (
+                    f" ({(hi - lo) / (wald[1] - wald[0]):.0%} of the Wald width: the cost is "
+                    "far from quadratic here, as where parameters trade at first order and "
+                    "the model misfits; its standard error is no uncertainty)"
+                )
+            notes.append(note)
     result = fit_match(match, ts, classic=classic, fixed=fixed, effects_files=effects_files)
     result.warnings = notes
     if per_trial:

@@ -37,7 +37,6 @@ from balancer_id.report.plots import (
 )
 
 if TYPE_CHECKING:
-
     from balancer_id.identify.result import FitResult
     from balancer_id.model.effect import Effect
 
@@ -109,10 +108,11 @@ def _parameter_table(result: FitResult) -> Table:
     return Table(
         ["parameter", "meaning", "value", "std. error", "95 % interval", "unit", "note"],
         rows,
-        "Identified by simulation matching over all trials at once (lmfit, bounded least "
-        "squares). The interval is value ± 1.96 standard errors (Wald) or, where that "
-        "would cross a parameter's bounds, the profile-likelihood interval (marked "
-        "'profile': the other parameters refitted at each trial value).",
+        "Identified by simulation matching over all trials at once (bounded least squares, "
+        "scipy's trust-region reflective with the simulated sensitivities as Jacobian). "
+        "The interval is value ± 1.96 standard errors (Wald) or, where that would cross "
+        "a parameter's bounds, the profile-likelihood interval (marked 'profile': the "
+        "other parameters refitted at each trial value).",
     )
 
 
@@ -133,6 +133,9 @@ def _summary_section(result: FitResult) -> Section:
     for name, p in match.parameters.items():
         value, se = format_estimate(p.value, p.stderr)
         err = f" ± {se}" if p.vary and se != "-" else (" (held)" if not p.vary else "")
+        if p.vary and p.ci95_method == "profile" and p.ci95 is not None:
+            value = format_value(p.value, 3)  # the profile interval, not a Wald ± beside it
+            err = f" ({format_value(p.ci95[0], 3)} .. {format_value(p.ci95[1], 3)})"
         cards.append(
             f'<div class="card"><div class="k">{_e(name)}</div>'
             f'<div class="v">{_e(value)}<span class="pm">{_e(err)}</span></div>'
@@ -498,9 +501,7 @@ def _advice_blocks(result: FitResult) -> list[Paragraph]:
     """The stability condition's dominant terms and the advice the fit carries (issue 9)."""
     dominant = result.coupling.dominant if result.coupling is not None else ""
     lines = result.advice.lines() if result.advice is not None else []
-    return [Paragraph(f"Dominant terms: {dominant}.")] + [
-        Paragraph(line.strip()) for line in lines
-    ]
+    return [Paragraph(f"Dominant terms: {dominant}.")] + [Paragraph(line.strip()) for line in lines]
 
 
 def reproduce_section(result: FitResult) -> Section:

@@ -38,6 +38,40 @@ _STYLE_COLORS = {
 }
 
 
+
+def wrap_code(line: str, width: int) -> list[str]:
+    """Break a code line at spaces to ``width`` characters, shell-style.
+
+    Every line but the last ends in `` \\`` and the next is indented, so a wrapped
+    command copied from the PDF still runs as one command; a word longer than the line
+    stays whole.
+
+    Parameters
+    ----------
+    line : str
+        One line of code.
+    width : int
+        Characters that fit on the page.
+
+    Returns
+    -------
+    list of str
+        The line, or its pieces.
+    """
+    if len(line) <= width:
+        return [line]
+    out: list[str] = []
+    current = ""
+    for word in line.split(" "):
+        trial = f"{current} {word}" if current else word
+        if current and len(trial) + 2 > width:
+            out.append(current + " \\")
+            current = "    " + word
+        else:
+            current = trial
+    out.append(current)
+    return out
+
 class _PdfFlow:
     """Text, tables and figures flowed onto A4 pages of a ``PdfPages``."""
 
@@ -111,7 +145,11 @@ class _PdfFlow:
     ) -> None:
         out: list[str] = []
         for raw in text.splitlines() or [""]:
-            out += textwrap.wrap(raw, width) if not mono and raw else [raw]
+            if mono:
+                room = (_PAGE[0] - 2 * _MARGIN - 0.15) / (0.6 * size / 72)  # monospace cells
+                out += wrap_code(raw, int(room))
+            else:
+                out += textwrap.wrap(raw, width) if raw else [raw]
         step = size / 72 * 1.35
         for line in out:
             self.need(step)

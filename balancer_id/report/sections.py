@@ -233,11 +233,19 @@ def improve_section(result: ImproveResult) -> Section:
         ]
         for k, s in enumerate(d["steps"])
     ]
-    blocks: list[Any] = [
-        Table(["step", "model", "added", "RMSE", "held-out RMSE", "BIC"], rows),
-        Plot(plot_error_ladder(d["steps"]), caption="The error falling as effects are added"),
-        Paragraph(f"Final model: {d['final_model']}. {d['final_summary']}"),
-    ]
+    blocks: list[Any] = [Table(["step", "model", "added", "RMSE", "held-out RMSE", "BIC"], rows)]
+    if len(d["steps"]) > 1:  # one bar would show nothing falling
+        blocks.append(
+            Plot(plot_error_ladder(d["steps"]), caption="The error falling as effects are added")
+        )
+    else:
+        blocks.append(
+            Paragraph(
+                "No effect was added: none of the library's candidates improved both BIC and "
+                "the held-out error enough (the Diagnosis section ranks them)."
+            )
+        )
+    blocks.append(Paragraph(f"Final model: {d['final_model']}. {d['final_summary']}"))
     blocks += [Paragraph(f"Not taken: {r}") for r in d["rejected"]]
     return Section("Improving the model", blocks=blocks)
 

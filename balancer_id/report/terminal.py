@@ -363,11 +363,11 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
     """
     table = Table(title="improve: effects added while BIC and held-out trials improve")
     for col in ("step", "model", "added", "RMSE", "held-out RMSE", "BIC"):
-        table.add_column(col)
+        table.add_column(col, overflow="fold")  # a model is named whole, never cut
     for k, s in enumerate(result["steps"]):
         table.add_row(
             str(k),
-            s["model"],
+            s["model"].replace("+", " + "),  # wraps at the effects in a narrow terminal
             s["added"] or "-",
             _fmt(s["rmse"]),
             _fmt(s["cv_rmse"]),

@@ -32,7 +32,7 @@ def jit(
 
     Usable bare (``@jit``), with options (``@jit(cache=True)``) or as a call
     (``jit(f)``). Compilation uses numpy's error model and fast-math flags
-    :data:`FASTMATH`.
+    :data:`FASTMATH`, and releases the GIL (candidate refits run in threads).
 
     Parameters
     ----------
@@ -58,6 +58,7 @@ def jit(
         return numba.njit(
             cache=cache,
             error_model="numpy",
+            nogil=True,
             fastmath=FASTMATH,
             inline="always" if inline else "never",
         )(f)

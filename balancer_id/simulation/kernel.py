@@ -34,7 +34,7 @@ from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "15"
+KERNEL_VERSION = "16"
 
 #: Columns of the kernel's output array. ``h`` is the operating force as the force sensor
 #: sees it: with the thrust undelayed (the dead time acts between sensor and drive).
