@@ -132,3 +132,16 @@ def test_the_early_stop_lands_on_the_least_squares_optimum(spec, rng):
     for name, est in quick.parameters.items():
         assert abs(est.value - tight.parameters[name].value) <= 0.05 * est.stderr, name
     assert quick.metrics["rmse"] == pytest.approx(tight.metrics["rmse"], rel=1e-5)
+
+
+def test_extra_starts_find_the_same_optimum(rng):
+    # starts drawn around the given one (some far: their Gauss-Newton steps leave the
+    # bounds or raise the cost and the trust-region method takes over) end at one minimum
+    model = parse_model("variable_viscosity")
+    trials = step_trials("variable_viscosity", PAPER, PAPER_THRUSTS, 0.03, rng)
+    one = match_trials(model, trials, start={"m_a": 14.0, "T_a": 0.25})
+    many = match_trials(model, trials, start={"m_a": 14.0, "T_a": 0.25}, n_starts=4, seed=3)
+    assert many.success, many.message
+    assert many.nfev > one.nfev
+    for name, est in one.parameters.items():
+        assert abs(est.value - many.parameters[name].value) <= 0.05 * est.stderr, name

@@ -259,9 +259,10 @@ class _Problem:
         """
         key = np.asarray(x, dtype=float).tobytes()
         k = len(self.free)
-        if key != self._key or self._best is None or self._best[1] != key:
+        if key != self._key or key == self._last_key:
             return None
-        if self.n_samples <= k or key == self._last_key:
+        self.gn_step = None
+        if self.n_samples <= k:
             return None
         with np.errstate(all="ignore"):
             try:
@@ -277,6 +278,8 @@ class _Problem:
         new = x + step
         if not (np.isfinite(q) and np.all(new > lo) and np.all(new < hi)):
             return None
+        if self._best is None or self._best[1] != key:
+            return None
         if q <= STOP_STEP:
             return np.zeros(k)
         if prev is not None and q <= 1.0 and q * q / prev <= STOP_LINEAR:
@@ -289,27 +292,21 @@ class _Problem:
         self._last_q = None
         self.gn_step = None
 
-    def best_x(self) -> np.ndarray | None:
-        """The free parameters of the lowest-cost evaluation so far."""
-        if self._best is None:
-            return None
-        return np.frombuffer(self._best[1], dtype=float).copy()
-
     def gauss_newton(
         self, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int
-    ) -> tuple[np.ndarray, np.ndarray] | None:
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """Plain Gauss-Newton steps from ``x0`` while they behave; the converged point.
 
         The common case of a fit costs no optimizer bookkeeping: each full step is taken
         while it stays strictly inside the bounds and lowers the cost, until
         :meth:`converged` stops it. Returns ``(x, last_step)`` as :meth:`converged` gives
-        them, or None as soon as a step misbehaves (out of bounds, cost up, not finite,
-        singular), when the caller goes on with a trust-region method from
-        :meth:`best_x`.
+        them, or ``(x, None)`` with the last point reached as soon as a step misbehaves
+        (out of bounds, cost up, not finite, singular, the budget spent): the caller goes
+        on from there with a trust-region method.
         """
         x = np.asarray(x0, dtype=float)
         if not (np.all(x > lo) and np.all(x < hi)):
-            return None
+            return x, None
         self.restart()
         self.fun(x)
         cost = _sumsq(self._fun)
@@ -319,14 +316,14 @@ class _Problem:
                 return x, last
             step = self.gn_step
             if step is None or self.nfev >= max_nfev or self._key != x.tobytes():
-                return None
+                return x, None
             new = x + step
             if not (np.all(np.isfinite(new)) and np.all(new > lo) and np.all(new < hi)):
-                return None
+                return x, None
             self.fun(new)
             new_cost = _sumsq(self._fun)
             if not (self.finite and new_cost < cost):
-                return None
+                return x, None
             x, cost = new, new_cost
 
     def linear_step(self, x: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -456,16 +453,14 @@ def match_trials(
         best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
     for x0 in starts if free else []:
         used = problem.nfev
-        quick = None if diff_step is not None else problem.gauss_newton(x0, lo, hi, max_nfev)
-        if quick is not None:
-            x_end, last = quick
-            r, jac = problem.linear_step(x_end, last)
-            outcome = _Outcome(x_end + last, r, jac, True, CONVERGED, problem.nfev - used)
-            if best is None or outcome.chisqr < best.chisqr:
-                best = outcome
-            continue
         if diff_step is None:
-            x0 = problem.best_x() if problem.nfev > used else x0
+            x0, last = problem.gauss_newton(x0, lo, hi, max_nfev)
+            if last is not None:
+                r, jac = problem.linear_step(x0, last)
+                outcome = _Outcome(x0 + last, r, jac, True, CONVERGED, problem.nfev - used)
+                if best is None or outcome.chisqr < best.chisqr:
+                    best = outcome
+                continue
         problem.restart()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
