@@ -145,3 +145,19 @@ def test_extra_starts_find_the_same_optimum(rng):
     assert many.nfev > one.nfev
     for name, est in one.parameters.items():
         assert abs(est.value - many.parameters[name].value) <= 0.05 * est.stderr, name
+
+
+def test_a_multi_start_fit_tells_each_start(rng):
+    # issue 11: `fit --starts 3` says which start it is on (the CLI's spinner listens)
+    from balancer_id.status import listening
+
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0}
+    told: list[str] = []
+    with listening(told.append):
+        match_trials(
+            parse_model("viscous"),
+            step_trials("viscous", truth, [2.45, -4.9], 0.03, rng),
+            start={"m_a": 14.0, "T_a": 0.3},
+            n_starts=3,
+        )
+    assert told == ["start 1/3", "start 2/3", "start 3/3"]

@@ -13,6 +13,7 @@ from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import error_metrics
 from balancer_id.model.spec import Model
+from balancer_id.status import tell
 
 
 @dataclass
@@ -451,7 +452,9 @@ def match_trials(
     if not free:
         r = problem.residual(base[free])
         best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
-    for x0 in starts if free else []:
+    for k, x0 in enumerate(starts if free else [], 1):
+        if len(starts) > 1:
+            tell(f"start {k}/{len(starts)}")
         used = problem.nfev
         if diff_step is None:
             x0, last = problem.gauss_newton(x0, lo, hi, max_nfev)
