@@ -10,10 +10,11 @@ standard error over the observed spread.
 Speed (issue 12 targets), each also as a ratio to the script a user would otherwise write
 (solve_ivp inside lmfit, ``benchmarks/baseline_solve_ivp.py``) in the same run: the core
 fit of one 6-trial log (median over seeds, wall and CPU time; target <= 10 ms) against the
-script's core fit of the same trials, and the whole ``fit --no-cache`` command against the
-whole script (median of ``--runs`` alternating runs; target >= 10x).
+script's core fit of the same trials (``--pairs`` alternating pairs, median ratio, wall and
+CPU), and the whole ``fit --no-cache`` command against the whole script (median of
+``--runs`` alternating runs; target >= 10x).
 
-Run: ``python benchmarks/bench_fit.py [--seeds N] [--runs N] [--no-baseline]``.
+Run: ``python benchmarks/bench_fit.py [--seeds N] [--pairs N] [--runs N] [--no-baseline]``.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=50)
     parser.add_argument("--runs", type=int, default=3, help="runs of each whole command (0: none)")
+    parser.add_argument("--pairs", type=int, default=3, help="script/core fit pairs for the ratio")
     parser.add_argument("--no-baseline", action="store_true")
     args = parser.parse_args()
     model = parse_model("variable_viscosity")
@@ -77,6 +79,7 @@ def main() -> None:
     bound = {n: [] for n in model.param_names}
     core_times = []
     core_cpu = []
+    nfev = []
     for seed in range(args.seeds):
         trials = make_trials(model, seed)
         if len(trials) != 6:
@@ -87,6 +90,7 @@ def main() -> None:
         res = match_trials(model, trials, start=start)
         core_times.append(time.perf_counter() - t0)
         core_cpu.append(time.process_time() - c0)
+        nfev.append(res.nfev)
         for n, p in res.parameters.items():
             est[n].append(p.value)
             err[n].append(p.stderr if p.stderr is not None else np.nan)
@@ -112,7 +116,8 @@ def main() -> None:
     cpu = float(np.median(core_cpu[1:] if len(core_cpu) > 1 else core_cpu))
     print(
         f"core fit of 6 trials, 4 parameters (median over seeds): {core * 1e3:.1f} ms wall, "
-        f"{cpu * 1e3:.1f} ms CPU  (target <= 10 ms)"
+        f"{cpu * 1e3:.1f} ms CPU, {np.median(nfev):.0f} simulations with sensitivities "
+        f"(median; {min(nfev)}-{max(nfev)})  (target <= 10 ms)"
     )
     if args.no_baseline:
         return
@@ -120,17 +125,27 @@ def main() -> None:
 
     trials = make_trials(model, 0)
     start = {"m_a": 15.0, "T_a": 0.3}
-    t0 = time.perf_counter()
-    fit_script(trials, start)
-    base = time.perf_counter() - t0
-    fast = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        match_trials(model, trials, start=start)
-        fast.append(time.perf_counter() - t0)
+    pairs = []  # (script wall, script CPU, ours wall, ours CPU), alternating
+    for _ in range(max(args.pairs, 1)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fit_script(trials, start)
+        base = (time.perf_counter() - t0, time.process_time() - c0)
+        fast = []
+        for _ in range(5):
+            t0, c0 = time.perf_counter(), time.process_time()
+            match_trials(model, trials, start=start)
+            fast.append((time.perf_counter() - t0, time.process_time() - c0))
+        ours = np.median(np.asarray(fast), axis=0)
+        pairs.append((*base, *ours))
+    arr = np.asarray(pairs)
+    wall_ratio = arr[:, 0] / arr[:, 2]
+    cpu_ratio = arr[:, 1] / arr[:, 3]
     print(
-        f"script's core fit (solve_ivp inside lmfit), same trials: {base:.2f} s; "
-        f"ratio {base / np.median(fast):.0f}x"
+        f"script's core fit (solve_ivp inside lmfit), same trials: {np.median(arr[:, 0]):.2f} s "
+        f"wall, {np.median(arr[:, 1]):.2f} s CPU; ours {np.median(arr[:, 2]) * 1e3:.1f} ms wall, "
+        f"{np.median(arr[:, 3]) * 1e3:.1f} ms CPU; ratio {np.median(wall_ratio):.0f}x wall, "
+        f"{np.median(cpu_ratio):.0f}x CPU (median of {len(pairs)} pairs: "
+        f"{', '.join(f'{r:.0f}' for r in wall_ratio)})"
     )
     if args.runs < 1:
         return

@@ -366,6 +366,16 @@ def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:
     )
 
 
+def _percentiles(x: np.ndarray, qs: Sequence[float]) -> list[float]:
+    """``np.percentile(x, qs)`` (linear interpolation) of a 1-D array without its overhead."""
+    pos = [q / 100.0 * (x.size - 1) for q in qs]
+    ends = [(int(p), min(int(p) + 1, x.size - 1)) for p in pos]
+    xs = np.partition(x, sorted({i for pair in ends for i in pair}))
+    return [
+        float(xs[lo] + (xs[hi] - xs[lo]) * (p - lo)) for p, (lo, hi) in zip(pos, ends, strict=True)
+    ]
+
+
 def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[float]:
     """Distinct thrust magnitudes (N), merging those within ``rel_tol`` of each other.
 
@@ -394,7 +404,7 @@ def thrust_levels(trials: Sequence[TrialData], rel_tol: float = 0.1) -> list[flo
             u = np.abs(t.input.thrust.at(t.time))
             big = u[u >= 0.25 * u.max()] if u.size and u.max() > 0 else u[:0]
             if big.size:
-                found += [float(q) for q in np.percentile(big, [20, 80])]
+                found += _percentiles(big, (20.0, 80.0))
     levels: list[float] = []
     for f in sorted(found):
         if not levels or f > levels[-1] * (1 + rel_tol):

@@ -108,8 +108,9 @@ def _parameter_table(result: FitResult) -> Table:
     return Table(
         ["parameter", "meaning", "value", "std. error", "95 % interval", "unit", "note"],
         rows,
-        "Identified by simulation matching over all trials at once (bounded least squares, "
-        "scipy's trust-region reflective with the simulated sensitivities as Jacobian). "
+        "Identified by simulation matching over all trials at once (bounded least squares: "
+        "Gauss-Newton steps with the simulated sensitivities as Jacobian, scipy's "
+        "trust-region reflective method where a step misbehaves). "
         "The interval is value ± 1.96 standard errors (Wald) or, where that would cross "
         "a parameter's bounds, the profile-likelihood interval (marked 'profile': the "
         "other parameters refitted at each trial value).",
