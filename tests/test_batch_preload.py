@@ -11,14 +11,16 @@ from balancer_id.model import parse_model
 from balancer_id.simulation import kernel
 
 
-def _loaded_in_worker(_: int) -> tuple[bool, bool]:
-    """In a pool worker: is the default model's kernel loaded, the fit imported?"""
+def _loaded_in_worker(_: int) -> tuple[bool, bool, bool]:
+    """In a pool worker: is the default model's kernel loaded, the fit imported, gc on?"""
+    import gc
     import sys
 
     from balancer_id.simulation import kernel as k
 
     mdl = parse_model("variable_viscosity")
-    return (mdl.effects, mdl.param_names) in k._KERNELS, "balancer_id.identify.api" in sys.modules
+    loaded = (mdl.effects, mdl.param_names) in k._KERNELS
+    return loaded, "balancer_id.identify.api" in sys.modules, gc.isenabled()
 
 
 def test_preload_loads_the_models_and_skips_what_it_cannot(monkeypatch) -> None:
@@ -71,4 +73,4 @@ def test_workers_are_forked_with_the_kernel_loaded(tmp_path) -> None:
         [sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120
     )
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["True", "True"]
+    assert done.stdout.split() == ["True", "True", "True"]

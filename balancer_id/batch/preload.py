@@ -86,6 +86,9 @@ def _from_environment() -> None:
     if not isinstance(asked, dict):
         asked = {}
     specs = asked.get("models")
+    import gc
+
+    gc.disable()  # imports make only long-lived objects: collecting them is wasted (~10 %)
     try:
         preload(
             [s for s in specs if isinstance(s, str)] if isinstance(specs, list) else [],
@@ -94,9 +97,9 @@ def _from_environment() -> None:
         )
     except Exception:  # the workers import and load what is missing themselves
         pass
-    import gc
-
-    gc.freeze()  # what is loaded now stays shared with the forked workers (copy-on-write)
+    finally:
+        gc.enable()  # the workers inherit it on
+        gc.freeze()  # what is loaded stays shared with the forked workers (copy-on-write)
 
 
 _from_environment()
