@@ -175,10 +175,9 @@ def test_parallel_refits_equal_one_by_one_and_tell_each_candidate(monkeypatch):
 
     fit = fit_paper_model(trials_with("variable_viscosity+bias", {"b": 0.06}, seed=21))
     told: list[str] = []
-    monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 1)
     with listening(told.append):
-        serial = diagnose(fit)
-    monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 3)
+        serial = diagnose(fit, threads=1)
+    monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 3)  # the default, on 3 cores
     with listening(told.append):
         threaded = diagnose(fit)
     assert [(s.effect, s.delta_bic, s.rmse) for s in threaded.suggestions] == [

@@ -154,7 +154,7 @@ def _identify(
             if diagnose:
                 from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
 
-                found = diagnose_fit(result)
+                found = diagnose_fit(result, threads=1)  # the workers share the cores
                 data["diagnosis"] = {
                     "verdict": found.verdict,
                     "summary": found.summary,

@@ -260,7 +260,7 @@ class Diagnosis(Displayable):
         )
 
 
-def diagnose(fit: FitResult) -> Diagnosis:
+def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
     """Test the residual of a fit and rank the effects that could explain it.
 
     The fit's paper's method and per-trial fits are reused (the per-trial fits are
@@ -272,6 +272,9 @@ def diagnose(fit: FitResult) -> Diagnosis:
     fit : FitResult
         A fit over all trials, with what it was computed from (trials, fixed values,
         effect files, reference move: the suggested commands carry them all).
+    threads : int, optional
+        Candidates refitted at once; None uses :data:`REFIT_THREADS` (one per core).
+        A batch's workers pass 1: their processes already share the cores.
 
     Returns
     -------
@@ -323,7 +326,7 @@ def diagnose(fit: FitResult) -> Diagnosis:
     with_trajectory = fit.trial_set.trajectory is not None
     cands = candidates(match.model, with_trajectory=with_trajectory)
     for cand, sig, refit, sig_failure in _refit_candidates(
-        cands, ctx, trials, match, fixed, classic
+        cands, ctx, trials, match, fixed, classic, threads
     ):
         if sig_failure:
             failures.append(sig_failure)
@@ -368,6 +371,7 @@ def _refit_candidates(
     match: MatchResult,
     fixed: dict[str, float] | None,
     classic: ClassicResult | None,
+    threads: int | None = None,
 ) -> list[Refitted]:
     """Check each candidate's signature and refit it, candidates in parallel threads.
 
@@ -392,7 +396,7 @@ def _refit_candidates(
             failure = f"signature check of '{cand.effect.name}' failed: {exc!r}"
         return cand, sig, quick_refit(cand, trials, match, sig.start, fixed, classic), failure
 
-    threads = min(len(cands), REFIT_THREADS or os.cpu_count() or 1)
+    threads = min(len(cands), threads or REFIT_THREADS or os.cpu_count() or 1)
     if threads <= 1:
         done = []
         for k, cand in enumerate(cands, 1):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -440,8 +441,8 @@ def match_trials(
 
     stopped: list[np.ndarray] = []
 
-    def callback(intermediate_result: object) -> None:
-        x = np.asarray(intermediate_result.x, dtype=float)  # type: ignore[attr-defined]
+    def callback(intermediate_result: Any) -> None:
+        x = np.asarray(intermediate_result.x, dtype=float)
         last = problem.converged(x, lo, hi)
         if last is not None:
             stopped.append(x)
