@@ -34,7 +34,7 @@ from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "16"
+KERNEL_VERSION = "17"
 
 #: Columns of the kernel's output array. ``h`` is the operating force as the force sensor
 #: sees it: with the thrust undelayed (the dead time acts between sensor and drive).
@@ -67,103 +67,7 @@ def rhs(t, f, v, z, u, zr, vr, p):
     return df, a, h
 
 
-@jit(cache={cache})
-def rk4(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p):
-    zr = zr0 + szr * (t - tk)
-    vr = vr0 + svr * (t - tk)
-    k1f, k1v, _ = rhs(t, f, v, z, u, zr, vr, p)
-    k1z = v
-    th = t + 0.5 * dt
-    zr = zr0 + szr * (th - tk)
-    vr = vr0 + svr * (th - tk)
-    k2f, k2v, _ = rhs(th, f + 0.5 * dt * k1f, v + 0.5 * dt * k1v, z + 0.5 * dt * k1z, u, zr, vr, p)
-    k2z = v + 0.5 * dt * k1v
-    k3f, k3v, _ = rhs(th, f + 0.5 * dt * k2f, v + 0.5 * dt * k2v, z + 0.5 * dt * k2z, u, zr, vr, p)
-    k3z = v + 0.5 * dt * k2v
-    te = t + dt
-    zr = zr0 + szr * (te - tk)
-    vr = vr0 + svr * (te - tk)
-    k4f, k4v, _ = rhs(te, f + dt * k3f, v + dt * k3v, z + dt * k3z, u, zr, vr, p)
-    k4z = v + dt * k3v
-    f1 = f + dt / 6.0 * (k1f + 2.0 * k2f + 2.0 * k3f + k4f)
-    v1 = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-    z1 = z + dt / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
-    return f1, v1, z1, k1v
-
-
-@jit(cache={cache})
-def step(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p):
-    f1, v1, z1, a0 = rk4(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
-{event_lines}
-    return f1, v1, z1
-
-
-@jit(cache={cache})
-def simulate_trial(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0):
-    n = t_out.shape[0]
-    delay = {delay_expr}
-    nb = bt.shape[0]
-    f = f0
-    v = v0
-    z = z0
-    u = 0.0
-    k = 0
-    while k < nb and bt[k] + delay <= t_out[0]:
-        u = bu[k]
-        k += 1
-    u_now = 0.0
-    k_now = 0
-    for i in range(n):
-        t = t_out[i]
-        if i > 0:
-            t0 = t_out[i - 1]
-            hmax = (t - t0) / n_sub
-{ref_slopes}
-            tc = t0
-            while tc < t:
-                te = t
-                if k < nb and bt[k] + delay < t:
-                    te = bt[k] + delay
-                if te > tc:
-                    if tc == t0 and te == t:
-                        m = n_sub
-                        hh = hmax
-                    else:
-                        m = int(math.ceil((te - tc) / hmax - 1e-9))
-                        if m < 1:
-                            m = 1
-                        hh = (te - tc) / m
-                    for s in range(m):
-                        f, v, z = step(
-                            tc + s * hh, hh, f, v, z, u, zref[i - 1], vref[i - 1], szr, svr, t0, p
-                        )
-                tc = te
-                while k < nb and bt[k] + delay <= tc:
-                    u = bu[k]
-                    k += 1
-        df, a, h = rhs(t, f, v, z, u, zref[i], vref[i], p)
-        while k_now < nb and bt[k_now] <= t:
-            u_now = bu[k_now]
-            k_now += 1
-        out[i, 0] = {output_expr}
-        out[i, 1] = v
-        out[i, 2] = z
-        out[i, 3] = f
-        out[i, 4] = h - u + u_now
-
-
-@jit(cache={cache})
-def simulate_batch(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, x0_all, p, n_sub,
-                   out):
-    for j in range(offsets.shape[0] - 1):
-        a0 = offsets[j]
-        a1 = offsets[j + 1]
-        b0 = boffsets[j]
-        b1 = boffsets[j + 1]
-        simulate_trial(
-            t_all[a0:a1], bt_all[b0:b1], bu_all[b0:b1], zr_all[a0:a1], vr_all[a0:a1], p, n_sub,
-            out[a0:a1], x0_all[j, 0], x0_all[j, 1], x0_all[j, 2],
-        )
+{integrator}
 
 
 # ---- forward sensitivities: d state / d theta integrated with the same RK4 steps -------
@@ -203,8 +107,17 @@ def ddir(t, f, v, z, u, zr, vr, pp, sf, sv, sz, eps, df0, a0):
     return (df1 - df0) / eps, (a1 - a0) / eps
 
 
-@jit(cache={cache}, inline=True)
-def rk4s(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p, pp, cols, npar, S):
+{integrator_sens}
+"""
+
+#: The integrator, written once for both kernels: :func:`_variant` keeps a line marked
+#: ``S|`` only in the sensitivity kernel (``rk4s``, ``steps``, ``simulate_trial_sens``,
+#: ``simulate_batch_sens``), which carries the forward sensitivities ``S`` (3 x columns)
+#: through the same RK4 steps, breakpoints, friction events and speed limit as the state.
+#: The names and extra arguments that differ are the fields of :data:`_VARIANTS`.
+_INTEGRATOR = """\
+@jit(cache={cache}{inline})
+def {rk4}(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p{rk_args}):
     zr1 = zr0 + szr * (t - tk)
     vr1 = vr0 + svr * (t - tk)
     k1f, k1v, _ = rhs(t, f, v, z, u, zr1, vr1, p)
@@ -230,67 +143,67 @@ def rk4s(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p, pp, cols, npar, S):
     z4 = z + dt * k3z
     k4f, k4v, _ = rhs(te, f4, v4, z4, u, zr4, vr4, p)
     k4z = v4
-    for c in range(cols.shape[0]):
-        k = cols[c]
-        eps = col_step(p, cols, npar, c)
-        if k < npar:
-            pp[k] = p[k] + eps
-        sf = S[0, c]
-        sv = S[1, c]
-        sz = S[2, c]
-        d1f, d1v = ddir(t, f, v, z, u, zr1, vr1, pp, sf, sv, sz, eps, k1f, k1v)
-        d1z = sv
-        d2f, d2v = ddir(th, f2, v2, z2, u, zr2, vr2, pp, sf + 0.5 * dt * d1f,
-                        sv + 0.5 * dt * d1v, sz + 0.5 * dt * d1z, eps, k2f, k2v)
-        d2z = sv + 0.5 * dt * d1v
-        d3f, d3v = ddir(th, f3, v3, z3, u, zr2, vr2, pp, sf + 0.5 * dt * d2f,
-                        sv + 0.5 * dt * d2v, sz + 0.5 * dt * d2z, eps, k3f, k3v)
-        d3z = sv + 0.5 * dt * d2v
-        d4f, d4v = ddir(te, f4, v4, z4, u, zr4, vr4, pp, sf + dt * d3f, sv + dt * d3v,
-                        sz + dt * d3z, eps, k4f, k4v)
-        d4z = sv + dt * d3v
-        if k < npar:
-            pp[k] = p[k]
-        S[0, c] = sf + dt / 6.0 * (d1f + 2.0 * d2f + 2.0 * d3f + d4f)
-        S[1, c] = sv + dt / 6.0 * (d1v + 2.0 * d2v + 2.0 * d3v + d4v)
-        S[2, c] = sz + dt / 6.0 * (d1z + 2.0 * d2z + 2.0 * d3z + d4z)
+S|    for c in range(cols.shape[0]):
+S|        k = cols[c]
+S|        eps = col_step(p, cols, npar, c)
+S|        if k < npar:
+S|            pp[k] = p[k] + eps
+S|        sf = S[0, c]
+S|        sv = S[1, c]
+S|        sz = S[2, c]
+S|        d1f, d1v = ddir(t, f, v, z, u, zr1, vr1, pp, sf, sv, sz, eps, k1f, k1v)
+S|        d1z = sv
+S|        d2f, d2v = ddir(th, f2, v2, z2, u, zr2, vr2, pp, sf + 0.5 * dt * d1f,
+S|                        sv + 0.5 * dt * d1v, sz + 0.5 * dt * d1z, eps, k2f, k2v)
+S|        d2z = sv + 0.5 * dt * d1v
+S|        d3f, d3v = ddir(th, f3, v3, z3, u, zr2, vr2, pp, sf + 0.5 * dt * d2f,
+S|                        sv + 0.5 * dt * d2v, sz + 0.5 * dt * d2z, eps, k3f, k3v)
+S|        d3z = sv + 0.5 * dt * d2v
+S|        d4f, d4v = ddir(te, f4, v4, z4, u, zr4, vr4, pp, sf + dt * d3f, sv + dt * d3v,
+S|                        sz + dt * d3z, eps, k4f, k4v)
+S|        d4z = sv + dt * d3v
+S|        if k < npar:
+S|            pp[k] = p[k]
+S|        S[0, c] = sf + dt / 6.0 * (d1f + 2.0 * d2f + 2.0 * d3f + d4f)
+S|        S[1, c] = sv + dt / 6.0 * (d1v + 2.0 * d2v + 2.0 * d3v + d4v)
+S|        S[2, c] = sz + dt / 6.0 * (d1z + 2.0 * d2z + 2.0 * d3z + d4z)
     f1 = f + dt / 6.0 * (k1f + 2.0 * k2f + 2.0 * k3f + k4f)
     v1 = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
     z1 = z + dt / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
     return f1, v1, z1, k1v
 
 
-@jit(cache={cache}, inline=True)
-def steps(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p, pp, cols, npar, S, S0, dvm):
-    nc = cols.shape[0]
+@jit(cache={cache}{inline})
+def {step}(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p{step_args}):
+S|    nc = cols.shape[0]
 {save_sens}
-    f1, v1, z1, a0 = rk4s(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p, pp, cols, npar, S)
-{event_lines_sens}
+    f1, v1, z1, a0 = {rk4}(t, dt, f, v, z, u, zr0, vr0, szr, svr, tk, p{rk_args})
+{event_lines}
     return f1, v1, z1
 
 
 @jit(cache={cache})
-def simulate_trial_sens(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0, cols, sens):
+def {trial}(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0{trial_args}):
     n = t_out.shape[0]
-    npar = p.shape[0]
-    nc = cols.shape[0]
-    pp = p.copy()
-    S = np.zeros((3, nc))
-    S0 = np.zeros((3, nc))
-    ddelay = np.zeros(nc)
-    dvm = np.zeros(nc)
-    delay = delay_of(p)
-    vm0 = vmax_of(p)
-    for c in range(nc):
-        k = cols[c]
-        if k < npar:
-            eps = col_step(p, cols, npar, c)
-            pp[k] = p[k] + eps
-            ddelay[c] = (delay_of(pp) - delay) / eps
-            dvm[c] = (vmax_of(pp) - vm0) / eps
-            pp[k] = p[k]
-        else:
-            S[k - npar, c] = 1.0
+    delay = {delay_expr}
+S|    npar = p.shape[0]
+S|    nc = cols.shape[0]
+S|    pp = p.copy()
+S|    S = np.zeros((3, nc))
+S|    S0 = np.zeros((3, nc))
+S|    ddelay = np.zeros(nc)
+S|    dvm = np.zeros(nc)
+S|    vm0 = vmax_of(p)
+S|    for c in range(nc):
+S|        k = cols[c]
+S|        if k < npar:
+S|            eps = col_step(p, cols, npar, c)
+S|            pp[k] = p[k] + eps
+S|            ddelay[c] = (delay_of(pp) - delay) / eps
+S|            dvm[c] = (vmax_of(pp) - vm0) / eps
+S|            pp[k] = p[k]
+S|        else:
+S|            S[k - npar, c] = 1.0
     nb = bt.shape[0]
     f = f0
     v = v0
@@ -323,35 +236,35 @@ def simulate_trial_sens(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0, co
                             m = 1
                         hh = (te - tc) / m
                     for s in range(m):
-                        f, v, z = steps(
+                        f, v, z = {step}(
                             tc + s * hh, hh, f, v, z, u, zref[i - 1], vref[i - 1], szr, svr, t0,
-                            p, pp, cols, npar, S, S0, dvm
+                            p{step_args}
                         )
                 tc = te
                 if k < nb and bt[k] + delay <= tc:
-                    zr = zref[i - 1] + szr * (tc - t0)
-                    vr = vref[i - 1] + svr * (tc - t0)
-                    dfa, aa, _ = rhs(tc, f, v, z, u, zr, vr, p)
+S|                    zr = zref[i - 1] + szr * (tc - t0)
+S|                    vr = vref[i - 1] + svr * (tc - t0)
+S|                    dfa, aa, _ = rhs(tc, f, v, z, u, zr, vr, p)
                     while k < nb and bt[k] + delay <= tc:
                         u = bu[k]
                         k += 1
-                    dfb, ab, _ = rhs(tc, f, v, z, u, zr, vr, p)
-                    for c in range(nc):
-                        if ddelay[c] != 0.0:
-                            S[0, c] += (dfa - dfb) * ddelay[c]
-                            S[1, c] += (aa - ab) * ddelay[c]
+S|                    dfb, ab, _ = rhs(tc, f, v, z, u, zr, vr, p)
+S|                    for c in range(nc):
+S|                        if ddelay[c] != 0.0:
+S|                            S[0, c] += (dfa - dfb) * ddelay[c]
+S|                            S[1, c] += (aa - ab) * ddelay[c]
         df, a, h = rhs(t, f, v, z, u, zref[i], vref[i], p)
         y0 = {output_expr}
-        for c in range(nc):
-            kc = cols[c]
-            eps = col_step(p, cols, npar, c)
-            if kc < npar:
-                pp[kc] = p[kc] + eps
-            y1 = obs(t, f + eps * S[0, c], v + eps * S[1, c], z + eps * S[2, c], u, zref[i],
-                     vref[i], pp)
-            if kc < npar:
-                pp[kc] = p[kc]
-            sens[i, c] = (y1 - y0) / eps
+S|        for c in range(nc):
+S|            kc = cols[c]
+S|            eps = col_step(p, cols, npar, c)
+S|            if kc < npar:
+S|                pp[kc] = p[kc] + eps
+S|            y1 = obs(t, f + eps * S[0, c], v + eps * S[1, c], z + eps * S[2, c], u, zref[i],
+S|                     vref[i], pp)
+S|            if kc < npar:
+S|                pp[kc] = p[kc]
+S|            sens[i, c] = (y1 - y0) / eps
         while k_now < nb and bt[k_now] <= t:
             u_now = bu[k_now]
             k_now += 1
@@ -363,19 +276,65 @@ def simulate_trial_sens(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0, co
 
 
 @jit(cache={cache})
-def simulate_batch_sens(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, x0_all, p,
-                        n_sub, cols, out, sens):
+def {batch}(t_all, offsets, bt_all, bu_all, boffsets, zr_all, vr_all, x0_all, p, n_sub,
+            {batch_args}):
     for j in range(offsets.shape[0] - 1):
         a0 = offsets[j]
         a1 = offsets[j + 1]
         b0 = boffsets[j]
         b1 = boffsets[j + 1]
-        simulate_trial_sens(
+        {trial}(
             t_all[a0:a1], bt_all[b0:b1], bu_all[b0:b1], zr_all[a0:a1], vr_all[a0:a1], p, n_sub,
-            out[a0:a1], x0_all[j, 0], x0_all[j, 1], x0_all[j, 2], cols, sens[a0:a1],
-        )
-"""
+            out[a0:a1], x0_all[j, 0], x0_all[j, 1], x0_all[j, 2],{trial_call_args}
+        )"""
 
+#: The fields of :data:`_INTEGRATOR` (and of the step events) for the state kernel
+#: (``False``) and the sensitivity kernel (``True``). The state kernel's steps are called,
+#: the sensitivity kernel's inlined (no reference counting of ``S`` and friends).
+_VARIANTS: dict[bool, dict[str, str]] = {
+    False: {
+        "inline": "",
+        "rk4": "rk4",
+        "step": "step",
+        "trial": "simulate_trial",
+        "batch": "simulate_batch",
+        "rk_args": "",
+        "step_args": "",
+        "trial_args": "",
+        "batch_args": "out",
+        "trial_call_args": "",
+    },
+    True: {
+        "inline": ", inline=True",
+        "rk4": "rk4s",
+        "step": "steps",
+        "trial": "simulate_trial_sens",
+        "batch": "simulate_batch_sens",
+        "rk_args": ", pp, cols, npar, S",
+        "step_args": ", pp, cols, npar, S, S0, dvm",
+        "trial_args": ", cols, sens",
+        "batch_args": "cols, out, sens",
+        "trial_call_args": " cols, sens[a0:a1],",
+    },
+}
+
+
+def _variant(text: str, sens: bool) -> str:
+    """``text`` for the state kernel (lines marked ``S|`` dropped) or the sensitivities."""
+    lines = []
+    for line in text.splitlines():
+        if line.startswith("S|"):
+            if sens:
+                lines.append(line[2:])
+        else:
+            lines.append(line)
+    return "\n".join(lines)
+
+
+#: Where the velocity changes sign under friction, the step is redone to the (linearly
+#: located) zero crossing and the rest of it integrated from ``v = 0``. The sensitivities
+#: (``S|`` lines) jump at the event by ``(rhs_before - rhs_after) * d t_event / d theta``
+#: with ``d t_event / d theta = -S_v / a_before`` (so a load that sticks has ``S_v = 0``).
 _FRICTION_EVENT = """\
     if v != 0.0:
         v_euler = v + dt * a0
@@ -384,48 +343,29 @@ _FRICTION_EVENT = """\
         v_cross = 0.0
     if v != 0.0 and v * v_cross < 0.0:
         theta = v / (v - v_cross)
-        fa, va, za, _ = rk4(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p)
-        f1, v1, z1, _ = rk4(t + theta * dt, (1.0 - theta) * dt, fa, 0.0, za, u, zr0, vr0, szr, svr,
-                         tk, p)
-        if v1 * v > 0.0:
-            v1 = 0.0"""
-
-#: The friction event of :data:`_FRICTION_EVENT` for the sensitivities: the step is
-#: redone to the (linearly located) zero crossing, the sensitivities jump by
-#: ``(rhs_before - rhs_after) * d t_event / d theta`` with
-#: ``d t_event / d theta = -S_v / a_before`` (so a load that sticks has ``S_v = 0``), and
-#: the rest of the step is integrated from ``v = 0``.
-_FRICTION_EVENT_SENS = """\
-    if v != 0.0:
-        v_euler = v + dt * a0
-        v_cross = v1 if v * v1 < 0.0 else v_euler
-    else:
-        v_cross = 0.0
-    if v != 0.0 and v * v_cross < 0.0:
-        theta = v / (v - v_cross)
-        for r in range(3):
-            for c in range(nc):
-                S[r, c] = S0[r, c]
-        fa, va, za, _ = rk4s(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p, pp, cols,
-                             npar, S)
+S|        for r in range(3):
+S|            for c in range(nc):
+S|                S[r, c] = S0[r, c]
+        fa, va, za, _ = {rk4}(t, theta * dt, f, v, z, u, zr0, vr0, szr, svr, tk, p{rk_args})
         ta = t + theta * dt
-        zra = zr0 + szr * (ta - tk)
-        vra = vr0 + svr * (ta - tk)
-        am = (va - v) / (theta * dt)
-        dfm, _, _ = rhs(ta, fa, va, za, u, zra, vra, p)
-        dfp, ap, _ = rhs(ta, fa, 0.0, za, u, zra, vra, p)
-        if am != 0.0:
-            for c in range(nc):
-                dte = -S[1, c] / am
-                S[0, c] += (dfm - dfp) * dte
-                S[1, c] += (am - ap) * dte
-                S[2, c] += va * dte
-        f1, v1, z1, _ = rk4s(ta, (1.0 - theta) * dt, fa, 0.0, za, u, zr0, vr0, szr, svr, tk, p,
-                             pp, cols, npar, S)
+S|        zra = zr0 + szr * (ta - tk)
+S|        vra = vr0 + svr * (ta - tk)
+S|        am = (va - v) / (theta * dt)
+S|        dfm, _, _ = rhs(ta, fa, va, za, u, zra, vra, p)
+S|        dfp, ap, _ = rhs(ta, fa, 0.0, za, u, zra, vra, p)
+S|        if am != 0.0:
+S|            for c in range(nc):
+S|                dte = -S[1, c] / am
+S|                S[0, c] += (dfm - dfp) * dte
+S|                S[1, c] += (am - ap) * dte
+S|                S[2, c] += va * dte
+        f1, v1, z1, _ = {rk4}(
+            ta, (1.0 - theta) * dt, fa, 0.0, za, u, zr0, vr0, szr, svr, tk, p{rk_args}
+        )
         if v1 * v > 0.0:
             v1 = 0.0
-            for c in range(nc):
-                S[1, c] = 0.0"""
+S|            for c in range(nc):
+S|                S[1, c] = 0.0"""
 
 #: Time constant (s) with which the drive closes on its speed limit. While the net force
 #: pushes outward, with ``x = (v_max - |v|) / (2 |a| tau)`` the acceleration ``a`` becomes
@@ -438,14 +378,9 @@ SPEED_LIMIT_TAU = 0.02
 _LIMIT_CLAMP = """\
     vm = {vmax_expr}
     if abs(v1) > vm:
-        v1 = vm if v1 > 0.0 else -vm"""
-
-_LIMIT_CLAMP_SENS = """\
-    vm = {vmax_expr}
-    if abs(v1) > vm:
         v1 = vm if v1 > 0.0 else -vm
-        for c in range(nc):
-            S[1, c] = dvm[c] if v1 > 0.0 else -dvm[c]"""
+S|        for c in range(nc):
+S|            S[1, c] = dvm[c] if v1 > 0.0 else -dvm[c]"""
 
 #: Step of the kernel's internal forward differences of the right-hand side, relative to
 #: ``max(|theta|, 1)`` (the square root of the machine epsilon).
@@ -548,7 +483,6 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
     friction_line = ""
     limit_lines = ""
     event_lines: list[str] = []
-    event_lines_sens: list[str] = []
     vmax_of_expr = "0.0"
     delay_expr = "0.0"
     output_expr = "a"
@@ -570,7 +504,6 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
         if "friction" in hooks:
             friction_line = f"    F += {alias}_friction(v, F{a})"
             event_lines.append(_FRICTION_EVENT)
-            event_lines_sens.append(_FRICTION_EVENT_SENS)
         if "speed_limit" in hooks:
             vmax = f"{alias}_speed_limit({a[2:]})"
             limit_lines = (
@@ -585,8 +518,7 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
                 "                x = gap / band\n"
                 "                a = a * x * (2.0 - x)"
             )
-            event_lines.append(_LIMIT_CLAMP.format(vmax_expr=vmax))
-            event_lines_sens.append(_LIMIT_CLAMP_SENS.format(vmax_expr=vmax))
+            event_lines.append(_LIMIT_CLAMP)
             vmax_of_expr = vmax
         if "input_delay" in hooks:
             delay_expr = f"{alias}_input_delay({a[2:]})"
@@ -594,9 +526,38 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
             output_expr = f"{alias}_output({output_expr}, v, z{a})"
     if not t_line:
         raise ValueError(f"model '{model.spec}' replaces T_a but no effect sets the time constant")
+    fields: dict[str, Any] = {
+        "cache": "True" if cache else "False",
+        "delay_expr": delay_expr,
+        "output_expr": output_expr,
+        "ref_slopes": (
+            "            szr = (zref[i] - zref[i - 1]) / (t - t0)\n"
+            "            svr = (vref[i] - vref[i - 1]) / (t - t0)"
+            if h_line
+            else "            szr = 0.0\n            svr = 0.0"
+        ),
+    }
+    integrators = {}
+    for sens, names in _VARIANTS.items():
+        events = "\n".join(
+            _variant(e, sens).format(vmax_expr=vmax_of_expr, **names) for e in event_lines
+        )
+        save = sens and bool(friction_line)  # the step's start, for a friction event
+        integrators[sens] = _variant(_INTEGRATOR, sens).format(
+            **fields,
+            **names,
+            event_lines=events,
+            save_sens=(
+                "    for r in range(3):\n"
+                "        for c in range(nc):\n"
+                "            S0[r, c] = S[r, c]"
+                if save
+                else ""
+            ),
+        )
     source = _TEMPLATE.format(
+        **fields,
         spec=model.spec,
-        cache="True" if cache else "False",
         imports="\n".join(imports),
         hook_defs="\n".join(hook_defs),
         h_line=h_line,
@@ -605,23 +566,10 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
         friction_line=friction_line,
         i_m=index["m_a"],
         limit_lines=limit_lines,
-        event_lines="\n".join(event_lines),
-        event_lines_sens="\n".join(event_lines_sens),
-        save_sens=(
-            "    for r in range(3):\n        for c in range(nc):\n            S0[r, c] = S[r, c]"
-            if friction_line
-            else ""
-        ),
         vmax_of_expr=vmax_of_expr,
         rel_step=REL_STEP,
-        delay_expr=delay_expr,
-        output_expr=output_expr,
-        ref_slopes=(
-            "            szr = (zref[i] - zref[i - 1]) / (t - t0)\n"
-            "            svr = (vref[i] - vref[i - 1]) / (t - t0)"
-            if h_line
-            else "            szr = 0.0\n            svr = 0.0"
-        ),
+        integrator=integrators[False],
+        integrator_sens=integrators[True],
     )
     return source, aliases
 
