@@ -161,3 +161,13 @@ def test_a_multi_start_fit_tells_each_start(rng):
             n_starts=3,
         )
     assert told == ["start 1/3", "start 2/3", "start 3/3"]
+
+
+def test_coupling_uses_the_drive_lag_it_is_given_and_never_invents_one():
+    from balancer_id.identify.coupling import coupling_of
+
+    base = {"m_a": 15.0, "D0": 6.0, "k_r": 150.0, "c_r": 100.0}
+    split = coupling_of({**base, "T_up": 0.3, "T_down": 0.4})
+    assert split.terms == coupling(15.0, 0.35, 6.0, 150.0, 100.0).terms  # their mean
+    with pytest.raises(ValueError, match="drive lag"):
+        coupling_of(base)

@@ -58,7 +58,7 @@ def request_key(
     """
     from balancer_id.cache import result_key
 
-    request = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
+    request: dict[str, Any] = {"model": spec, "fixed": dict(fixed or {}), "options": repr(options)}
     if trajectory is not None:
         request["trajectory"] = _trajectory_digest(trajectory)
     if diagnose:

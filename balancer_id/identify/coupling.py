@@ -136,16 +136,24 @@ def coupling_of(values: Mapping[str, float]) -> Coupling:
     Parameters
     ----------
     values : mapping of str to float
-        Parameter values by MODEL.md name; must hold ``m_a``, ``k_r`` and ``c_r``.
+        Parameter values by MODEL.md name; must hold ``m_a``, ``k_r``, ``c_r`` and the
+        drive lag (``T_a``, or ``T_up`` and ``T_down``).
 
     Returns
     -------
     Coupling
+
+    Raises
+    ------
+    ValueError
+        When the values hold no drive lag.
     """
     if "T_a" in values:
         lag = float(values["T_a"])
-    else:
-        lag = 0.5 * (float(values.get("T_up", 0.33)) + float(values.get("T_down", 0.33)))
+    elif "T_up" in values and "T_down" in values:
+        lag = 0.5 * (float(values["T_up"]) + float(values["T_down"]))
+    else:  # every model has a drive lag; a hand-made mapping may not
+        raise ValueError("the coupling needs the drive lag: T_a, or T_up and T_down")
     return coupling(
         float(values["m_a"]),
         lag,

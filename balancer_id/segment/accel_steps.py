@@ -236,7 +236,7 @@ def _changes_while_moving(
             # a departure from rest starts a motion; one while moving must be abrupt (else
             # it is the resting level following the slow decay) and not already found
             near = bool(out) and abs(k - out[-1].onset) <= 2 * half
-            if not moving or (abrupt(k) and not near):
+            if st is not None and (not moving or (abrupt(k) and not near)):
                 out.append(st)
                 moving = True
         else:
