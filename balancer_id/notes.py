@@ -123,7 +123,18 @@ class Note:
 
     @classmethod
     def from_dict(cls, data: dict) -> Note:
-        """Rebuild a note from :meth:`to_dict`'s output."""
+        """Rebuild a note from :meth:`to_dict`'s output.
+
+        Parameters
+        ----------
+        data : dict
+            ``{"code", "text"}`` and optionally ``"subject"``, ``"severity"``.
+
+        Returns
+        -------
+        Note
+            The note.
+        """
         return cls(
             code=str(data["code"]),
             text=str(data["text"]),
@@ -133,14 +144,42 @@ class Note:
 
 
 def as_note(item: Note | str, default_code: str = "fit.other") -> Note:
-    """A note from a note or a plain string (a string gets ``default_code``)."""
+    """A note from a note or a plain string.
+
+    Parameters
+    ----------
+    item : Note or str
+        A note (returned as is) or a sentence.
+    default_code : str
+        The code a plain sentence gets.
+
+    Returns
+    -------
+    Note
+        The note.
+    """
     if isinstance(item, Note):
         return item
     return Note(default_code, " ".join(str(item).split()))
 
 
 def has_code(notes: Iterable[Note | str], code: str, subject: str | None = None) -> bool:
-    """Whether any note carries ``code`` (and ``subject``, when given)."""
+    """Whether any note carries ``code`` (and ``subject``, when given).
+
+    Parameters
+    ----------
+    notes : iterable of Note or str
+        Notes (plain strings carry no code and never match).
+    code : str
+        The code to look for.
+    subject : str, optional
+        Only a note about this subject matches.
+
+    Returns
+    -------
+    bool
+        True when one matches.
+    """
     for item in notes:
         if isinstance(item, Note) and item.code == code:
             if subject is None or item.subject == subject:
@@ -149,10 +188,34 @@ def has_code(notes: Iterable[Note | str], code: str, subject: str | None = None)
 
 
 def texts(notes: Iterable[Note | str]) -> list[str]:
-    """The notes' texts, in order (the JSON ``warnings`` list)."""
+    """The notes' texts, in order (the JSON ``warnings`` list).
+
+    Parameters
+    ----------
+    notes : iterable of Note or str
+        Notes or sentences.
+
+    Returns
+    -------
+    list of str
+        Their texts.
+    """
     return [str(n) for n in notes]
 
 
 def notes_json(notes: Iterable[Note | str], default_code: str = "fit.other") -> list[dict]:
-    """The notes as JSON objects (the JSON ``notes`` list)."""
+    """The notes as JSON objects (the JSON ``notes`` list).
+
+    Parameters
+    ----------
+    notes : iterable of Note or str
+        Notes or sentences.
+    default_code : str
+        The code a plain sentence gets.
+
+    Returns
+    -------
+    list of dict
+        One :meth:`Note.to_dict` per note.
+    """
     return [as_note(n, default_code).to_dict() for n in notes]

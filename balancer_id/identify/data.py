@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import median_filter
@@ -45,9 +46,10 @@ class TrialData:
     continues : bool
         The simulation continues from the end of the previous trial of the same run (a
         session): its state at ``input.time[0]`` is where the model left the previous one.
-    lead_in : TrialInput or None
-        For a trial that ``continues``: the session from its start up to this trial, so
-        that the trial can be simulated without the previous trials in the same fit.
+    previous : TrialData or None
+        For a trial that ``continues``: the trial of the session it continues. The
+        session before it (:attr:`lead_in`) is built from this chain only when asked for,
+        so a long session holds each sample once.
     decimation : Decimation or None
         How the trial was decimated for fitting (None: fitted at the log's own rate).
     """
@@ -60,8 +62,24 @@ class TrialData:
     accel: np.ndarray
     source: str = ""
     continues: bool = False
-    lead_in: TrialInput | None = None
+    previous: TrialData | None = field(default=None, repr=False)
     decimation: Decimation | None = None
+
+    @property
+    def lead_in(self) -> TrialInput | None:
+        """The session from its start up to this trial (None unless it ``continues``).
+
+        Lets a continuing trial be simulated without the previous trials in the same fit.
+        Built on each call from the chain of :attr:`previous` trials.
+        """
+        if not self.continues or self.previous is None:
+            return None
+        chain: list[TrialInput] = []
+        trial: TrialData | None = self.previous
+        while trial is not None:
+            chain.append(trial.input)
+            trial = trial.previous if trial.continues else None
+        return join_inputs(chain[::-1])
 
     @property
     def time(self) -> np.ndarray:
@@ -177,7 +195,6 @@ def from_trials(
         When a trial has (almost) no acceleration samples.
     """
     out: list[TrialData] = []
-    history: TrialInput | None = None
     prev: Trial | None = None
     motion = _Motion()
     for trial in trials:
@@ -238,12 +255,7 @@ def from_trials(
         motion.add(time, accel, trial.t_step if not (continues or restart) else None)
         if tail.any():
             motion.add(np.asarray(trial.time, float)[tail], np.asarray(trial.accel, float)[tail])
-        lead_in = None
-        if continues:
-            assert history is not None
-            lead_in = history
         here = TrialInput(time, thrust, z_ref, v_ref, x0)
-        history = _join(lead_in, here) if continues else here
         out.append(
             TrialData(
                 index=trial.index if index is None else index,
@@ -254,7 +266,7 @@ def from_trials(
                 accel=accel,
                 source=f"{trial.source} [{trial.recording}]",
                 continues=bool(continues),
-                lead_in=lead_in,
+                previous=out[-1] if continues else None,
                 decimation=decimation if decimation.factor > 1 else None,
             )
         )
@@ -340,29 +352,39 @@ class _Motion:
         return (thrust, self.v, self.z)
 
 
-def _join(first: TrialInput | None, second: TrialInput) -> TrialInput:
-    """One continuous input: ``first`` then ``second`` (whose samples come later)."""
-    if first is None:
-        return second
-    t0 = second.time[0]
-    cut = np.searchsorted(first.thrust.times, t0)
-    thrust = Thrust(
-        np.concatenate([first.thrust.times[:cut], second.thrust.times]),
-        np.concatenate([first.thrust.values[:cut], second.thrust.values]),
-    )
-    refs = None
-    if first.z_ref is not None and second.z_ref is not None:
-        assert first.v_ref is not None and second.v_ref is not None
-        refs = (
-            np.concatenate([first.z_ref, second.z_ref]),
-            np.concatenate([first.v_ref, second.v_ref]),
-        )
+def join_inputs(inputs: Sequence[TrialInput]) -> TrialInput:
+    """One continuous input from consecutive ones (each one's samples come later).
+
+    Each input's thrust holds until the next input's first sample; the state starts at
+    the first input's ``x0``. The arrays are concatenated once (a long session joined
+    pairwise would copy its history once per trial).
+
+    Parameters
+    ----------
+    inputs : sequence of TrialInput
+        The inputs in time order (at least one).
+
+    Returns
+    -------
+    TrialInput
+        Their samples, thrust and references end to end.
+    """
+    if len(inputs) == 1:
+        return inputs[0]
+    times, values = [], []
+    for first, second in itertools.pairwise(inputs):
+        cut = np.searchsorted(first.thrust.times, second.time[0])
+        times.append(first.thrust.times[:cut])
+        values.append(first.thrust.values[:cut])
+    times.append(inputs[-1].thrust.times)
+    values.append(inputs[-1].thrust.values)
+    with_refs = all(i.z_ref is not None and i.v_ref is not None for i in inputs)
     return TrialInput(
-        np.concatenate([first.time, second.time]),
-        thrust,
-        None if refs is None else refs[0],
-        None if refs is None else refs[1],
-        first.x0,
+        np.concatenate([i.time for i in inputs]),
+        Thrust(np.concatenate(times), np.concatenate(values)),
+        np.concatenate([i.z_ref for i in inputs]) if with_refs else None,  # type: ignore[misc]
+        np.concatenate([i.v_ref for i in inputs]) if with_refs else None,  # type: ignore[misc]
+        inputs[0].x0,
     )
 
 
@@ -510,7 +532,7 @@ class FitData:
             through a session) and the measured accelerations concatenated (m/s^2).
         """
         trials = list(trials)
-        segments: list[TrialInput] = []
+        segments: list[list[TrialInput]] = []
         rows: list[np.ndarray] = []
         lead = False
         n = 0
@@ -518,21 +540,22 @@ class FitData:
             joined = (
                 td.continues
                 and i > 0
-                and td.lead_in is not None
+                and td.previous is not None
                 and trials[i - 1].source == td.source
-                and td.lead_in.time[-1] == trials[i - 1].time[-1]
+                and td.previous.time[-1] == trials[i - 1].time[-1]
             )
+            lead_in = None if joined else td.lead_in
             if joined:
-                segments[-1] = _join(segments[-1], td.input)
-            elif td.continues and td.lead_in is not None:
-                segments.append(_join(td.lead_in, td.input))
-                n += td.lead_in.time.size
+                segments[-1].append(td.input)
+            elif lead_in is not None:
+                segments.append([lead_in, td.input])
+                n += lead_in.time.size
                 lead = True
             else:
-                segments.append(td.input)
+                segments.append([td.input])
             rows.append(np.arange(n, n + td.time.size))
             n += td.time.size
-        inner = PackedTrials.pack(segments)
+        inner = PackedTrials.pack([join_inputs(parts) for parts in segments])
         sizes = np.array([td.time.size for td in trials], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         packed: PackedTrials | SessionPack = inner
