@@ -234,12 +234,16 @@ def _find_catch(
     first = k + n_samples(0.2, rate)
     if first >= stop:
         return None
+    # a catch is only used when it begins before the next onset; one that crosses more
+    # than 1 s after it cannot walk back that far, so the search ends there (a long run
+    # would otherwise be scanned to its end for every step)
+    end = min(stop, nxt + n_samples(1.0, rate))
     run = n_samples(0.02, rate)
     found: list[tuple[int, int]] = []
     pre_n = n_samples(settings.level_window_s, rate)
     # everything below is on the slice [k, stop): indices relative to k
     if ach is not None:
-        a = ach.smooth[k:stop]
+        a = ach.smooth[k:end]
         x = sign * (a - ach.level(k - pre_n, k))
         seg = x[n_samples(0.1, rate) : min(stop, nxt, k + n_samples(1.5, rate)) - k]
         plateau = max(float(np.percentile(seg, 90)), 0.0) if seg.size else 0.0
@@ -250,7 +254,7 @@ def _find_catch(
             found.append((k + _walk_back(x, c, first - k, ach.sigma, rate), k + c))
     if fch is not None and np.isfinite(st.size):
         ga = n_samples(settings.guard_after_s, rate)
-        y = fch.smooth[k:stop] - fch.level(k + ga, min(stop, k + ga + pre_n))
+        y = fch.smooth[k:end] - fch.level(k + ga, min(stop, k + ga + pre_n))
         c = _first_run(np.abs(y) > abs(st.size) + 4 * fch.sigma, first - k, run)
         if c is not None:
             found.append((k + _walk_back(y, c, first - k, fch.sigma, rate), k + c))
