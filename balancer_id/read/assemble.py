@@ -13,6 +13,7 @@ warning says so.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,15 +21,19 @@ import numpy as np
 
 from balancer_id.constants import FORCE_RANGE_N
 from balancer_id.errors import LogReadError
+from balancer_id.notes import Note
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
+from balancer_id.read.timebase import TimeBase, to_seconds
 from balancer_id.read.units import UnitMismatch, resolve_accel
 from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
 COMMON_SHARE = 0.75
+#: A stretch of a restarting clock has at least this many samples.
+MIN_BLOCK = 10
 
 
 @dataclass
@@ -81,6 +86,7 @@ def build_recordings(
     """
     recordings: list[Recording] = []
     warnings: list[str] = []
+    stated: set[str] = set()
     warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
         warnings.append(
@@ -89,14 +95,35 @@ def build_recordings(
         )
     for plan in plans:
         warnings.extend(f"{plan.name}: {note}" for note in plan.notes)
-        time = table.columns[plan.time]
-        if plan.time_scale != 1.0:
-            time = time * plan.time_scale
+        for col, (factor, offset) in plan.scales.items():  # the column map's scales
+            table.columns[col] = table.columns[col] * factor + offset
+        base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
+        if plan.clock is not None and base.started_at is None:
+            clock = to_seconds(table.columns[plan.clock])
+            rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
+            if clock.started_at is not None and rows.any():
+                first = int(np.argmax(rows))
+                base = TimeBase(
+                    base.seconds - base.seconds[first],
+                    base.unit,
+                    base.source,
+                    clock.started_at + float(clock.seconds[first]),
+                )
+        time = base.seconds
+        said = base.note(header[plan.time])
+        if said and said not in stated:
+            stated.add(said)
+            subject = header[plan.time]
+            warnings.append(Note("read.time_unit", said, subject=subject, severity="info"))
         force_time = time
         if plan.force_time is not None:
             force_time = table.columns[plan.force_time] * plan.force_time_scale
+            if base.started_at is not None:
+                force_time = force_time - base.started_at
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
+        sets, notes = _split_restarts(sets, time, table, plan.name)
+        warnings.extend(notes)
         for chosen in sets:
             force_only = chosen.force and not chosen.accel and plan.force_time is not None
             rec, rec_warnings = _build_one(
@@ -112,8 +139,69 @@ def build_recordings(
             )
             warnings.extend(rec_warnings)
             if rec is not None:
+                rec.started_at = base.started_at
+                if base.started_at is not None and rec.n_samples:
+                    rec.started_at = base.started_at + float(rec.time[0])
+                    rec.time = rec.time - rec.time[0]
                 recordings.append(rec)
     return recordings, warnings
+
+
+def _split_restarts(
+    sets: list[_ChannelSet], time: np.ndarray, table: Table, name: str
+) -> tuple[list[_ChannelSet], list[Note]]:
+    """Make each stretch of a clock that restarts (falls back to its start) a run of its own.
+
+    A fall of the time, after at least :data:`MIN_BLOCK` samples, to within two median
+    steps of the stretch's first time and by more than half the stretch's span is a
+    restart (a test rig's per-block clock); any other fall stays an error of
+    :func:`~balancer_id.read.validate.check_time`.
+    """
+    out: list[_ChannelSet] = []
+    notes: list[Note] = []
+    for chosen in sets:
+        idx = np.flatnonzero(chosen.rows)
+        if idx.size < 3 or chosen.force_rows is not None:
+            out.append(chosen)
+            continue
+        t = time[idx]
+        dt = np.diff(t)
+        falls = np.flatnonzero(dt < 0)
+        if falls.size == 0:
+            out.append(chosen)
+            continue
+        step = float(np.median(np.abs(dt[dt != 0]))) if np.any(dt != 0) else 0.0
+        starts = [0]
+        for i in falls.tolist():
+            first = float(t[starts[-1]])
+            long_block = i + 1 - starts[-1] >= MIN_BLOCK
+            if (
+                not long_block
+                or t[i + 1] > first + 2 * step
+                or t[i] - t[i + 1] < 0.5 * (t[i] - first)
+            ):
+                break  # not a restart: check_time names the line
+            starts.append(i + 1)
+        else:
+            bounds = [*starts, idx.size]
+            for k, (a, b) in enumerate(itertools.pairwise(bounds), start=1):
+                rows = np.zeros_like(chosen.rows)
+                rows[idx[a:b]] = True
+                part = f"Run {k}" if name == "Run 1" else f"{name} ({k})"
+                out.append(_ChannelSet(part, rows, chosen.force, chosen.accel))
+            lines = ", ".join(str(table.line_of(idx[i])) for i in starts[1:4])
+            more = ", ..." if len(starts) > 4 else ""
+            notes.append(
+                Note(
+                    "read.clock_restart",
+                    f"{name}: the time restarts {len(starts) - 1} time(s) (lines {lines}{more}); "
+                    f"each stretch is a run of its own ({len(starts)} runs)",
+                    subject=name,
+                )
+            )
+            continue
+        out.append(chosen)
+    return out, notes
 
 
 def _channel_sets(
@@ -204,14 +292,21 @@ def _build_one(
                 raw,
                 header_unit=plan.accel_unit,
                 includes_gravity=plan.includes_gravity,
-                accel_unit=accel_unit,
+                accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
                 g=g,
             )
         except UnitMismatch as exc:
+            hint = exc.hint
+            if exc.counts_per_g is not None:
+                hint = "give the scale in the column map: --columns " + _counts_map(
+                    plan, header, exc.counts_per_g
+                )
             raise LogReadError(
-                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=exc.hint
+                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
             ) from None
-        if note:
+        if isinstance(note, Note):
+            warnings.append(Note(note.code, f"{name}: {note.text}", subject=name))
+        elif note:
             warnings.append(f"{name}: {note}")
     extra = {
         label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
@@ -254,6 +349,18 @@ def _build_one(
         extra=extra,
     )
     return rec, warnings
+
+
+def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
+    """The ``--columns`` value that reads raw counts at ``per_g`` counts per g."""
+    roles = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
+    parts = [f"time={header[plan.time]}"]
+    if plan.force is not None:
+        parts.append(f"force={header[plan.force]}")
+    parts += [
+        f"{role}={header[col]}:counts/{per_g}g" for role, col in zip(roles, plan.accel, strict=True)
+    ]
+    return ",".join(parts) + " (counts per g from the sensor's range: 16384 at ±2 g, 8192 at ±4 g)"
 
 
 def _force_onto_accel(

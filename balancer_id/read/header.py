@@ -49,7 +49,24 @@ _ACCEL_UNITS = {
     "m/sec^2": "m/s^2",
     "g": "g",
 }
-_TIME_UNITS = {"s": 1.0, "sec": 1.0, "seconds": 1.0, "ms": 1e-3}
+#: Time units -> factor to seconds (headers, column names and the column map).
+TIME_UNITS = {
+    "s": 1.0,
+    "sec": 1.0,
+    "secs": 1.0,
+    "seconds": 1.0,
+    "ms": 1e-3,
+    "msec": 1e-3,
+    "millis": 1e-3,
+    "us": 1e-6,
+    "µs": 1e-6,
+    "μs": 1e-6,
+    "micros": 1e-6,
+    "ns": 1e-9,
+    "nanos": 1e-9,
+    "min": 60.0,
+}
+_TIME_UNITS = TIME_UNITS
 _GYRO_UNITS = ("rad/s", "deg/s", "°/s", "dps")
 _AXIS = re.compile(r"(?:^|[\s\-_:,(])([xyz])(?:[\s\-_]?axis)?$")
 

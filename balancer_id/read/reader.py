@@ -9,19 +9,19 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
+from balancer_id.notes import Note
 from balancer_id.read.assemble import build_recordings
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
-from balancer_id.read.pasco import looks_like_pasco, plan_runs
-from balancer_id.read.phyphox import looks_like_phyphox, plan_phyphox
+from balancer_id.read.layouts import detect_layout
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
 from balancer_id.read.sniff import sniff
 from balancer_id.read.table import read_table
 from balancer_id.read.units import check_accel_unit
 
-#: Largest plausible time value (s, or ms before conversion): a Unix time in ms fits.
-TIME_BOUND = 1e13
+#: Largest plausible time value before conversion: a Unix time in ns (19 digits) fits.
+TIME_BOUND = 1e19
 #: Largest plausible force (N) or acceleration (m/s^2 or g) of any sensor.
 SIGNAL_BOUND = 1e6
 
@@ -41,7 +41,7 @@ def read_log(
     dropped samples are reported as gaps and never interpolated. Only regular files are
     read, streamed within ``max_bytes``; a cut last line is dropped and values that are
     infinite or beyond any sensor's range (force, acceleration beyond 1e6; time beyond
-    1e13) are treated as missing samples, each with a warning.
+    1e19) are treated as missing samples, each with a warning.
 
     Parameters
     ----------
@@ -81,7 +81,7 @@ def read_log(
     optional = {c for plan in plans for c in plan.extra.values()}
     limits: dict[int, float] = {}
     for plan in plans:
-        for col in (plan.time, plan.force_time):
+        for col in (plan.time, plan.force_time, plan.clock):
             if col is not None:
                 limits[col] = TIME_BOUND
         for col in (plan.force, *plan.accel):
@@ -99,7 +99,8 @@ def read_log(
             line=sniffed.header_line + 1,
             hint="check that the export includes the measurements",
         )
-    return Log(path=sniffed.path, format=fmt, recordings=recordings, warnings=warnings)
+    notes = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
+    return Log(path=sniffed.path, format=fmt, recordings=recordings, warnings=notes + warnings)
 
 
 def _plan(
@@ -108,13 +109,7 @@ def _plan(
     """Choose the layout and plan its runs."""
     if columns:
         return "generic", plan_from_map(path, header, columns)
-    pasco = looks_like_pasco(header)
-    if pasco is not None:
-        fmt, plans = pasco, plan_runs(path, header)
-    elif looks_like_phyphox(header):
-        fmt, plans = "phyphox", plan_phyphox(path, header)
-    else:
-        fmt, plans = "generic", []
+    fmt, plans = detect_layout(path, header)
     if not plans:
         plans = guess_plan(header)
         if fmt != "generic" and plans:

@@ -8,7 +8,14 @@ from pathlib import Path
 import numpy as np
 
 #: The layouts a reader may report (CONTRACT.md, ``inspect --json`` ``format``).
-FORMATS = ("pasco-capstone", "pasco-sparkvue", "phyphox", "generic")
+FORMATS = (
+    "pasco-capstone",
+    "pasco-sparkvue",
+    "phyphox",
+    "sensor-logger",
+    "vernier",
+    "generic",
+)
 
 
 @dataclass(frozen=True)
@@ -59,6 +66,9 @@ class Recording:
         Channel name -> number of samples at the sensor's limits.
     extra : dict
         Other numeric channels kept by name (gyro, position, ...).
+    started_at : float or None
+        When the run's first sample was taken, in seconds since 1970 (UTC), when the file
+        says (a clock time in its time column); None otherwise.
     """
 
     name: str
@@ -71,6 +81,7 @@ class Recording:
     gaps: list[Gap] = field(default_factory=list)
     saturated: dict[str, int] = field(default_factory=dict)
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    started_at: float | None = None
 
     @property
     def n_samples(self) -> int:
@@ -103,6 +114,12 @@ class Log:
     def n_samples(self) -> int:
         """Total samples over all runs."""
         return sum(r.n_samples for r in self.recordings)
+
+    @property
+    def started_at(self) -> float | None:
+        """When the recording started (s since 1970, UTC), when the file says; else None."""
+        times = [r.started_at for r in self.recordings if r.started_at is not None]
+        return min(times) if times else None
 
     @property
     def sample_rate_hz(self) -> float:
