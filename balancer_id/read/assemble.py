@@ -360,7 +360,7 @@ def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
     parts += [
         f"{role}={header[col]}:counts/{per_g}g" for role, col in zip(roles, plan.accel, strict=True)
     ]
-    return ",".join(parts) + " (counts per g from the sensor's range: 16384 at ±2 g, 8192 at ±4 g)"
+    return ",".join(parts) + "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
 
 
 def _force_onto_accel(

@@ -85,8 +85,9 @@ def read_log(
             if col is not None:
                 limits[col] = TIME_BOUND
         for col in (plan.force, *plan.accel):
-            if col is not None:
-                limits[col] = SIGNAL_BOUND
+            if col is not None:  # the bound holds after the column map's scale
+                factor, offset = plan.scales.get(col, (1.0, 0.0))
+                limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
     table = read_table(sniffed, wanted, optional, limits)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
