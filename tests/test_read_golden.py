@@ -92,6 +92,11 @@ def test_generic_golden_guess_and_g_units() -> None:
     np.testing.assert_allclose(rec.accel, expected * G_DEFAULT)
     assert rec.accel_includes_gravity
     assert len(log.warnings) == 1 and "looks like g" in log.warnings[0]
+    (guess,) = [n for n in log.notes if n.code == "read.column_guess"]
+    assert guess.text == (
+        "columns guessed from their names: time=timestamp,force=F_load,ax=acc_x,ay=acc_y,"
+        "az=acc_z (pass --columns to choose others)"
+    )
 
 
 def test_generic_golden_with_column_map_case_insensitive() -> None:

@@ -32,6 +32,8 @@ from balancer_id.read.validate import check_time, count_saturated, find_gaps, sa
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
 COMMON_SHARE = 0.75
+#: An accelerometer sampled outside this range (Hz) is warned: a time unit misread.
+RATE_MIN_HZ, RATE_MAX_HZ = 1.0, 100_000.0
 #: A stretch of a restarting clock has at least this many samples.
 MIN_BLOCK = 10
 
@@ -95,6 +97,8 @@ def build_recordings(
         )
     for plan in plans:
         warnings.extend(f"{plan.name}: {note}" for note in plan.notes)
+        if plan.guessed:
+            warnings.append(_guess_note(plan, header))
         for col, (factor, offset) in plan.scales.items():  # the column map's scales
             table.columns[col] = table.columns[col] * factor + offset
         base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
@@ -145,6 +149,21 @@ def build_recordings(
                     rec.time = rec.time - rec.time[0]
                 recordings.append(rec)
     return recordings, warnings
+
+
+def _guess_note(plan: RunPlan, header: list[str]) -> Note:
+    """The ``read.column_guess`` note naming the columns guessed from their names."""
+    roles = [f"time={header[plan.time]}"]
+    if plan.force is not None:
+        roles.append(f"force={header[plan.force]}")
+    names = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
+    roles += [f"{r}={header[c]}" for r, c in zip(names, plan.accel, strict=True)]
+    return Note(
+        "read.column_guess",
+        f"columns guessed from their names: {','.join(roles)} (pass --columns to choose others)",
+        subject=plan.name,
+        severity="info",
+    )
 
 
 def _split_restarts(
@@ -323,9 +342,25 @@ def _build_one(
             )
         else:
             warnings.append(
-                f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) missing, "
-                f"longest {longest:.3g} s (kept as gaps, not interpolated)"
+                Note(
+                    "read.gap",
+                    f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) "
+                    f"missing, longest {longest:.3g} s (kept as gaps, not interpolated)",
+                    subject=name,
+                )
             )
+    rate = sample_rate(time)
+    if accel is not None and not RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
+        warnings.append(
+            Note(
+                "read.rate",
+                f"{name}: the acceleration is sampled at {rate:.3g} Hz, outside the "
+                f"{RATE_MIN_HZ:g} Hz-{RATE_MAX_HZ / 1000:g} kHz of any accelerometer log: is "
+                f"the time in another unit? Give it in the column map, e.g. --columns "
+                f"time={header[plan.time]}:ms",
+                subject=name,
+            )
+        )
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
@@ -334,7 +369,12 @@ def _build_one(
         )
     if "accel" in saturated:
         warnings.append(
-            f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit (±16 g)"
+            Note(
+                "read.sensor_limit",
+                f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit "
+                "(±16 g)",
+                subject=name,
+            )
         )
     rec = Recording(
         name=name,
@@ -343,7 +383,7 @@ def _build_one(
         accel=accel,
         accel_includes_gravity=includes_gravity,
         accel_axes=plan.accel_axes if accel is not None else ("x", "y", "z"),
-        sample_rate_hz=sample_rate(time),
+        sample_rate_hz=rate,
         gaps=gaps,
         saturated=saturated,
         extra=extra,

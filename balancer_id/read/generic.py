@@ -302,6 +302,7 @@ def guess_plan(columns: list[Column]) -> list[RunPlan]:
         (axis, col), *_ = axes.items()
         plan.accel_axes = (axis,)
         _set_accel(plan, [col])
+    plan.guessed = True
     return [plan] if plan.has_signal else []
 
 

@@ -57,6 +57,9 @@ class RunPlan:
     clock : int or None
         Column index of a clock time (ns since 1970, Sensor Logger's ``time``) that gives
         the recording's start when the time column is a time since the start.
+    guessed : bool
+        True when the columns were guessed from their names (a generic CSV without a
+        column map); the choice is stated in a ``read.column_guess`` note.
     notes : list of str
         Warnings found while planning (duplicate channels, ...).
     """
@@ -76,6 +79,7 @@ class RunPlan:
     accel_unit_given: bool = False
     scales: dict[int, tuple[float, float]] = field(default_factory=dict)
     clock: int | None = None
+    guessed: bool = False
     notes: list[str] = field(default_factory=list)
 
     @property

@@ -9,7 +9,7 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
-from balancer_id.notes import Note
+from balancer_id.notes import Note, as_note, texts
 from balancer_id.read.assemble import build_recordings
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
@@ -22,6 +22,9 @@ from balancer_id.read.units import check_accel_unit
 
 #: Largest plausible time value before conversion: a Unix time in ns (19 digits) fits.
 TIME_BOUND = 1e19
+#: Note codes kept in ``Log.notes`` only, not in the warnings text (they are no warning:
+#: every generic CSV read without a column map has its columns guessed).
+NOTES_ONLY = frozenset({"read.column_guess"})
 #: Largest plausible force (N) or acceleration (m/s^2 or g) of any sensor.
 SIGNAL_BOUND = 1e6
 
@@ -100,8 +103,15 @@ def read_log(
             line=sniffed.header_line + 1,
             hint="check that the export includes the measurements",
         )
-    notes = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
-    return Log(path=sniffed.path, format=fmt, recordings=recordings, warnings=notes + warnings)
+    found = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
+    found += [as_note(w, "read.other") for w in warnings]
+    return Log(
+        path=sniffed.path,
+        format=fmt,
+        recordings=recordings,
+        warnings=texts(n for n in found if n.code not in NOTES_ONLY),
+        notes=found,
+    )
 
 
 def _plan(

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from balancer_id.notes import Note
+
 #: The layouts a reader may report (CONTRACT.md, ``inspect --json`` ``format``).
 FORMATS = (
     "pasco-capstone",
@@ -102,13 +104,19 @@ class Log:
     recordings : list of Recording
         One per run, in file order.
     warnings : list of str
-        Things the user should know (saturation, gaps, guessed units).
+        Things the user should know (saturation, gaps, guessed units), as text.
+    notes : list of Note
+        The same, typed (:class:`~balancer_id.notes.Note`: a code such as
+        ``read.time_unit``, ``read.gravity_header``, ``read.column_guess``, a subject and
+        the text); code decides on ``note.code``. Remarks without a code of their own
+        carry ``read.other``.
     """
 
     path: Path
     format: str
     recordings: list[Recording]
     warnings: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)
 
     @property
     def n_samples(self) -> int:
