@@ -111,3 +111,39 @@ def test_generic_golden_with_column_map_case_insensitive() -> None:
     np.testing.assert_allclose(rec.accel[:, 0], np.array([1.0, 1.01, 0.99, 1.02]) * G_DEFAULT)
     assert rec.accel_includes_gravity
     assert log.warnings == []  # the unit was given
+
+
+def test_sensor_logger_golden() -> None:
+    """``time`` in ns since 1970, ``seconds_elapsed``, axes in the order z, y, x, no units."""
+    log = read_log(GOLDEN / "sensorlogger_accelerometer.csv")
+    assert log.format == "sensor-logger"
+    (rec,) = log.recordings
+    np.testing.assert_allclose(rec.time, [0.0, 0.01, 0.02, 0.04], atol=1e-12)
+    assert rec.accel is not None and rec.accel_axes == ("x", "y", "z")
+    np.testing.assert_allclose(rec.accel[0], [0.10, 0.20, 0.30])  # x, y, z from z, y, x
+    assert not rec.accel_includes_gravity  # |a| ~0.4: no gravity
+    (gap,) = rec.gaps
+    assert (gap.t_before, gap.t_after, gap.n_missing) == (
+        pytest.approx(0.02),
+        pytest.approx(0.04),
+        1,
+    )
+    assert rec.started_at == pytest.approx(1760565906.248623, abs=1e-6)
+    assert log.started_at == rec.started_at
+    (unit,) = [n for n in log.notes if n.code == "read.time_unit"]
+    assert "2025-10-15 22:05:06 UTC" in unit.text
+
+
+def test_vernier_golden() -> None:
+    """``Data Set N:Quantity(unit)``: one run per data set, each on its own time column."""
+    log = read_log(GOLDEN / "vernier_graphical_analysis.csv")
+    assert log.format == "vernier"
+    accel, force = log.recordings
+    assert (accel.name, force.name) == ("Data Set 1", "Data Set 2")
+    np.testing.assert_allclose(accel.time, [0.0, 0.05, 0.1])
+    assert accel.accel is not None and accel.accel.shape == (3, 1)
+    np.testing.assert_allclose(accel.accel[:, 0], [0.04, 0.05, -0.06])
+    assert not accel.accel_includes_gravity and accel.force is None
+    assert "Position (m)" in accel.extra
+    assert force.force is not None
+    np.testing.assert_allclose(force.force, [1.5, 1.6, 1.7, 1.8])
