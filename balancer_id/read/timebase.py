@@ -35,7 +35,18 @@ _NAMES.update({"micros": "us", "µs": "us", "μs": "us", "nanos": "ns", "min": "
 
 
 def canonical(unit: str) -> str:
-    """The short name of a time unit (``"msec"`` -> ``"ms"``, ``"µs"`` -> ``"us"``)."""
+    """The short name of a time unit (``"msec"`` -> ``"ms"``, ``"µs"`` -> ``"us"``).
+
+    Parameters
+    ----------
+    unit : str
+        The unit as written.
+
+    Returns
+    -------
+    str
+        ``"s"``, ``"ms"``, ``"us"``, ``"ns"`` or ``"min"`` (anything else lower-cased).
+    """
     key = unit.strip().lower()
     return _NAMES.get(key, key)
 
@@ -86,7 +97,17 @@ class TimeBase:
     started_at: float | None = None
 
     def note(self, column: str) -> str | None:
-        """The ``read.time_unit`` sentence, or None when the time is plain seconds."""
+        """The ``read.time_unit`` sentence, or None when the time is plain seconds.
+
+        Parameters
+        ----------
+        column : str
+            The time column's name as written.
+
+        Returns
+        -------
+        str or None
+        """
         if self.unit == "s" and self.started_at is None and self.source in ("header", "default"):
             return None
         where = {
