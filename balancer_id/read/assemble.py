@@ -55,7 +55,7 @@ def build_recordings(
     *,
     accel_unit: str,
     g: float,
-) -> tuple[list[Recording], list[str]]:
+) -> tuple[list[Recording], list[str | Note]]:
     """Build the recordings of a log.
 
     Parameters
@@ -87,7 +87,7 @@ def build_recordings(
         acceleration that contradicts the unit the user forced or ``g``.
     """
     recordings: list[Recording] = []
-    warnings: list[str] = []
+    warnings: list[str | Note] = []
     stated: set[str] = set()
     warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
@@ -126,8 +126,8 @@ def build_recordings(
                 force_time = force_time - base.started_at
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
-        sets, notes = _split_restarts(sets, time, table, plan.name)
-        warnings.extend(notes)
+        sets, restarts = _split_restarts(sets, time, table, plan.name)
+        warnings.extend(restarts)
         for chosen in sets:
             force_only = chosen.force and not chosen.accel and plan.force_time is not None
             rec, rec_warnings = _build_one(
@@ -271,8 +271,8 @@ def _build_one(
     accel_unit: str,
     g: float,
     force_time: np.ndarray,
-) -> tuple[Recording | None, list[str]]:
-    warnings: list[str] = []
+) -> tuple[Recording | None, list[str | Note]]:
+    warnings: list[str | Note] = []
     count = int(np.count_nonzero(chosen.rows))
     name = chosen.name
     if count < 2:
@@ -307,7 +307,7 @@ def _build_one(
     if chosen.accel and plan.accel:
         raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
         try:
-            accel, includes_gravity, note = resolve_accel(
+            accel, includes_gravity, said = resolve_accel(
                 raw,
                 header_unit=plan.accel_unit,
                 includes_gravity=plan.includes_gravity,
@@ -323,10 +323,10 @@ def _build_one(
             raise LogReadError(
                 path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
             ) from None
-        if isinstance(note, Note):
-            warnings.append(Note(note.code, f"{name}: {note.text}", subject=name))
-        elif note:
-            warnings.append(f"{name}: {note}")
+        if isinstance(said, Note):
+            warnings.append(Note(said.code, f"{name}: {said.text}", subject=name))
+        elif said:
+            warnings.append(f"{name}: {said}")
     extra = {
         label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
     }
@@ -371,8 +371,7 @@ def _build_one(
         warnings.append(
             Note(
                 "read.sensor_limit",
-                f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit "
-                "(±16 g)",
+                f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit (±16 g)",
                 subject=name,
             )
         )

@@ -184,7 +184,7 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
         )
     if "time" not in roles:
         raise UsageError("the column map needs a time column: --columns time=NAME,...")
-    axes = [k for k in ("ax", "ay", "az") if k in roles]
+    axes: list[str] = [k for k in ("ax", "ay", "az") if k in roles]
     if "a" in roles and axes:
         raise UsageError("the column map gives both a and ax/ay/az; give one or the other")
     if "force" not in roles and "a" not in roles and not axes:
@@ -214,7 +214,7 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     elif axes:
         accel_cols = [found[k] for k in axes]
         plan.accel_axes = tuple(k[1] for k in axes)
-        accel_roles = axes
+        accel_roles = list(axes)
     _set_accel(plan, accel_cols)
     given = [specs[r] for r in accel_roles if r in specs]
     if given:

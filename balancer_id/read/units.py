@@ -98,7 +98,7 @@ def resolve_accel(
     includes_gravity: bool | None,
     accel_unit: str,
     g: float,
-) -> tuple[np.ndarray, bool, str | None]:
+) -> tuple[np.ndarray, bool, str | Note | None]:
     """Convert an acceleration block to m/s^2 and decide whether it includes gravity.
 
     Parameters
