@@ -138,7 +138,7 @@ def resolve_accel(
     else:
         level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
-    if level > RAW_COUNTS_MIN / (g if accel_unit == "g" else 1.0):
+    if level > RAW_COUNTS_MIN:  # in any unit: no accelerometer rests beyond 5 g
         per_g = int(2 ** round(np.log2(level)))
         raise UnitMismatch(
             f"the acceleration rests at a magnitude of {level:.4g}, neither ~9.8 (m/s^2) nor "
