@@ -147,3 +147,36 @@ def test_vernier_golden() -> None:
     assert "Position (m)" in accel.extra
     assert force.force is not None
     np.testing.assert_allclose(force.force, [1.5, 1.6, 1.7, 1.8])
+
+
+@pytest.mark.parametrize(
+    ("header", "force", "axes"),
+    [
+        ("Latest: Time (s),Latest: Force (N)", True, 0),  # Graphical Analysis
+        (
+            "Run 1: Time (s),Run 1: X-axis acceleration (m/s²),"
+            "Run 1: Y-axis acceleration (m/s²),Run 1: Z-axis acceleration (m/s²)",
+            False,
+            3,
+        ),  # LabQuest / Logger Pro, a 3-axis accelerometer
+    ],
+)
+def test_vernier_prefixes(tmp_path, header: str, force: bool, axes: int) -> None:
+    n_values = header.count(",")
+    rows = [
+        ",".join(
+            [f"{0.01 * i:.2f}"]
+            + ["9.8" if k == n_values else "0.1" for k in range(1, n_values + 1)]
+        )
+        for i in range(20)
+    ]
+    path = tmp_path / "vernier.csv"
+    path.write_text(header + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    log = read_log(path)
+    assert log.format == "vernier"
+    (rec,) = log.recordings
+    assert rec.name == header.split(":")[0]
+    assert (rec.force is not None) == force
+    assert (0 if rec.accel is None else rec.accel.shape[1]) == axes
+    if axes == 3:
+        assert rec.accel_axes == ("x", "y", "z") and rec.accel_includes_gravity

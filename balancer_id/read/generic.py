@@ -339,9 +339,15 @@ def no_columns_error(path: Path, columns: list[Column], what: str) -> LogReadErr
         Names the file, line 1 and the columns present, and tells the user to pass
         ``--columns``.
     """
+    hint = COLUMNS_HINT
+    if what == "no force or acceleration column":
+        hint = (
+            "record or export the force sensor or the accelerometer; if a column here is a "
+            "force or an acceleration under another name, "
+            + COLUMNS_HINT.removeprefix("pass ")
+            .replace("pass", "give")
+            .replace("--columns", "pass --columns", 1)
+        )
     return LogReadError(
-        path,
-        f"{what} (columns found: {listed_columns(columns)})",
-        line=1,
-        hint=COLUMNS_HINT,
+        path, f"{what} (columns found: {listed_columns(columns)})", line=1, hint=hint
     )

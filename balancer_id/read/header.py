@@ -69,6 +69,8 @@ TIME_UNITS = {
 _TIME_UNITS = TIME_UNITS
 _GYRO_UNITS = ("rad/s", "deg/s", "°/s", "dps")
 _AXIS = re.compile(r"(?:^|[\s\-_:,(])([xyz])(?:[\s\-_]?axis)?$")
+#: Vernier's ``X-axis acceleration``: the axis first.
+_AXIS_FIRST = re.compile(r"^([xyz])[\s\-_]?axis\b")
 
 
 @dataclass(frozen=True)
@@ -214,7 +216,7 @@ def classify(index: int, raw: str) -> Column:
         kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) else "accel"
         linear = "linear" in q
     if kind in ("accel", "gyro"):
-        found = _AXIS.search(q)
+        found = _AXIS.search(q) or _AXIS_FIRST.search(q)
         axis = found.group(1) if found else ""
     return Column(index, raw, quantity, unit, run, kind, axis, linear)
 
