@@ -343,10 +343,7 @@ def no_columns_error(path: Path, columns: list[Column], what: str) -> LogReadErr
     if what == "no force or acceleration column":
         hint = (
             "record or export the force sensor or the accelerometer; if a column here is a "
-            "force or an acceleration under another name, "
-            + COLUMNS_HINT.removeprefix("pass ")
-            .replace("pass", "give")
-            .replace("--columns", "pass --columns", 1)
+            "force or an acceleration under another name, " + COLUMNS_HINT
         )
     return LogReadError(
         path, f"{what} (columns found: {listed_columns(columns)})", line=1, hint=hint
