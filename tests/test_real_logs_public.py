@@ -163,3 +163,31 @@ def test_every_manifest_file_has_an_expectation() -> None:
     lines = manifest.read_text(encoding="utf-8").splitlines()[1:]
     listed = {"public/" + line.split("\t")[0] for line in lines if line.strip()}
     assert listed <= set(expectations())
+
+
+#: The column map that reads the known-mass rig with its stated calibration
+#: (known_mass/MANIFEST.tsv: force_N = (counts * 0.000321464 + 30.6694) / 1000 * 9.81,
+#: acc = counts * 2 * 0.061e-3 g).
+KNOWN_MASS_COLUMNS = {
+    "time": "Time",
+    "force": "Force:3.15356e-6N+0.300862",
+    "ax": "accX:1.22e-4g",
+    "ay": "accY:1.22e-4g",
+    "az": "accZ:1.22e-4g",
+}
+
+
+def test_known_mass_rig_reads_with_its_calibration() -> None:
+    from balancer_id.read import read_log
+
+    path = REAL_LOGS / "known_mass" / "kierancoz__LoadCellIMU_500g_static.csv"
+    if not path.is_file():
+        pytest.skip("known_mass log not present")
+    (rec,) = read_log(path, columns=KNOWN_MASS_COLUMNS, g=9.81).recordings
+    assert rec.n_samples == 1000 and rec.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
+    assert rec.force is not None and rec.accel is not None and rec.accel_includes_gravity
+    # hanging at rest before the first pull: the cell holds the weight (~0.52-0.55 kg)
+    rest = rec.time < 0.8
+    assert np.median(rec.force[rest]) / 9.81 == pytest.approx(0.545, abs=0.02)
+    # +z points down: the accelerometer reads -g on z at rest (1.1 % low, as stated)
+    assert np.median(rec.accel[rest, 2]) == pytest.approx(-9.70, abs=0.05)
