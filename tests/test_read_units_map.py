@@ -58,7 +58,8 @@ def test_header_unit_us_and_a_rate_out_of_range_warned(tmp_path: Path) -> None:
         _write(tmp_path, "slow.csv", "t,ax,ay,az\n" + _rows(50, lambda i: 5 * i, (0, 0, 9.81)))
     )
     (note,) = [n for n in slow.notes if n.code == "read.rate"]
-    assert "0.2 Hz" in note.text and "--columns time=t:ms" in note.text
+    assert "0.2 Hz (time read in s)" in note.text
+    assert "if the time is in ms, pass --columns time=t:ms" in note.text
 
 
 @pytest.mark.parametrize(

@@ -22,6 +22,7 @@ import numpy as np
 from balancer_id.constants import FORCE_RANGE_N
 from balancer_id.errors import LogReadError
 from balancer_id.notes import Note
+from balancer_id.read.header import TIME_UNITS
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
@@ -140,6 +141,7 @@ def build_recordings(
                 accel_unit=accel_unit,
                 g=g,
                 force_time=force_time,
+                time_unit=base.unit,
             )
             warnings.extend(rec_warnings)
             if rec is not None:
@@ -271,6 +273,7 @@ def _build_one(
     accel_unit: str,
     g: float,
     force_time: np.ndarray,
+    time_unit: str = "s",
 ) -> tuple[Recording | None, list[str | Note]]:
     warnings: list[str | Note] = []
     count = int(np.count_nonzero(chosen.rows))
@@ -351,16 +354,7 @@ def _build_one(
             )
     rate = sample_rate(time)
     if accel is not None and not RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
-        warnings.append(
-            Note(
-                "read.rate",
-                f"{name}: the acceleration is sampled at {rate:.3g} Hz, outside the "
-                f"{RATE_MIN_HZ:g} Hz-{RATE_MAX_HZ / 1000:g} kHz of any accelerometer log: is "
-                f"the time in another unit? Give it in the column map, e.g. --columns "
-                f"time={header[plan.time]}:ms",
-                subject=name,
-            )
-        )
+        warnings.append(_rate_note(name, rate, header[plan.time], time_unit))
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
@@ -388,6 +382,27 @@ def _build_one(
         extra=extra,
     )
     return rec, warnings
+
+
+def _rate_note(name: str, rate: float, column: str, unit: str) -> Note:
+    """The ``read.rate`` note of an acceleration sampled outside 1 Hz-100 kHz.
+
+    It names the time unit that would bring the rate nearest 100 Hz, if any.
+    """
+    text = (
+        f"{name}: the acceleration is sampled at {rate:.3g} Hz (time read in {unit}), outside "
+        f"the {RATE_MIN_HZ:g} Hz-{RATE_MAX_HZ / 1000:g} kHz of any accelerometer log"
+    )
+    scale = TIME_UNITS.get(unit, 1.0)
+    options = [
+        (abs(np.log10(rate * scale / s) - 2.0), u)
+        for u, s in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9))
+        if u != unit and np.isfinite(rate) and RATE_MIN_HZ <= rate * scale / s <= RATE_MAX_HZ
+    ]
+    if options:
+        better = min(options)[1]
+        text += f": if the time is in {better}, pass --columns time={column}:{better},..."
+    return Note("read.rate", text, subject=name)
 
 
 def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
