@@ -1,6 +1,8 @@
 """Read the 52 real exports of ``../shared/real_logs`` and count the outcomes.
 
-Run with ``python benchmarks/bench_real_logs.py [--root PATH] [--verbose]``. Each file is
+Run with ``python benchmarks/bench_real_logs.py [--root PATH] [--code DIR] [--verbose]``;
+``--code`` judges another checkout's ``balancer_id`` (e.g. ``--code /work/main`` for the
+counts before a change) with this checkout's expectations. Each file is
 judged by ``tests/test_real_logs_public.py``'s :func:`judge` against
 ``tests/golden/real_logs_public.json``: read as it is, then with the column map a user
 passes when the tool asks for ``--columns``. Prints one line per file with ``--verbose``
@@ -15,8 +17,17 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+
+
+def _code_dir() -> Path:
+    """The checkout whose ``balancer_id`` is judged (``--code``, read before argparse)."""
+    if "--code" in sys.argv[:-1]:
+        return Path(sys.argv[sys.argv.index("--code") + 1]).resolve()
+    return ROOT
+
+
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(_code_dir()))
 
 from test_real_logs_public import OUTCOMES, REAL_LOGS, expectations, judge  # noqa: E402
 
@@ -26,6 +37,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=REAL_LOGS, help="the real_logs folder")
     parser.add_argument("--verbose", action="store_true", help="one line per file")
+    parser.add_argument("--code", type=Path, default=ROOT, help="the checkout judged")
     args = parser.parse_args()
     if not args.root.is_dir():
         print(f"no real_logs folder at {args.root}")
@@ -44,6 +56,9 @@ def main() -> int:
         counts[outcome] += 1
         if args.verbose or outcome in ("unhelpful", "misread"):
             print(f"{outcome:9s} {name}: {detail[:300]}")
+    import balancer_id
+
+    print(f"code judged: {Path(balancer_id.__file__).parent}")
     total = sum(counts.values())
     print(
         f"{total} files: right {counts['right']}, clear refusal {counts['clear']}, "
