@@ -91,7 +91,7 @@ def test_raw_counts_refused_with_the_map_then_read_with_it(tmp_path: Path) -> No
     with pytest.raises(LogReadError) as info:
         read_log(path)
     message = str(info.value)
-    assert "raw sensor counts (~4096 counts per g?)" in message
+    assert "raw sensor counts (~4096 counts per g?) or another unit" in message
     assert (
         "--columns time=Time,ax=AccX:counts/4096g,ay=AccY:counts/4096g,az=AccZ:counts/4096g"
         in message

@@ -39,8 +39,9 @@ _ALIASES = {"m/s²": "m/s^2", "m/s2": "m/s^2", "ms2": "m/s^2", "mps2": "m/s^2", 
 
 _G_LOW, _G_HIGH = 0.7, 1.3
 _WITH_G_MIN = 4.0
-#: A resting magnitude beyond this (m/s^2, i.e. ~5 g) is no acceleration at rest: raw counts.
-RAW_COUNTS_MIN = 50.0
+#: A median magnitude beyond this (m/s^2 or g; 2.5 g) is no log's acceleration: raw counts
+#: (or a unit such as ft/s^2, 32.2 at rest).
+RAW_COUNTS_MIN = 25.0
 _G_STANDARD = 9.80665
 
 
@@ -128,7 +129,7 @@ def resolve_accel(
     ------
     UnitMismatch
         The resting magnitude contradicts a unit the user forced, or ``g``, or (auto)
-        is beyond ~5 g: raw counts, refused with the scale to give.
+        is beyond 25 (2.5 g): raw counts, refused with the scale to give.
     """
     if accel.size == 0:
         return accel, bool(includes_gravity) if includes_gravity is not None else True, None
@@ -138,11 +139,11 @@ def resolve_accel(
     else:
         level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
-    if level > RAW_COUNTS_MIN:  # in any unit: no accelerometer rests beyond 5 g
+    if level > RAW_COUNTS_MIN:  # in any unit: no log's acceleration sits at 2.5 g
         per_g = int(2 ** round(np.log2(level)))
         raise UnitMismatch(
             f"the acceleration rests at a magnitude of {level:.4g}, neither ~9.8 (m/s^2) nor "
-            f"~1 (g): these are raw sensor counts (~{per_g} counts per g?)",
+            f"~1 (g): raw sensor counts (~{per_g} counts per g?) or another unit",
             f"give the scale in the column map, e.g. ax=NAME:counts/{per_g}g",
             counts_per_g=per_g,
         )
