@@ -180,3 +180,15 @@ def test_vernier_prefixes(tmp_path, header: str, force: bool, axes: int) -> None
     assert (0 if rec.accel is None else rec.accel.shape[1]) == axes
     if axes == 3:
         assert rec.accel_axes == ("x", "y", "z") and rec.accel_includes_gravity
+
+
+def test_sensor_logger_gyroscope_file_is_not_read_as_acceleration(tmp_path) -> None:
+    """Sensor Logger writes the same header for every sensor: the file name tells them apart."""
+    from balancer_id.errors import LogReadError
+
+    path = tmp_path / "Gyroscope.csv"
+    path.write_bytes((GOLDEN / "sensorlogger_accelerometer.csv").read_bytes())
+    with pytest.raises(LogReadError, match=r"'gyroscope' file .* no acceleration"):
+        read_log(path)
+    mapped = {"time": "seconds_elapsed", "ax": "x", "ay": "y", "az": "z"}
+    assert read_log(path, columns=mapped).recordings[0].n_samples == 4  # the map decides

@@ -14,11 +14,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from balancer_id.errors import LogReadError
 from balancer_id.read.header import Column
 from balancer_id.read.plan import RunPlan
 
 #: Name of the single run.
 RUN_NAME = "Run 1"
+#: Sensor Logger files with the same header that hold no acceleration (from the file name).
+NOT_ACCELERATION = ("gyroscope", "magnetometer", "orientation", "gravity", "compass")
 
 
 def _names(columns: list[Column]) -> dict[str, Column]:
@@ -56,8 +59,24 @@ def plan_sensor_logger(path: Path, columns: list[Column]) -> list[RunPlan]:
     -------
     list of RunPlan
         One plan: time ``seconds_elapsed`` (s), acceleration x, y, z in that order;
-        ``time`` (ns since 1970) as an extra channel for the recording's start.
+        ``time`` (ns since 1970) as the recording's start.
+
+    Raises
+    ------
+    LogReadError
+        The file is named after a sensor that is no accelerometer (``Gyroscope.csv``,
+        ``Gravity.csv``, ...): its x, y, z are no acceleration.
     """
+    stem = path.stem.lower()
+    other = next((word for word in NOT_ACCELERATION if word in stem), None)
+    if other is not None:
+        raise LogReadError(
+            path,
+            f"a Sensor Logger '{other}' file (from its name): its x, y, z are no acceleration",
+            line=1,
+            hint="give the recording's Accelerometer.csv (or AccelerometerUncalibrated.csv), "
+            "or --columns if this file does hold acceleration",
+        )
     names = _names(columns)
     plan = RunPlan(name=RUN_NAME, time=names["seconds_elapsed"].index)
     plan.time_unit, plan.time_unit_from = "s", "layout"
