@@ -7,11 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError, UsageError
 from balancer_id.read import read_log
 from balancer_id.read.generic import parse_spec
+from balancer_id.read.timebase import to_seconds
 
 
 def _write(folder: Path, name: str, text: str) -> Path:
@@ -83,6 +86,11 @@ def test_column_map_specs(role: str, spec: str, expected: tuple[str, float, floa
 def test_column_map_spec_with_a_wrong_unit_is_a_usage_error() -> None:
     with pytest.raises(UsageError, match="give a unit of s, sec, ms"):
         parse_spec("time", "N")
+    with pytest.raises(UsageError, match="give a unit of N, kN, mN, kgf, lbf"):
+        parse_spec("force", "g")
+    for spec in ("counts/0g", "0N", "1e999N"):
+        with pytest.raises(UsageError, match="finite and not zero"):
+            parse_spec("force" if spec.endswith("N") else "ax", spec)
 
 
 def test_raw_counts_refused_with_the_map_then_read_with_it(tmp_path: Path) -> None:
@@ -159,3 +167,31 @@ def test_a_clock_that_restarts_makes_runs(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.recordings[2].force, np.arange(40, 60))
     (note,) = [n for n in log.notes if n.code == "read.clock_restart"]
     assert "restarts 2 time(s) (lines 22, 42)" in note.text
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(role=st.sampled_from(["time", "force", "ax", "a"]), spec=st.text(max_size=30))
+def test_any_spec_is_parsed_or_a_usage_error(role: str, spec: str) -> None:
+    try:
+        unit, factor, offset = parse_spec(role, spec)
+    except UsageError as exc:
+        assert "--columns" in str(exc) and "\n" not in str(exc)
+    else:
+        assert unit in ("s", "ms", "us", "ns", "min", "g", "m/s^2", "N")
+        assert np.isfinite(factor) and factor != 0.0 and np.isfinite(offset)
+        assert isinstance(offset, float)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(
+    start=st.floats(0, 2e18, allow_nan=False),
+    step=st.sampled_from([1.0, 1e-3, 13.0, 1e6]),
+)
+def test_time_unit_from_values_gives_seconds_that_increase(start: float, step: float) -> None:
+    raw = start + step * np.arange(50.0)
+    base = to_seconds(raw)
+    assert base.unit in ("s", "ms", "us", "ns")
+    if np.all(np.diff(raw) > 0):
+        assert np.all(np.diff(base.seconds) >= 0)
+    if base.started_at is not None:
+        assert base.seconds[0] == 0.0 and base.started_at > 1e8

@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
 from balancer_id.errors import LogReadError, UsageError
 from balancer_id.read.header import ACCEL_WORDS, FORCE_WORDS, TIME_WORDS, Column, split_name
 from balancer_id.read.plan import RunPlan, set_time_unit
@@ -63,7 +65,7 @@ _SPEC = re.compile(
 MAP_UNITS: dict[str, dict[str, float]] = {
     "time": {u: 1.0 for u in ("s", "sec", "ms", "msec", "us", "µs", "μs", "ns", "min")},
     "accel": {"g": 1.0, "mg": 1e-3, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0},
-    "force": {"n": 1.0, "kn": 1e3, "mn": 1e-3, "kgf": 9.80665, "lbf": 4.4482216152605},
+    "force": {"N": 1.0, "kN": 1e3, "mN": 1e-3, "kgf": 9.80665, "lbf": 4.4482216152605},
 }
 
 
@@ -112,10 +114,13 @@ def parse_spec(role: str, text: str) -> tuple[str, float, float]:
         )
     factor = 1.0
     if match.group("div"):
-        factor = 1.0 / float(match.group("div"))
+        divisor = float(match.group("div"))
+        factor = 1.0 / divisor if divisor else float("inf")
     elif match.group("fac"):
         factor = float(match.group("fac"))
     offset = float(match.group("off").replace(" ", "")) if match.group("off") else 0.0
+    if not (np.isfinite(factor) and factor != 0.0 and np.isfinite(offset)):
+        raise UsageError(f"--columns {role}=...:{text}: the scale must be finite and not zero")
     if kind == "time":
         return canonical(key), factor, offset
     scale = next(v for k, v in units.items() if k.lower() == key)
