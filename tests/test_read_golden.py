@@ -192,3 +192,14 @@ def test_sensor_logger_gyroscope_file_is_not_read_as_acceleration(tmp_path) -> N
         read_log(path)
     mapped = {"time": "seconds_elapsed", "ax": "x", "ay": "y", "az": "z"}
     assert read_log(path, columns=mapped).recordings[0].n_samples == 4  # the map decides
+
+
+def test_sparkvue_wall_clock_gives_each_run_its_start() -> None:
+    """SPARKvue's ``Date and Time <run>``: the first cell of each run, in local time."""
+    from datetime import datetime
+
+    log = read_log(GOLDEN / "sparkvue_named_runs.csv")
+    first, second = log.recordings
+    assert first.started_at == datetime(2026, 1, 13, 8, 33, 11).timestamp()
+    assert second.started_at == datetime(2022, 5, 6, 14, 36, 52).timestamp()
+    assert log.started_at == second.started_at  # the earliest run

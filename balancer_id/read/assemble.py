@@ -145,7 +145,9 @@ def build_recordings(
             )
             warnings.extend(rec_warnings)
             if rec is not None:
-                rec.started_at = base.started_at
+                rec.started_at = (
+                    base.started_at if base.started_at is not None else plan.clock_start
+                )
                 if base.started_at is not None and rec.n_samples:
                     rec.started_at = base.started_at + float(rec.time[0])
                     rec.time = rec.time - rec.time[0]

@@ -57,6 +57,9 @@ class RunPlan:
     clock : int or None
         Column index of a clock time (ns since 1970, Sensor Logger's ``time``) that gives
         the recording's start when the time column is a time since the start.
+    clock_start : float or None
+        The run's start (s since 1970) read from a date-and-time column (SPARKvue), to the
+        second, when its time column is no clock time.
     guessed : bool
         True when the columns were guessed from their names (a generic CSV without a
         column map); the choice is stated in a ``read.column_guess`` note.
@@ -79,6 +82,7 @@ class RunPlan:
     accel_unit_given: bool = False
     scales: dict[int, tuple[float, float]] = field(default_factory=dict)
     clock: int | None = None
+    clock_start: float | None = None
     guessed: bool = False
     notes: list[str] = field(default_factory=list)
 

@@ -16,8 +16,9 @@ from balancer_id.read.header import Column, classify_header
 from balancer_id.read.layouts import detect_layout
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
-from balancer_id.read.sniff import sniff
+from balancer_id.read.sniff import Sniffed, sniff
 from balancer_id.read.table import read_table
+from balancer_id.read.timebase import first_wall_clock
 from balancer_id.read.units import check_accel_unit
 
 #: Largest plausible time value before conversion: a Unix time in ns (19 digits) fits.
@@ -80,6 +81,7 @@ def read_log(
     sniffed = sniff(path, max_bytes)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
+    _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
     limits: dict[int, float] = {}
@@ -112,6 +114,23 @@ def read_log(
         warnings=texts(n for n in found if n.code not in NOTES_ONLY),
         notes=found,
     )
+
+
+def _wall_clocks(sniffed: Sniffed, header: list[Column], plans: list[RunPlan]) -> None:
+    """Set each plan's start from its run's date-and-time column (SPARKvue), if any."""
+    clocks = {c.run: c.index for c in header if c.kind == "datetime"}
+    if not clocks:
+        return
+    end = sniffed.data.find(b"\n", sniffed.data_start)
+    for _ in range(20):  # a run's first date is on one of the first lines
+        nxt = sniffed.data.find(b"\n", end + 1)
+        end = len(sniffed.data) if nxt < 0 else nxt
+    lines = sniffed.data[sniffed.data_start : end].decode("utf-8", "replace").splitlines()
+    for plan in plans:
+        run = next((r for r in clocks if r and plan.name.startswith(r)), None)
+        column = clocks.get(run if run is not None else "")
+        if column is not None:
+            plan.clock_start = first_wall_clock(lines, sniffed.delimiter, column)
 
 
 def _plan(

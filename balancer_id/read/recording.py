@@ -70,7 +70,9 @@ class Recording:
         Other numeric channels kept by name (gyro, position, ...).
     started_at : float or None
         When the run's first sample was taken, in seconds since 1970 (UTC), when the file
-        says (a clock time in its time column); None otherwise.
+        says: a clock time in its time column (epoch ms/µs/ns, Sensor Logger's ``time``),
+        or a date-and-time column (SPARKvue; a wall clock without zone, taken in this
+        machine's time zone, to the second); None otherwise.
     """
 
     name: str

@@ -18,6 +18,7 @@ Every unit other than seconds read from a ``(s)`` header is stated in a note
 
 from __future__ import annotations
 
+import csv
 import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -157,3 +158,49 @@ def to_seconds(raw: np.ndarray, unit: str = "", source: str = "") -> TimeBase:
         return TimeBase((raw - first) * scale, unit, source, started_at=first * scale)
     seconds = raw if scale == 1.0 else raw * scale
     return TimeBase(seconds, unit, source)
+
+
+#: Wall-clock formats of a date-and-time column (SPARKvue writes the first).
+WALL_CLOCK_FORMATS = (
+    "%m/%d/%Y %I:%M:%S %p",
+    "%m/%d/%Y %H:%M:%S",
+    "%Y-%m-%d %H:%M:%S",
+    "%Y-%m-%dT%H:%M:%S",
+    "%d.%m.%Y %H:%M:%S",
+)
+
+
+def first_wall_clock(lines: list[str], delimiter: str, column: int) -> float | None:
+    """The first date-and-time cell of a column, in seconds since 1970.
+
+    A wall clock without a time zone (SPARKvue's ``01/13/2025 10:15:42 am``) is taken in
+    this machine's time zone: good to order recordings, not to compare zones.
+
+    Parameters
+    ----------
+    lines : list of str
+        The first data lines of the file.
+    delimiter : str
+        The cell separator.
+    column : int
+        The column's index.
+
+    Returns
+    -------
+    float or None
+        The time, or None when no cell of the lines parses.
+    """
+    rows = (
+        csv.reader(lines, delimiter=delimiter) if delimiter != " " else (ln.split() for ln in lines)
+    )
+    for row in rows:
+        cell = row[column].strip() if column < len(row) else ""
+        if not cell:
+            continue
+        for fmt in WALL_CLOCK_FORMATS:
+            try:
+                return datetime.strptime(cell, fmt).timestamp()  # %p ignores case
+            except ValueError:
+                continue
+        return None
+    return None
