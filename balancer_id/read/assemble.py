@@ -113,6 +113,7 @@ def build_recordings(
                     base.unit,
                     base.source,
                     clock.started_at + float(clock.seconds[first]),
+                    clock=header[plan.clock],
                 )
         time = base.seconds
         said = base.note(header[plan.time])

@@ -90,12 +90,15 @@ class TimeBase:
         ``"values"`` or ``"default"``.
     started_at : float or None
         For a clock time, the first sample's time in seconds since 1970 (UTC).
+    clock : str
+        The column ``started_at`` was read from when it is not the time column.
     """
 
     seconds: np.ndarray
     unit: str
     source: str
     started_at: float | None = None
+    clock: str = ""
 
     def note(self, column: str) -> str | None:
         """The ``read.time_unit`` sentence, or None when the time is plain seconds.
@@ -112,20 +115,26 @@ class TimeBase:
         if self.unit == "s" and self.started_at is None and self.source in ("header", "default"):
             return None
         where = {
-            "map": "the column map",
-            "layout": "the export's layout",
-            "header": "the header",
-            "name": "the column's name",
-            "values": "the size of its values",
-            "default": "no unit stated: taken as seconds",
+            "map": "from the column map",
+            "layout": "from the export's layout",
+            "header": "from the header",
+            "name": "from the column's name",
+            "values": "from the size of its values",
+            "default": "no unit stated",
         }[self.source]
-        text = f"time column '{column}' read in {self.unit} (from {where})"
+        text = f"time column '{column}' read in {self.unit} ({where})"
         if self.started_at is not None:
             stamp = datetime.fromtimestamp(self.started_at, tz=UTC)
-            text += (
-                f", a clock time: recording started {stamp:%Y-%m-%d %H:%M:%S} UTC, "
-                "times counted from the first sample"
-            )
+            if self.clock:
+                text += (
+                    f"; recording started {stamp:%Y-%m-%d %H:%M:%S} UTC (clock column "
+                    f"'{self.clock}'), times counted from the first sample"
+                )
+            else:
+                text += (
+                    f", a clock time: recording started {stamp:%Y-%m-%d %H:%M:%S} UTC, "
+                    "times counted from the first sample"
+                )
         return text
 
 
