@@ -195,3 +195,11 @@ def test_time_unit_from_values_gives_seconds_that_increase(start: float, step: f
         assert np.all(np.diff(base.seconds) >= 0)
     if base.started_at is not None:
         assert base.seconds[0] == 0.0 and base.started_at > 1e8
+
+
+def test_ns_values_under_a_seconds_header_are_warned_not_a_crash(tmp_path: Path) -> None:
+    body = _rows(50, lambda i: 1730147596612447367 + 5_000_000 * i, (0.0, 0.0, 9.81))
+    log = read_log(_write(tmp_path, "wrong.csv", "Time (s),ax,ay,az\n" + body))
+    assert log.recordings[0].started_at is None
+    (note,) = [n for n in log.notes if n.code == "read.rate"]
+    assert "if the time is in ns, pass --columns time=Time (s):ns" in note.text

@@ -29,6 +29,8 @@ from balancer_id.read.header import TIME_UNITS, Column
 
 #: A time beyond this (s) counts from 1970: a clock time, not a time since the start.
 EPOCH_MIN_S = 1e8
+#: ... up to the year 2100; beyond, the unit is wrong (the rate note says which fits).
+EPOCH_MAX_S = 4.1e9
 #: Value thresholds of a time column without a unit: (bound, unit), largest first.
 _VALUE_UNITS = ((1e17, "ns"), (1e14, "us"), (1e11, "ms"))
 _NAMES = {"s": "s", "sec": "s", "secs": "s", "seconds": "s", "msec": "ms", "millis": "ms"}
@@ -162,7 +164,7 @@ def to_seconds(raw: np.ndarray, unit: str = "", source: str = "") -> TimeBase:
         source = source or "default"
     unit = canonical(unit)
     scale = TIME_UNITS.get(unit, 1.0)
-    if finite.size and float(np.min(finite)) * scale > EPOCH_MIN_S:
+    if finite.size and EPOCH_MIN_S < float(np.min(finite)) * scale < EPOCH_MAX_S:
         first = float(finite[0])
         return TimeBase((raw - first) * scale, unit, source, started_at=first * scale)
     seconds = raw if scale == 1.0 else raw * scale
