@@ -31,6 +31,7 @@ CODES: dict[str, str] = {
     "read.gravity_header": "the header says with/without g and the data disagree",
     "read.turned_sensor": "gravity's direction changed between the resting parts of a run",
     "read.vertical_guess": "the up axis (or its sign) is a guess or a convention",
+    "read.clock_restart": "the time column restarts: each stretch made a run of its own",
     "read.other": "another remark about reading the log",
     # segmenting
     "segment.run_without_trial": "a run gave no trial, with the reason",

@@ -270,3 +270,15 @@ def test_damaged_files_never_give_a_traceback(
             assert "\n" not in str(exc) and str(path) in str(exc)
         else:
             assert log.recordings and all(r.n_samples >= 2 for r in log.recordings)
+
+
+def test_json_error_names_the_file(cli, tmp_path: Path) -> None:
+    """The ``--json`` error object carries the log's path in ``file`` (CONTRACT, Errors)."""
+    import json
+
+    path = _write(tmp_path, "back.csv", "Time (s),Force (N)\n0,1\n0.1,2\n0.2,3\n0.15,4\n")
+    code, out, err = cli("inspect", path, "--json")
+    assert code == 3 and "time goes backwards" in err
+    error = json.loads(out)["error"]
+    assert error["file"] == str(path)
+    assert (error["line"], error["column"]) == (5, "Time (s)")

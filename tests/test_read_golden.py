@@ -92,6 +92,11 @@ def test_generic_golden_guess_and_g_units() -> None:
     np.testing.assert_allclose(rec.accel, expected * G_DEFAULT)
     assert rec.accel_includes_gravity
     assert len(log.warnings) == 1 and "looks like g" in log.warnings[0]
+    (guess,) = [n for n in log.notes if n.code == "read.column_guess"]
+    assert guess.text == (
+        "columns guessed from their names: time=timestamp,force=F_load,ax=acc_x,ay=acc_y,"
+        "az=acc_z (pass --columns to choose others)"
+    )
 
 
 def test_generic_golden_with_column_map_case_insensitive() -> None:
@@ -106,3 +111,95 @@ def test_generic_golden_with_column_map_case_insensitive() -> None:
     np.testing.assert_allclose(rec.accel[:, 0], np.array([1.0, 1.01, 0.99, 1.02]) * G_DEFAULT)
     assert rec.accel_includes_gravity
     assert log.warnings == []  # the unit was given
+
+
+def test_sensor_logger_golden() -> None:
+    """``time`` in ns since 1970, ``seconds_elapsed``, axes in the order z, y, x, no units."""
+    log = read_log(GOLDEN / "sensorlogger_accelerometer.csv")
+    assert log.format == "sensor-logger"
+    (rec,) = log.recordings
+    np.testing.assert_allclose(rec.time, [0.0, 0.01, 0.02, 0.04], atol=1e-12)
+    assert rec.accel is not None and rec.accel_axes == ("x", "y", "z")
+    np.testing.assert_allclose(rec.accel[0], [0.10, 0.20, 0.30])  # x, y, z from z, y, x
+    assert not rec.accel_includes_gravity  # |a| ~0.4: no gravity
+    (gap,) = rec.gaps
+    assert (gap.t_before, gap.t_after, gap.n_missing) == (
+        pytest.approx(0.02),
+        pytest.approx(0.04),
+        1,
+    )
+    assert rec.started_at == pytest.approx(1760565906.248623, abs=1e-6)
+    assert log.started_at == rec.started_at
+    (unit,) = [n for n in log.notes if n.code == "read.time_unit"]
+    assert "2025-10-15 22:05:06 UTC" in unit.text
+
+
+def test_vernier_golden() -> None:
+    """``Data Set N:Quantity(unit)``: one run per data set, each on its own time column."""
+    log = read_log(GOLDEN / "vernier_graphical_analysis.csv")
+    assert log.format == "vernier"
+    accel, force = log.recordings
+    assert (accel.name, force.name) == ("Data Set 1", "Data Set 2")
+    np.testing.assert_allclose(accel.time, [0.0, 0.05, 0.1])
+    assert accel.accel is not None and accel.accel.shape == (3, 1)
+    np.testing.assert_allclose(accel.accel[:, 0], [0.04, 0.05, -0.06])
+    assert not accel.accel_includes_gravity and accel.force is None
+    assert "Position (m)" in accel.extra
+    assert force.force is not None
+    np.testing.assert_allclose(force.force, [1.5, 1.6, 1.7, 1.8])
+
+
+@pytest.mark.parametrize(
+    ("header", "force", "axes"),
+    [
+        ("Latest: Time (s),Latest: Force (N)", True, 0),  # Graphical Analysis
+        (
+            "Run 1: Time (s),Run 1: X-axis acceleration (m/s²),"
+            "Run 1: Y-axis acceleration (m/s²),Run 1: Z-axis acceleration (m/s²)",
+            False,
+            3,
+        ),  # LabQuest / Logger Pro, a 3-axis accelerometer
+    ],
+)
+def test_vernier_prefixes(tmp_path, header: str, force: bool, axes: int) -> None:
+    n_values = header.count(",")
+    rows = [
+        ",".join(
+            [f"{0.01 * i:.2f}"]
+            + ["9.8" if k == n_values else "0.1" for k in range(1, n_values + 1)]
+        )
+        for i in range(20)
+    ]
+    path = tmp_path / "vernier.csv"
+    path.write_text(header + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    log = read_log(path)
+    assert log.format == "vernier"
+    (rec,) = log.recordings
+    assert rec.name == header.split(":")[0]
+    assert (rec.force is not None) == force
+    assert (0 if rec.accel is None else rec.accel.shape[1]) == axes
+    if axes == 3:
+        assert rec.accel_axes == ("x", "y", "z") and rec.accel_includes_gravity
+
+
+def test_sensor_logger_gyroscope_file_is_not_read_as_acceleration(tmp_path) -> None:
+    """Sensor Logger writes the same header for every sensor: the file name tells them apart."""
+    from balancer_id.errors import LogReadError
+
+    path = tmp_path / "Gyroscope.csv"
+    path.write_bytes((GOLDEN / "sensorlogger_accelerometer.csv").read_bytes())
+    with pytest.raises(LogReadError, match=r"'gyroscope' file .* no acceleration"):
+        read_log(path)
+    mapped = {"time": "seconds_elapsed", "ax": "x", "ay": "y", "az": "z"}
+    assert read_log(path, columns=mapped).recordings[0].n_samples == 4  # the map decides
+
+
+def test_sparkvue_wall_clock_gives_each_run_its_start() -> None:
+    """SPARKvue's ``Date and Time <run>``: the first cell of each run, in local time."""
+    from datetime import datetime
+
+    log = read_log(GOLDEN / "sparkvue_named_runs.csv")
+    first, second = log.recordings
+    assert first.started_at == datetime(2026, 1, 13, 8, 33, 11).timestamp()
+    assert second.started_at == datetime(2022, 5, 6, 14, 36, 52).timestamp()
+    assert log.started_at == second.started_at  # the earliest run

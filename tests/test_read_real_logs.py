@@ -13,7 +13,14 @@ import pytest
 
 from balancer_id.read import Log, read_log
 
-REAL_LOGS = Path(__file__).resolve().parents[2] / "shared" / "real_logs"
+REAL_LOGS = next(  # ../shared next to the checkout, or one folder up for a worktree
+    (
+        p / "shared" / "real_logs"
+        for p in Path(__file__).resolve().parents[2:4]
+        if (p / "shared" / "real_logs").is_dir()
+    ),
+    Path(__file__).resolve().parents[2] / "shared" / "real_logs",
+)
 
 pytestmark = pytest.mark.skipif(not REAL_LOGS.is_dir(), reason="real_logs folder not present")
 

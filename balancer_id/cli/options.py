@@ -162,13 +162,13 @@ def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, o
     code : int
         The exit code.
     exc : BaseException or None
-        The error (its ``file``, ``line`` and ``column`` when it has them).
+        The error (its ``file`` or ``path``, ``line`` and ``column`` when it has them).
 
     Returns
     -------
     dict
     """
-    file = getattr(exc, "file", None)
+    file = getattr(exc, "file", None) or getattr(exc, "path", None)  # LogReadError: path
     return {
         "kind": type(exc).__name__ if exc is not None else "Error",
         "message": line,

@@ -1,13 +1,15 @@
-"""Reading logs: PASCO Capstone, PASCO SPARKvue, phyphox and generic CSV.
+"""Reading logs: PASCO Capstone, PASCO SPARKvue, phyphox, Sensor Logger, Vernier, generic CSV.
 
 Public entry points: :func:`read_log` (detects the layout and returns a :class:`Log`)
 and :func:`write_log` (writes :class:`Recording` objects the way the programs do).
 
 The pipeline, one module per step: :mod:`~balancer_id.read.sniff` (size, encoding, BOM,
 delimiter, decimal mark, header) -> :mod:`~balancer_id.read.header` (column names into
-quantity, unit, run, kind) -> :mod:`~balancer_id.read.pasco`,
-:mod:`~balancer_id.read.phyphox` or :mod:`~balancer_id.read.generic` (which columns make
-which run: :class:`~balancer_id.read.plan.RunPlan`) -> :mod:`~balancer_id.read.table`
+quantity, unit, run, kind) -> the first layout of :data:`~balancer_id.read.layouts.LAYOUTS`
+that claims the header (:mod:`~balancer_id.read.pasco`, :mod:`~balancer_id.read.phyphox`,
+:mod:`~balancer_id.read.sensorlogger`, :mod:`~balancer_id.read.vernier`), else
+:mod:`~balancer_id.read.generic` (which columns make which run:
+:class:`~balancer_id.read.plan.RunPlan`) -> :mod:`~balancer_id.read.table`
 (numbers, with pandas' C engine) -> :mod:`~balancer_id.read.assemble`,
 :mod:`~balancer_id.read.units` and :mod:`~balancer_id.read.validate` (recordings, units,
 time checks, gaps, saturation).
@@ -35,7 +37,10 @@ Decisions
   from the data (median magnitude) unless the file is named ``Linear ...``.
 * Units: ``(g)`` in the header is converted with ``g``; with ``accel_unit="auto"`` an
   acceleration that includes gravity and rests at a magnitude ~1 is taken to be in g,
-  converted, and a warning says so. Time in ``(ms)`` is converted to seconds.
+  converted, and a warning says so; one beyond 25 is raw counts, refused with the column
+  map that scales them. The time's unit comes from the column map, the layout, the
+  header, the name or the values (:mod:`~balancer_id.read.timebase`); a clock time is
+  counted from the first sample and its start kept (``Recording.started_at``).
 * Runs named by the user (SPARKvue ``Force (N) 9.9``) keep that name; unnamed runs
   (phyphox, generic, a header without run suffix) are called ``"Run 1"``.
 * Time going backwards or repeating is an error naming the line; a step longer than

@@ -13,6 +13,7 @@ warning says so.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,15 +21,22 @@ import numpy as np
 
 from balancer_id.constants import FORCE_RANGE_N
 from balancer_id.errors import LogReadError
+from balancer_id.notes import Note
+from balancer_id.read.header import TIME_UNITS
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
+from balancer_id.read.timebase import TimeBase, to_seconds
 from balancer_id.read.units import UnitMismatch, resolve_accel
 from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
 COMMON_SHARE = 0.75
+#: An accelerometer sampled outside this range (Hz) is warned: a time unit misread.
+RATE_MIN_HZ, RATE_MAX_HZ = 1.0, 100_000.0
+#: A stretch of a restarting clock has at least this many samples.
+MIN_BLOCK = 10
 
 
 @dataclass
@@ -48,7 +56,7 @@ def build_recordings(
     *,
     accel_unit: str,
     g: float,
-) -> tuple[list[Recording], list[str]]:
+) -> tuple[list[Recording], list[str | Note]]:
     """Build the recordings of a log.
 
     Parameters
@@ -80,7 +88,8 @@ def build_recordings(
         acceleration that contradicts the unit the user forced or ``g``.
     """
     recordings: list[Recording] = []
-    warnings: list[str] = []
+    warnings: list[str | Note] = []
+    stated: set[str] = set()
     warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
         warnings.append(
@@ -89,14 +98,38 @@ def build_recordings(
         )
     for plan in plans:
         warnings.extend(f"{plan.name}: {note}" for note in plan.notes)
-        time = table.columns[plan.time]
-        if plan.time_scale != 1.0:
-            time = time * plan.time_scale
+        if plan.guessed:
+            warnings.append(_guess_note(plan, header))
+        for col, (factor, offset) in plan.scales.items():  # the column map's scales
+            table.columns[col] = table.columns[col] * factor + offset
+        base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
+        if plan.clock is not None and base.started_at is None:
+            clock = to_seconds(table.columns[plan.clock])
+            rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
+            if clock.started_at is not None and rows.any():
+                first = int(np.argmax(rows))
+                base = TimeBase(
+                    base.seconds - base.seconds[first],
+                    base.unit,
+                    base.source,
+                    clock.started_at + float(clock.seconds[first]),
+                    clock=header[plan.clock],
+                )
+        time = base.seconds
+        said = base.note(header[plan.time])
+        if said and said not in stated:
+            stated.add(said)
+            subject = header[plan.time]
+            warnings.append(Note("read.time_unit", said, subject=subject, severity="info"))
         force_time = time
         if plan.force_time is not None:
             force_time = table.columns[plan.force_time] * plan.force_time_scale
+            if base.started_at is not None:
+                force_time = force_time - base.started_at
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
+        sets, restarts = _split_restarts(sets, time, table, plan.name)
+        warnings.extend(restarts)
         for chosen in sets:
             force_only = chosen.force and not chosen.accel and plan.force_time is not None
             rec, rec_warnings = _build_one(
@@ -109,11 +142,90 @@ def build_recordings(
                 accel_unit=accel_unit,
                 g=g,
                 force_time=force_time,
+                time_unit=base.unit,
             )
             warnings.extend(rec_warnings)
             if rec is not None:
+                rec.started_at = (
+                    base.started_at if base.started_at is not None else plan.clock_start
+                )
+                if base.started_at is not None and rec.n_samples:
+                    rec.started_at = base.started_at + float(rec.time[0])
+                    rec.time = rec.time - rec.time[0]
                 recordings.append(rec)
     return recordings, warnings
+
+
+def _guess_note(plan: RunPlan, header: list[str]) -> Note:
+    """The ``read.column_guess`` note naming the columns guessed from their names."""
+    roles = [f"time={header[plan.time]}"]
+    if plan.force is not None:
+        roles.append(f"force={header[plan.force]}")
+    names = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
+    roles += [f"{r}={header[c]}" for r, c in zip(names, plan.accel, strict=True)]
+    return Note(
+        "read.column_guess",
+        f"columns guessed from their names: {','.join(roles)} (pass --columns to choose others)",
+        subject=plan.name,
+        severity="info",
+    )
+
+
+def _split_restarts(
+    sets: list[_ChannelSet], time: np.ndarray, table: Table, name: str
+) -> tuple[list[_ChannelSet], list[Note]]:
+    """Make each stretch of a clock that restarts (falls back to its start) a run of its own.
+
+    A fall of the time, after at least :data:`MIN_BLOCK` samples, to within two median
+    steps of the stretch's first time and by more than half the stretch's span is a
+    restart (a test rig's per-block clock); any other fall stays an error of
+    :func:`~balancer_id.read.validate.check_time`.
+    """
+    out: list[_ChannelSet] = []
+    notes: list[Note] = []
+    for chosen in sets:
+        idx = np.flatnonzero(chosen.rows)
+        if idx.size < 3 or chosen.force_rows is not None:
+            out.append(chosen)
+            continue
+        t = time[idx]
+        dt = np.diff(t)
+        falls = np.flatnonzero(dt < 0)
+        if falls.size == 0:
+            out.append(chosen)
+            continue
+        step = float(np.median(np.abs(dt[dt != 0]))) if np.any(dt != 0) else 0.0
+        starts = [0]
+        for i in falls.tolist():
+            first = float(t[starts[-1]])
+            long_block = i + 1 - starts[-1] >= MIN_BLOCK
+            if (
+                not long_block
+                or t[i + 1] > first + 2 * step
+                or t[i] - t[i + 1] < 0.5 * (t[i] - first)
+            ):
+                break  # not a restart: check_time names the line
+            starts.append(i + 1)
+        else:
+            bounds = [*starts, idx.size]
+            for k, (a, b) in enumerate(itertools.pairwise(bounds), start=1):
+                rows = np.zeros_like(chosen.rows)
+                rows[idx[a:b]] = True
+                part = f"Run {k}" if name == "Run 1" else f"{name} ({k})"
+                out.append(_ChannelSet(part, rows, chosen.force, chosen.accel))
+            lines = ", ".join(str(table.line_of(idx[i])) for i in starts[1:4])
+            more = ", ..." if len(starts) > 4 else ""
+            notes.append(
+                Note(
+                    "read.clock_restart",
+                    f"{name}: the time restarts {len(starts) - 1} time(s) (lines {lines}{more}); "
+                    f"each stretch is a run of its own ({len(starts)} runs)",
+                    subject=name,
+                )
+            )
+            continue
+        out.append(chosen)
+    return out, notes
 
 
 def _channel_sets(
@@ -164,8 +276,9 @@ def _build_one(
     accel_unit: str,
     g: float,
     force_time: np.ndarray,
-) -> tuple[Recording | None, list[str]]:
-    warnings: list[str] = []
+    time_unit: str = "s",
+) -> tuple[Recording | None, list[str | Note]]:
+    warnings: list[str | Note] = []
     count = int(np.count_nonzero(chosen.rows))
     name = chosen.name
     if count < 2:
@@ -200,19 +313,26 @@ def _build_one(
     if chosen.accel and plan.accel:
         raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
         try:
-            accel, includes_gravity, note = resolve_accel(
+            accel, includes_gravity, said = resolve_accel(
                 raw,
                 header_unit=plan.accel_unit,
                 includes_gravity=plan.includes_gravity,
-                accel_unit=accel_unit,
+                accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
                 g=g,
             )
         except UnitMismatch as exc:
+            hint = exc.hint
+            if exc.counts_per_g is not None:
+                hint = "give the scale in the column map: --columns " + _counts_map(
+                    plan, header, exc.counts_per_g
+                )
             raise LogReadError(
-                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=exc.hint
+                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
             ) from None
-        if note:
-            warnings.append(f"{name}: {note}")
+        if isinstance(said, Note):
+            warnings.append(Note(said.code, f"{name}: {said.text}", subject=name))
+        elif said:
+            warnings.append(f"{name}: {said}")
     extra = {
         label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
     }
@@ -228,9 +348,16 @@ def _build_one(
             )
         else:
             warnings.append(
-                f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) missing, "
-                f"longest {longest:.3g} s (kept as gaps, not interpolated)"
+                Note(
+                    "read.gap",
+                    f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) "
+                    f"missing, longest {longest:.3g} s (kept as gaps, not interpolated)",
+                    subject=name,
+                )
             )
+    rate = sample_rate(time)
+    if accel is not None and not RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
+        warnings.append(_rate_note(name, rate, header[plan.time], time_unit))
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
@@ -239,7 +366,11 @@ def _build_one(
         )
     if "accel" in saturated:
         warnings.append(
-            f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit (±16 g)"
+            Note(
+                "read.sensor_limit",
+                f"{name}: {saturated['accel']} acceleration sample(s) at the sensor limit (±16 g)",
+                subject=name,
+            )
         )
     rec = Recording(
         name=name,
@@ -248,12 +379,45 @@ def _build_one(
         accel=accel,
         accel_includes_gravity=includes_gravity,
         accel_axes=plan.accel_axes if accel is not None else ("x", "y", "z"),
-        sample_rate_hz=sample_rate(time),
+        sample_rate_hz=rate,
         gaps=gaps,
         saturated=saturated,
         extra=extra,
     )
     return rec, warnings
+
+
+def _rate_note(name: str, rate: float, column: str, unit: str) -> Note:
+    """The ``read.rate`` note of an acceleration sampled outside 1 Hz-100 kHz.
+
+    It names the time unit that would bring the rate nearest 100 Hz, if any.
+    """
+    text = (
+        f"{name}: the acceleration is sampled at {rate:.3g} Hz (time read in {unit}), outside "
+        f"the {RATE_MIN_HZ:g} Hz-{RATE_MAX_HZ / 1000:g} kHz of any accelerometer log"
+    )
+    scale = TIME_UNITS.get(unit, 1.0)
+    options = [
+        (abs(np.log10(rate * scale / s) - 2.0), u)
+        for u, s in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9))
+        if u != unit and np.isfinite(rate) and RATE_MIN_HZ <= rate * scale / s <= RATE_MAX_HZ
+    ]
+    if options:
+        better = min(options)[1]
+        text += f": if the time is in {better}, pass --columns time={column}:{better},..."
+    return Note("read.rate", text, subject=name)
+
+
+def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
+    """The ``--columns`` value that reads raw counts at ``per_g`` counts per g."""
+    roles = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
+    parts = [f"time={header[plan.time]}"]
+    if plan.force is not None:
+        parts.append(f"force={header[plan.force]}")
+    parts += [
+        f"{role}={header[col]}:counts/{per_g}g" for role, col in zip(roles, plan.accel, strict=True)
+    ]
+    return ",".join(parts) + "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
 
 
 def _force_onto_accel(

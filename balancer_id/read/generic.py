@@ -11,9 +11,12 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
 from balancer_id.errors import LogReadError, UsageError
 from balancer_id.read.header import ACCEL_WORDS, FORCE_WORDS, TIME_WORDS, Column, split_name
-from balancer_id.read.plan import RunPlan
+from balancer_id.read.plan import RunPlan, set_time_unit
+from balancer_id.read.timebase import canonical
 
 #: Keys a column map may use.
 MAP_KEYS = ("time", "force", "ax", "ay", "az", "a")
@@ -53,8 +56,107 @@ def listed_columns(columns: list[Column]) -> str:
     return ", ".join(names)
 
 
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_SPEC = re.compile(
+    rf"^(?:counts?\s*/\s*(?P<div>{_NUM})|(?P<fac>{_NUM})\s*\*?)?\s*"
+    rf"(?P<unit>[^\d\s+*][^+]*?)?\s*(?P<off>[+-]\s*{_NUM})?$"
+)
+#: Units the column map takes per role, with their factor to the reader's unit.
+MAP_UNITS: dict[str, dict[str, float]] = {
+    "time": {u: 1.0 for u in ("s", "sec", "ms", "msec", "us", "µs", "μs", "ns", "min")},
+    "accel": {"g": 1.0, "mg": 1e-3, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0},
+    "force": {"N": 1.0, "kN": 1e3, "mN": 1e-3, "kgf": 9.80665, "lbf": 4.4482216152605},
+}
+
+
+def parse_spec(role: str, text: str) -> tuple[str, float, float]:
+    """Parse the unit or scale of a column-map entry (the part after ``NAME:``).
+
+    ``ms`` (a unit), ``counts/4096g`` (4096 counts per g), ``0.00315N`` (N per count),
+    ``3.15e-6N+0.30`` (N per count plus an offset in N), ``1.22e-4g``, ``mg``.
+
+    Parameters
+    ----------
+    role : str
+        ``time``, ``force`` or an acceleration role (``ax``, ``ay``, ``az``, ``a``).
+    text : str
+        The spec.
+
+    Returns
+    -------
+    unit : str
+        ``"s"``/``"ms"``/``"us"``/``"ns"``/``"min"`` (time), ``"g"`` or ``"m/s^2"``
+        (acceleration), ``"N"`` (force).
+    factor, offset : float
+        Value = raw * factor + offset, in ``unit``.
+
+    Raises
+    ------
+    UsageError
+        The spec is not understood, or its unit does not fit the role.
+    """
+    kind = "time" if role == "time" else "force" if role == "force" else "accel"
+    units = MAP_UNITS[kind]
+    match = _SPEC.match(text.strip())
+    unit = (match.group("unit") or "").strip() if match else ""
+    key = unit if kind == "time" else unit.lower()
+    if match is None or key not in {k.lower() if kind != "time" else k for k in units}:
+        raise UsageError(
+            f"--columns {role}=...:{text}: give a unit of "
+            + ", ".join(units)
+            + ", optionally with a scale (e.g. "
+            + {
+                "time": "time=Time_ms:ms",
+                "accel": "ax=AccX:counts/4096g",
+                "force": "force=Force:0.00315N or Force:3.15e-6N+0.30",
+            }[kind]
+            + ")"
+        )
+    factor = 1.0
+    if match.group("div"):
+        divisor = float(match.group("div"))
+        factor = 1.0 / divisor if divisor else float("inf")
+    elif match.group("fac"):
+        factor = float(match.group("fac"))
+    offset = float(match.group("off").replace(" ", "")) if match.group("off") else 0.0
+    if not (np.isfinite(factor) and factor != 0.0 and np.isfinite(offset)):
+        raise UsageError(f"--columns {role}=...:{text}: the scale must be finite and not zero")
+    if kind == "time":
+        return canonical(key), factor, offset
+    scale = next(v for k, v in units.items() if k.lower() == key)
+    if kind == "force":
+        return "N", factor * scale, offset * scale
+    return ("g" if key in ("g", "mg") else "m/s^2"), factor * scale, offset * scale
+
+
+def _find(
+    path: Path, columns: list[Column], role: str, value: str
+) -> tuple[Column, tuple[str, float, float] | None]:
+    """The header column a map entry names, and its parsed unit spec (None when none)."""
+    by_name = {c.raw.strip().lower(): c for c in columns}
+    name = str(value).strip()
+    col = by_name.get(name.lower())
+    if col is not None:
+        return col, None
+    left, sep, spec = name.rpartition(":")
+    if sep and left.strip().lower() in by_name:
+        return by_name[left.strip().lower()], parse_spec(role, spec)
+    raise LogReadError(
+        path,
+        f"column '{name}' given for {role} is not in the header",
+        line=1,
+        column=name,
+        hint=f"columns present: {listed_columns(columns)}",
+    )
+
+
 def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) -> list[RunPlan]:
     """Plan a log from a user's column map.
+
+    Each entry is ``ROLE=NAME`` or ``ROLE=NAME:SPEC``, SPEC a unit and optional scale
+    (:func:`parse_spec`): ``time=Time_ms:ms``, ``ax=AccX:counts/4096g``,
+    ``force=Force:3.15e-6N+0.30``. A unit given here is forced: it is not guessed from
+    the values (a contradiction with the resting magnitude is refused).
 
     Parameters
     ----------
@@ -63,7 +165,7 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     columns : list of Column
         The classified header.
     mapping : dict
-        Role -> column name; roles are :data:`MAP_KEYS`.
+        Role -> column name (with an optional ``:SPEC``); roles are :data:`MAP_KEYS`.
 
     Returns
     -------
@@ -73,8 +175,8 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     Raises
     ------
     UsageError
-        The map has an unknown role, no ``time``, no force or acceleration, or mixes
-        ``a`` with ``ax``/``ay``/``az``.
+        The map has an unknown role, no ``time``, no force or acceleration, mixes
+        ``a`` with ``ax``/``ay``/``az``, or a spec that is not understood.
     LogReadError
         A mapped name is not in the header.
     """
@@ -87,35 +189,49 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
         )
     if "time" not in roles:
         raise UsageError("the column map needs a time column: --columns time=NAME,...")
-    axes = [k for k in ("ax", "ay", "az") if k in roles]
+    axes: list[str] = [k for k in ("ax", "ay", "az") if k in roles]
     if "a" in roles and axes:
         raise UsageError("the column map gives both a and ax/ay/az; give one or the other")
     if "force" not in roles and "a" not in roles and not axes:
         raise UsageError("the column map needs force=NAME or acceleration (ax=,ay=,az= or a=)")
-    by_name = {c.raw.strip().lower(): c for c in columns}
     found: dict[str, Column] = {}
+    specs: dict[str, tuple[str, float, float]] = {}
     for role, name in roles.items():
-        col = by_name.get(str(name).strip().lower())
-        if col is None:
-            raise LogReadError(
-                path,
-                f"column '{name}' given for {role} is not in the header",
-                line=1,
-                column=str(name),
-                hint=f"columns present: {listed_columns(columns)}",
-            )
-        found[role] = col
+        found[role], spec = _find(path, columns, role, name)
+        if spec is not None:
+            specs[role] = spec
     time = found["time"]
-    plan = RunPlan(name=RUN_NAME, time=time.index, time_scale=time.time_scale)
+    plan = RunPlan(name=RUN_NAME, time=time.index)
+    set_time_unit(plan, time)
+    if "time" in specs:
+        unit, factor, offset = specs["time"]
+        plan.time_unit, plan.time_unit_from = unit, "map"
+        if (factor, offset) != (1.0, 0.0):
+            plan.scales[time.index] = (factor, offset)
     if "force" in found:
         plan.force = found["force"].index
+        if "force" in specs:
+            plan.scales[plan.force] = specs["force"][1:]
     accel_cols: list[Column] = []
+    accel_roles: list[str] = []
     if "a" in found:
-        accel_cols, plan.accel_axes = [found["a"]], ("z",)
+        accel_cols, plan.accel_axes, accel_roles = [found["a"]], ("z",), ["a"]
     elif axes:
         accel_cols = [found[k] for k in axes]
         plan.accel_axes = tuple(k[1] for k in axes)
+        accel_roles = list(axes)
     _set_accel(plan, accel_cols)
+    given = [specs[r] for r in accel_roles if r in specs]
+    if given:
+        if len(given) != len(accel_roles) or len({u for u, _, _ in given}) != 1:
+            raise UsageError(
+                "--columns: give the same unit to every acceleration axis "
+                "(e.g. ax=AccX:counts/4096g,ay=AccY:counts/4096g,az=AccZ:counts/4096g)"
+            )
+        plan.accel_unit, plan.accel_unit_given = given[0][0], True
+        for role, col in zip(accel_roles, accel_cols, strict=True):
+            if specs[role][1:] != (1.0, 0.0):
+                plan.scales[col.index] = specs[role][1:]
     return [plan]
 
 
@@ -177,7 +293,8 @@ def guess_plan(columns: list[Column]) -> list[RunPlan]:
             single = col
     if time is None or (force is None and not axes and single is None):
         return []
-    plan = RunPlan(name=RUN_NAME, time=time.index, time_scale=time.time_scale)
+    plan = RunPlan(name=RUN_NAME, time=time.index)
+    set_time_unit(plan, time)
     if force is not None:
         plan.force = force.index
     if len(axes) == 3:
@@ -190,12 +307,13 @@ def guess_plan(columns: list[Column]) -> list[RunPlan]:
         (axis, col), *_ = axes.items()
         plan.accel_axes = (axis,)
         _set_accel(plan, [col])
+    plan.guessed = True
     return [plan] if plan.has_signal else []
 
 
 def _accel_axis(col: Column, tokens: list[str]) -> str | None:
     """Return the axis of an acceleration column, ``""`` for one without axis, else None."""
-    if col.kind == "accel":
+    if col.kind == "accel" and (col.axis or not any(t in ("x", "y", "z") for t in tokens[1:])):
         return col.axis
     if len(tokens) == 1 and tokens[0] in _AXIS_TOKENS:
         return _AXIS_TOKENS[tokens[0]]
@@ -226,9 +344,12 @@ def no_columns_error(path: Path, columns: list[Column], what: str) -> LogReadErr
         Names the file, line 1 and the columns present, and tells the user to pass
         ``--columns``.
     """
+    hint = COLUMNS_HINT
+    if what == "no force or acceleration column":
+        hint = (
+            "record or export the force sensor or the accelerometer; if a column here is a "
+            "force or an acceleration under another name, " + COLUMNS_HINT
+        )
     return LogReadError(
-        path,
-        f"{what} (columns found: {listed_columns(columns)})",
-        line=1,
-        hint=COLUMNS_HINT,
+        path, f"{what} (columns found: {listed_columns(columns)})", line=1, hint=hint
     )

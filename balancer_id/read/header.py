@@ -49,9 +49,28 @@ _ACCEL_UNITS = {
     "m/sec^2": "m/s^2",
     "g": "g",
 }
-_TIME_UNITS = {"s": 1.0, "sec": 1.0, "seconds": 1.0, "ms": 1e-3}
+#: Time units -> factor to seconds (headers, column names and the column map).
+TIME_UNITS = {
+    "s": 1.0,
+    "sec": 1.0,
+    "secs": 1.0,
+    "seconds": 1.0,
+    "ms": 1e-3,
+    "msec": 1e-3,
+    "millis": 1e-3,
+    "us": 1e-6,
+    "µs": 1e-6,
+    "μs": 1e-6,
+    "micros": 1e-6,
+    "ns": 1e-9,
+    "nanos": 1e-9,
+    "min": 60.0,
+}
+_TIME_UNITS = TIME_UNITS
 _GYRO_UNITS = ("rad/s", "deg/s", "°/s", "dps")
 _AXIS = re.compile(r"(?:^|[\s\-_:,(])([xyz])(?:[\s\-_]?axis)?$")
+#: Vernier's ``X-axis acceleration``: the axis first.
+_AXIS_FIRST = re.compile(r"^([xyz])[\s\-_]?axis\b")
 
 
 @dataclass(frozen=True)
@@ -197,7 +216,7 @@ def classify(index: int, raw: str) -> Column:
         kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) else "accel"
         linear = "linear" in q
     if kind in ("accel", "gyro"):
-        found = _AXIS.search(q)
+        found = _AXIS.search(q) or _AXIS_FIRST.search(q)
         axis = found.group(1) if found else ""
     return Column(index, raw, quantity, unit, run, kind, axis, linear)
 

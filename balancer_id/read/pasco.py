@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 
 from balancer_id.errors import LogReadError
-from balancer_id.read.header import Column
+from balancer_id.read.header import TIME_UNITS, Column
 from balancer_id.read.plan import RunPlan, plan_from_columns
 
 _SHARED_RUNS = ("", "auto")
@@ -137,7 +137,7 @@ def _join_rates(plans: list[RunPlan]) -> list[RunPlan]:
     accel.force, accel.force_time, accel.force_time_scale = (
         force.force,
         force.time,
-        force.time_scale,
+        TIME_UNITS.get(force.time_unit, 1.0),
     )
     accel.notes.extend(force.notes)
     if force.extra:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from balancer_id.read.header import Column
+from balancer_id.read.timebase import unit_of_column
 
 _AXES = ("x", "y", "z")
 
@@ -24,8 +25,6 @@ class RunPlan:
         Run name for the :class:`Recording`.
     time : int
         Column index of the time.
-    time_scale : float
-        Factor to seconds (1.0, or 1e-3 for ms).
     force : int or None
         Column index of the force, or None.
     force_time : int or None
@@ -44,13 +43,32 @@ class RunPlan:
         True/False when the layout says so; None to decide from the data.
     extra : dict
         Label -> column index of other numeric channels (gyro, position, ...).
+    time_unit : str
+        The time's unit when known (``"s"``, ``"ms"``, ``"us"``, ``"ns"``), else ``""``
+        (decided from the values, :mod:`~balancer_id.read.timebase`).
+    time_unit_from : str
+        Where ``time_unit`` comes from: ``"map"``, ``"layout"``, ``"header"``, ``"name"``.
+    accel_unit_given : bool
+        True when the column map gave the acceleration's unit: it is then taken as
+        forced (checked against the resting magnitude, never guessed).
+    scales : dict
+        Column index -> ``(factor, offset)`` from the column map: value = raw * factor +
+        offset, in the unit of ``time_unit``/``accel_unit`` (N for force).
+    clock : int or None
+        Column index of a clock time (ns since 1970, Sensor Logger's ``time``) that gives
+        the recording's start when the time column is a time since the start.
+    clock_start : float or None
+        The run's start (s since 1970) read from a date-and-time column (SPARKvue), to the
+        second, when its time column is no clock time.
+    guessed : bool
+        True when the columns were guessed from their names (a generic CSV without a
+        column map); the choice is stated in a ``read.column_guess`` note.
     notes : list of str
         Warnings found while planning (duplicate channels, ...).
     """
 
     name: str
     time: int
-    time_scale: float = 1.0
     force: int | None = None
     force_time: int | None = None
     force_time_scale: float = 1.0
@@ -59,6 +77,13 @@ class RunPlan:
     accel_unit: str = ""
     includes_gravity: bool | None = None
     extra: dict[str, int] = field(default_factory=dict)
+    time_unit: str = ""
+    time_unit_from: str = ""
+    accel_unit_given: bool = False
+    scales: dict[int, tuple[float, float]] = field(default_factory=dict)
+    clock: int | None = None
+    clock_start: float | None = None
+    guessed: bool = False
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -69,6 +94,8 @@ class RunPlan:
             cols.append(self.force)
         if self.force_time is not None:
             cols.append(self.force_time)
+        if self.clock is not None:
+            cols.append(self.clock)
         return cols
 
     @property
@@ -103,7 +130,8 @@ def plan_from_columns(
     RunPlan
         The plan; ``accel`` holds three axes, one axis, or nothing.
     """
-    plan = RunPlan(name=name, time=time.index, time_scale=time.time_scale)
+    plan = RunPlan(name=name, time=time.index)
+    set_time_unit(plan, time)
     axes: dict[str, Column] = {}
     single: list[Column] = []
     for col in members:
@@ -155,6 +183,19 @@ def plan_from_columns(
         elif with_gravity_name is not None and len(chosen) == 3:
             plan.includes_gravity = with_gravity_name
     return plan
+
+
+def set_time_unit(plan: RunPlan, time: Column) -> None:
+    """Set the plan's time unit from what its time column states (header or name).
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The plan (changed in place).
+    time : Column
+        Its time column.
+    """
+    plan.time_unit, plan.time_unit_from = unit_of_column(time)
 
 
 def _unique(existing: dict[str, int], label: str) -> str:

@@ -9,19 +9,23 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
+from balancer_id.notes import Note, as_note, texts
 from balancer_id.read.assemble import build_recordings
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
-from balancer_id.read.pasco import looks_like_pasco, plan_runs
-from balancer_id.read.phyphox import looks_like_phyphox, plan_phyphox
+from balancer_id.read.layouts import detect_layout
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
-from balancer_id.read.sniff import sniff
+from balancer_id.read.sniff import Sniffed, sniff
 from balancer_id.read.table import read_table
+from balancer_id.read.timebase import first_wall_clock
 from balancer_id.read.units import check_accel_unit
 
-#: Largest plausible time value (s, or ms before conversion): a Unix time in ms fits.
-TIME_BOUND = 1e13
+#: Largest plausible time value before conversion: a Unix time in ns (19 digits) fits.
+TIME_BOUND = 1e19
+#: Note codes kept in ``Log.notes`` only, not in the warnings text (they are no warning:
+#: every generic CSV read without a column map has its columns guessed).
+NOTES_ONLY = frozenset({"read.column_guess"})
 #: Largest plausible force (N) or acceleration (m/s^2 or g) of any sensor.
 SIGNAL_BOUND = 1e6
 
@@ -41,7 +45,7 @@ def read_log(
     dropped samples are reported as gaps and never interpolated. Only regular files are
     read, streamed within ``max_bytes``; a cut last line is dropped and values that are
     infinite or beyond any sensor's range (force, acceleration beyond 1e6; time beyond
-    1e13) are treated as missing samples, each with a warning.
+    1e19) are treated as missing samples, each with a warning.
 
     Parameters
     ----------
@@ -77,16 +81,18 @@ def read_log(
     sniffed = sniff(path, max_bytes)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
+    _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
     limits: dict[int, float] = {}
     for plan in plans:
-        for col in (plan.time, plan.force_time):
+        for col in (plan.time, plan.force_time, plan.clock):
             if col is not None:
                 limits[col] = TIME_BOUND
         for col in (plan.force, *plan.accel):
-            if col is not None:
-                limits[col] = SIGNAL_BOUND
+            if col is not None:  # the bound holds after the column map's scale
+                factor, offset = plan.scales.get(col, (1.0, 0.0))
+                limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
     table = read_table(sniffed, wanted, optional, limits)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
@@ -99,7 +105,32 @@ def read_log(
             line=sniffed.header_line + 1,
             hint="check that the export includes the measurements",
         )
-    return Log(path=sniffed.path, format=fmt, recordings=recordings, warnings=warnings)
+    found = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
+    found += [as_note(w, "read.other") for w in warnings]
+    return Log(
+        path=sniffed.path,
+        format=fmt,
+        recordings=recordings,
+        warnings=texts(n for n in found if n.code not in NOTES_ONLY),
+        notes=found,
+    )
+
+
+def _wall_clocks(sniffed: Sniffed, header: list[Column], plans: list[RunPlan]) -> None:
+    """Set each plan's start from its run's date-and-time column (SPARKvue), if any."""
+    clocks = {c.run: c.index for c in header if c.kind == "datetime"}
+    if not clocks:
+        return
+    end = sniffed.data.find(b"\n", sniffed.data_start)
+    for _ in range(20):  # a run's first date is on one of the first lines
+        nxt = sniffed.data.find(b"\n", end + 1)
+        end = len(sniffed.data) if nxt < 0 else nxt
+    lines = sniffed.data[sniffed.data_start : end].decode("utf-8", "replace").splitlines()
+    for plan in plans:
+        run = next((r for r in clocks if r and plan.name.startswith(r)), None)
+        column = clocks.get(run if run is not None else "")
+        if column is not None:
+            plan.clock_start = first_wall_clock(lines, sniffed.delimiter, column)
 
 
 def _plan(
@@ -108,13 +139,7 @@ def _plan(
     """Choose the layout and plan its runs."""
     if columns:
         return "generic", plan_from_map(path, header, columns)
-    pasco = looks_like_pasco(header)
-    if pasco is not None:
-        fmt, plans = pasco, plan_runs(path, header)
-    elif looks_like_phyphox(header):
-        fmt, plans = "phyphox", plan_phyphox(path, header)
-    else:
-        fmt, plans = "generic", []
+    fmt, plans = detect_layout(path, header)
     if not plans:
         plans = guess_plan(header)
         if fmt != "generic" and plans:

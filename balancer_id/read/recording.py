@@ -7,8 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
+from balancer_id.notes import Note
+
 #: The layouts a reader may report (CONTRACT.md, ``inspect --json`` ``format``).
-FORMATS = ("pasco-capstone", "pasco-sparkvue", "phyphox", "generic")
+FORMATS = (
+    "pasco-capstone",
+    "pasco-sparkvue",
+    "phyphox",
+    "sensor-logger",
+    "vernier",
+    "generic",
+)
 
 
 @dataclass(frozen=True)
@@ -59,6 +68,11 @@ class Recording:
         Channel name -> number of samples at the sensor's limits.
     extra : dict
         Other numeric channels kept by name (gyro, position, ...).
+    started_at : float or None
+        When the run's first sample was taken, in seconds since 1970 (UTC), when the file
+        says: a clock time in its time column (epoch ms/µs/ns, Sensor Logger's ``time``),
+        or a date-and-time column (SPARKvue; a wall clock without zone, taken in this
+        machine's time zone, to the second); None otherwise.
     """
 
     name: str
@@ -71,6 +85,7 @@ class Recording:
     gaps: list[Gap] = field(default_factory=list)
     saturated: dict[str, int] = field(default_factory=dict)
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    started_at: float | None = None
 
     @property
     def n_samples(self) -> int:
@@ -91,18 +106,30 @@ class Log:
     recordings : list of Recording
         One per run, in file order.
     warnings : list of str
-        Things the user should know (saturation, gaps, guessed units).
+        Things the user should know (saturation, gaps, guessed units), as text.
+    notes : list of Note
+        The same, typed (:class:`~balancer_id.notes.Note`: a code such as
+        ``read.time_unit``, ``read.gravity_header``, ``read.column_guess``, a subject and
+        the text); code decides on ``note.code``. Remarks without a code of their own
+        carry ``read.other``.
     """
 
     path: Path
     format: str
     recordings: list[Recording]
     warnings: list[str] = field(default_factory=list)
+    notes: list[Note] = field(default_factory=list)
 
     @property
     def n_samples(self) -> int:
         """Total samples over all runs."""
         return sum(r.n_samples for r in self.recordings)
+
+    @property
+    def started_at(self) -> float | None:
+        """When the recording started (s since 1970, UTC), when the file says; else None."""
+        times = [r.started_at for r in self.recordings if r.started_at is not None]
+        return min(times) if times else None
 
     @property
     def sample_rate_hz(self) -> float:

@@ -82,6 +82,8 @@ class Sniffed:
     cut_last : str
         The last line of the file when it has no line end and looks cut (fewer cells
         than the line before, or a shorter last number); the parser drops it.
+    notes : tuple of str
+        What was done to the text before parsing (quotes around whole rows removed).
     """
 
     path: Path
@@ -97,6 +99,7 @@ class Sniffed:
     read_encoding: str = "utf-8"
     limit: int = DEFAULT_MAX_BYTES
     cut_last: str = ""
+    notes: tuple[str, ...] = ()
 
     @property
     def has_bom(self) -> bool:
@@ -449,7 +452,32 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
     if not complete:  # decode whole lines only: a character may be cut at the end
         cut = head.rfind(b"\n")
         head = head[: cut + 1] if cut >= 0 else head
+    if head.startswith(b"PK\x03\x04"):
+        raise LogReadError(
+            path,
+            "is a zip archive, not a CSV file (phyphox's export as a zip, or an Excel .xlsx)",
+            line=1,
+            hint="unzip it and give the CSV inside (phyphox: 'Raw Data.csv'), "
+            "or save the sheet as CSV",
+        )
     data, encoding = _decode(path, head)
+    notes: tuple[str, ...] = ()
+    if _rows_quoted_whole(data):
+        if not complete:
+            fd = open_regular(path, limit)
+            try:
+                head, complete = _read_up_to(path, fd, limit + 1, limit)
+            except OSError as exc:
+                raise _os_error(path, exc) from None
+            finally:
+                os.close(fd)
+            data, encoding = _decode(path, head)
+        data = _unquote_rows(data)
+        tail = data[-_TAIL_BYTES:]
+        notes = (
+            "every line of the file is one quoted field (re-saved by a spreadsheet); "
+            "the quotes around each line were removed",
+        )
     # The header is the first line that is not blank.
     start = 0
     while True:
@@ -517,7 +545,37 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
         read_encoding="cp1252" if encoding == "cp1252" else "utf-8",
         limit=limit,
         cut_last=cut_last,
+        notes=notes,
     )
+
+
+def _rows_quoted_whole(data: bytes) -> bool:
+    """True when the first lines are each one quoted field holding delimiters.
+
+    A spreadsheet that took each line of a CSV as one text cell writes it back quoted
+    whole: ``"Time (s),""Linear Acceleration x (m/s^2)"",..."`` then ``"0.097,0.017,..."``.
+    """
+    lines = [ln for ln in data[:65536].decode("utf-8", "replace").splitlines() if ln.strip()]
+    lines = lines[:6] if len(lines) > 6 else lines[:-1] or lines
+    if len(lines) < 2:
+        return False
+    for line in lines:
+        cells = _fields(line.strip(), ",")
+        text = line.strip()
+        if not (text.startswith('"') and text.endswith('"')) or len(cells) != 1:
+            return False
+        if not any(d in cells[0] for d in _DELIMITERS):
+            return False
+    return True
+
+
+def _unquote_rows(data: bytes) -> bytes:
+    """Each line's single quoted field, unquoted (``""`` back to ``"``)."""
+    out = []
+    for line in data.decode("utf-8").splitlines():
+        cells = _fields(line.strip(), ",") if line.strip() else [""]
+        out.append(cells[0] if len(cells) == 1 else line)
+    return ("\n".join(out) + "\n").encode("utf-8")
 
 
 def _after_newlines(raw: bytes, n: int) -> int:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from balancer_id.errors import UsageError
+from balancer_id.notes import Note
 
 #: Values ``accel_unit`` accepts.
 ACCEL_UNITS = ("auto", "m/s^2", "g")
@@ -38,6 +39,9 @@ _ALIASES = {"m/s²": "m/s^2", "m/s2": "m/s^2", "ms2": "m/s^2", "mps2": "m/s^2", 
 
 _G_LOW, _G_HIGH = 0.7, 1.3
 _WITH_G_MIN = 4.0
+#: A median magnitude beyond this (m/s^2 or g; 2.5 g) is no log's acceleration: raw counts
+#: (or a unit such as ft/s^2, 32.2 at rest).
+RAW_COUNTS_MIN = 25.0
 _G_STANDARD = 9.80665
 
 
@@ -52,10 +56,11 @@ class UnitMismatch(ValueError):
         What to do.
     """
 
-    def __init__(self, message: str, hint: str) -> None:
+    def __init__(self, message: str, hint: str, counts_per_g: int | None = None) -> None:
         super().__init__(message)
         self.message = message
         self.hint = hint
+        self.counts_per_g = counts_per_g
 
 
 def _near(value: float, target: float) -> bool:
@@ -94,7 +99,7 @@ def resolve_accel(
     includes_gravity: bool | None,
     accel_unit: str,
     g: float,
-) -> tuple[np.ndarray, bool, str | None]:
+) -> tuple[np.ndarray, bool, str | Note | None]:
     """Convert an acceleration block to m/s^2 and decide whether it includes gravity.
 
     Parameters
@@ -116,14 +121,15 @@ def resolve_accel(
         In m/s^2.
     includes_gravity : bool
         The decision.
-    warning : str or None
-        A message when the unit was guessed from the values, or a header unit was
-        contradicted by them.
+    warning : Note, str or None
+        A message when the unit was guessed from the values, or a header unit or the
+        header's with/without g was contradicted by them (``read.gravity_header``).
 
     Raises
     ------
     UnitMismatch
-        The resting magnitude contradicts a unit the user forced, or ``g``.
+        The resting magnitude contradicts a unit the user forced, or ``g``, or (auto)
+        is beyond 25 (2.5 g): raw counts, refused with the scale to give.
     """
     if accel.size == 0:
         return accel, bool(includes_gravity) if includes_gravity is not None else True, None
@@ -133,6 +139,17 @@ def resolve_accel(
     else:
         level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
+    if level > RAW_COUNTS_MIN:  # in any unit: no log's acceleration sits at 2.5 g
+        per_g = int(2 ** round(np.log2(level)))
+        raise UnitMismatch(
+            f"the acceleration rests at a magnitude of {level:.4g}, neither ~9.8 (m/s^2) nor "
+            f"~1 (g): raw sensor counts (~{per_g} counts per g?) or another unit",
+            f"give the scale in the column map, e.g. ax=NAME:counts/{per_g}g",
+            counts_per_g=per_g,
+        )
+    gravity_note = None
+    if accel_unit == "auto" and includes_gravity is not None and accel.shape[1] == 3:
+        includes_gravity, gravity_note = _check_gravity_claim(sub, level, includes_gravity)
     if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
         if accel_unit == "g":
             raise UnitMismatch(
@@ -156,7 +173,7 @@ def resolve_accel(
             includes_gravity = level > g / 2
         if includes_gravity:
             _check_g(level, g)
-        return accel, includes_gravity, None
+        return accel, includes_gravity, gravity_note
     if (
         accel_unit == "m/s^2"
         and accel.shape[1] > 1
@@ -186,7 +203,33 @@ def resolve_accel(
             "m/s^2; converted to m/s^2 (pass accel_unit='m/s^2' or --accel-unit m/s^2 if wrong)"
         )
         return accel * g, True, warning
-    return accel, includes_gravity, None
+    return accel, includes_gravity, gravity_note
+
+
+def _check_gravity_claim(sub: np.ndarray, level: float, claimed: bool) -> tuple[bool, Note | None]:
+    """Compare what the header says about gravity with the data.
+
+    With gravity, the mean vector of a log (gravity, mostly at rest) is large and the
+    magnitude sits near 9.8 (or 1 in g); without it, both are small. A header that says
+    "with g" over data whose magnitude and mean vector are both small (under 0.7 and
+    2 m/s^2) is data without gravity; a "without g" header over data whose mean vector is
+    near 9.8 m/s^2 is data with gravity. Either is warned (``read.gravity_header``) and
+    the data decide.
+    """
+    mean = float(np.linalg.norm(np.nanmean(sub, axis=0)))
+    if claimed and level < _G_LOW and mean < 2.0:
+        return False, Note(
+            "read.gravity_header",
+            f"the header names acceleration with g, but the values hold no gravity (magnitude "
+            f"{level:.2f}, mean vector {mean:.2f}): read as acceleration without g",
+        )
+    if not claimed and _near(mean, _G_STANDARD) and _near(level, _G_STANDARD):
+        return True, Note(
+            "read.gravity_header",
+            f"the header names acceleration without g, but the values hold gravity (mean "
+            f"vector {mean:.2f} m/s^2): read as acceleration with g",
+        )
+    return claimed, None
 
 
 def _check_g(level: float, g: float) -> None:

@@ -27,6 +27,8 @@ from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write, check_output
 from balancer_id.read.recording import FORMATS, Recording
 
+#: The layouts :func:`write_log` writes (the others in FORMATS are only read).
+WRITABLE = ("pasco-capstone", "pasco-sparkvue", "phyphox", "generic")
 _DELIMITERS = (",", ";", "\t")
 _DECIMALS = (".", ",")
 _SPARKVUE_START = datetime(2024, 1, 1, 12, 0, 0)
@@ -160,8 +162,9 @@ def _format_rows(columns: list[np.ndarray], fmt: str, delimiter: str, eol: str) 
 
 
 def _check_options(layout: str, delimiter: str, decimal: str, recordings: list[Recording]) -> None:
-    if layout not in FORMATS:
-        raise UsageError(f"unknown layout {layout!r}; use one of {', '.join(FORMATS)}")
+    if layout not in WRITABLE:
+        known = "a layout that is only read" if layout in FORMATS else "unknown layout"
+        raise UsageError(f"{known} {layout!r}; write one of {', '.join(WRITABLE)}")
     if delimiter not in _DELIMITERS:
         raise UsageError(f"delimiter must be one of {_DELIMITERS!r}, not {delimiter!r}")
     if decimal not in _DECIMALS or decimal == delimiter:
