@@ -46,6 +46,7 @@ CODES: dict[str, str] = {
     "fit.below_resolution": "a time constant below what the sample rate resolves",
     "fit.no_convergence": "the optimizer did not converge",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
+    "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
     "fit.other": "another remark about the fit",
     # diagnosing
     "diagnose.not_white": "the residual is not white beyond the sensor's noise colour",

@@ -45,6 +45,9 @@ class ReadOptions:
     accel_unit : str
         ``auto``, ``m/s^2`` or ``g``: unit of the acceleration columns (``auto`` reads the
         header and converts evidently-g data with a warning).
+    windows : tuple of (float, float)
+        ``--window START:END``: stretches (s) where only the measured force acts; each is
+        a trial and nothing is detected (a lab rig, a free motion).
 
     Raises
     ------
@@ -58,6 +61,7 @@ class ReadOptions:
     vertical: str = "auto"
     g: float = G_DEFAULT
     accel_unit: str = "auto"
+    windows: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         from balancer_id.read.generic import MAP_KEYS
@@ -76,6 +80,10 @@ class ReadOptions:
             raise UsageError(f"--g {self.g}: gravity must be a positive number of m/s^2, e.g. 9.81")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
+        if self.windows:
+            from balancer_id.segment.given_windows import check_windows
+
+            object.__setattr__(self, "windows", tuple(check_windows(self.windows)))
         if self.thrusts is not None:
             thrusts = [float(f) for f in self.thrusts]
             if not all(math.isfinite(f) for f in thrusts):
@@ -103,6 +111,7 @@ class ReadOptions:
         columns: str | None = None,
         g: float = G_DEFAULT,
         accel_unit: str = "auto",
+        window: list[str] | None = None,
     ) -> ReadOptions:
         """Build from the command-line spelling (``--thrust 2.45,-4.9``, ``--columns t=..``).
 
@@ -120,6 +129,8 @@ class ReadOptions:
             Gravity (m/s^2).
         accel_unit : str
             ``auto``, ``m/s^2`` or ``g``.
+        window : list of str, optional
+            ``START:END`` stretches in seconds (``--window``, repeatable).
 
         Returns
         -------
@@ -144,6 +155,17 @@ class ReadOptions:
                 if not sep:
                     raise UsageError(f"--columns '{item}': expected ROLE=COLUMN, e.g. time=t")
                 cmap[key.strip()] = value.strip()
+        windows = []
+        for item in window or []:
+            start, sep, end = item.partition(":")
+            try:
+                windows.append((float(start), float(end)))
+            except ValueError:
+                raise UsageError(
+                    f"--window '{item}': give START:END in seconds, e.g. 2.05:5.4"
+                ) from None
+            if not sep:
+                raise UsageError(f"--window '{item}': give START:END in seconds, e.g. 2.05:5.4")
         return cls(
             columns=cmap,
             thrusts=thrusts,
@@ -151,6 +173,7 @@ class ReadOptions:
             vertical=vertical,
             g=g,
             accel_unit=accel_unit,
+            windows=tuple(windows),
         )
 
     def to_dict(self) -> dict[str, object]:
@@ -162,6 +185,7 @@ class ReadOptions:
             "vertical": self.vertical,
             "g": self.g,
             "accel_unit": self.accel_unit,
+            "windows": [list(w) for w in self.windows],
         }
 
     def cli_args(self) -> list[str]:
@@ -185,6 +209,8 @@ class ReadOptions:
             args += ["--g", repr(self.g)]
         if self.accel_unit != "auto":
             args += ["--accel-unit", self.accel_unit]
+        for start, end in self.windows:
+            args += ["--window", f"{start:g}:{end:g}"]
         return args
 
 
@@ -332,6 +358,11 @@ def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None
         o = options
         moves = find_moves(log, trajectory, force_sign=o.force_sign, vertical=o.vertical, g=o.g)
         return list(moves)
+    if options.windows:  # the user's stretches: no detection (a lab rig)
+        from balancer_id.segment.given_windows import window_trials
+
+        o = options
+        return window_trials(log, o.windows, vertical=o.vertical, g=o.g, force_sign=o.force_sign)
     return find_trials(
         log,
         thrusts=options.thrusts,

@@ -84,7 +84,7 @@ def test_fit_says_at_which_rate_it_fitted_a_decimated_log(cli, tmp_path):
     for trial in data["trials"]:
         assert trial["fit_rate_hz"] == pytest.approx(200.0, rel=1e-3)
         assert trial["decimated_from_hz"] == pytest.approx(1000.0, rel=1e-3)
-    assert data["notes"] == [
+    assert [n["text"] for n in data["notes"] if n["code"] == "fit.decimated"] == [
         f"{len(data['trials'])} trials fitted at 200 Hz, decimated from 1000 Hz "
         "(factor 5, anti-aliased)"
     ]

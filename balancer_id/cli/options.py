@@ -1,7 +1,7 @@
 """Options shared by the commands, declared once, and the parsing of their values.
 
-The six options that say how logs are read (``--thrust``, ``--force-sign``,
-``--vertical``, ``--columns``, ``--g``, ``--accel-unit``) are added to a command by
+The seven options that say how logs are read (``--thrust``, ``--force-sign``,
+``--vertical``, ``--columns``, ``--g``, ``--accel-unit``, ``--window``) are added to a command by
 :func:`read_options`, which hands the command one checked
 :class:`~balancer_id.trials.ReadOptions`.
 """
@@ -50,6 +50,14 @@ GOpt = Annotated[float, typer.Option("--g", help="Gravity in m/s^2.")]
 AccelUnitOpt = Annotated[
     str, typer.Option("--accel-unit", help="auto|m/s^2|g: unit of the acceleration columns.")
 ]
+WindowOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--window",
+        help="START:END in s: a stretch where only the measured force acts (repeatable); "
+        "each is a trial, nothing is detected (a lab rig).",
+    ),
+]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 FixOpt = Annotated[
     list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
@@ -77,6 +85,7 @@ READ_OPTIONS: dict[str, tuple[Any, Any]] = {
     "columns": (ColumnsOpt, None),
     "g": (GOpt, G_DEFAULT),
     "accel_unit": (AccelUnitOpt, "auto"),
+    "window": (WindowOpt, None),
 }
 
 

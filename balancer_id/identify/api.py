@@ -12,8 +12,10 @@ from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.starts import fit_start
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
+from balancer_id.notes import Note
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.inputs import Trapezoid
 from balancer_id.trials import ReadOptions, TrialSet, as_trial_set
@@ -169,7 +171,9 @@ def fit(
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
     classic = paper_method([t for t in data if t.thrust_N != 0])  # moves: no step
     user_start = dict(start or {})
-    start = {**classic.start_values(mdl), **user_start}
+    auto_start, start_notes = fit_start(mdl, data, classic)
+    notes: list[Note | str] = [*start_notes]
+    start = {**auto_start, **user_start}
     for name in [*user_start, *(bounds or {})]:
         if name not in mdl.param_names:
             from balancer_id.errors import UsageError
@@ -178,7 +182,6 @@ def fit(
                 f"{name} is not a parameter of '{mdl.spec}' "
                 f"(its parameters: {', '.join(mdl.param_names)})"
             )
-    notes: list[str] = []
     if mdl.needs_reference_move and ts.trajectory is not None:
         from balancer_id.segment.move import start_given
 
@@ -200,6 +203,15 @@ def fit(
             f"the fit of '{mdl.spec}' did not converge: {match.message} "
             f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
+        )
+    mass = match.parameters.get("m_a")
+    if mass is not None and mass.vary and mass.at_bound and "m_a" not in (bounds or {}):
+        raise IdentificationError(
+            f"nothing identified: m_a ended at its {mass.at_bound}imum bound "
+            f"({mass.value:.4g} kg), a limit the data did not choose; the model '{mdl.spec}' "
+            "does not describe these trials (check them with 'balancer-id inspect --plot', "
+            "give the stretches where only the measured force acts with --window, or hold "
+            "known values with --fix)"
         )
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals

@@ -246,7 +246,7 @@ def from_trials(
         z_ref = v_ref = None
         if reference is not None:
             z_ref, v_ref = reference.evaluate(time)
-        x0 = None
+        x0 = getattr(trial, "initial_state", None)
         if restart:
             x0 = motion.state_at(time, accel, float(thrust.at(time[:1])[0]))
             continues = False

@@ -65,6 +65,10 @@ class ProfileInterval:
         }
 
 
+#: How far (as a factor of its value) the profile of a positive parameter is followed.
+PROFILE_FACTOR = 100.0
+
+
 def chi2_quantile_1dof(level: float) -> float:
     """The ``level`` quantile of the chi-square distribution with one degree of freedom.
 
@@ -140,13 +144,14 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
 
     def cost(value: float) -> float:
         try:
-            refit = match_trials(
-                match.model,
-                match.data.trials,
-                start={**start, name: value},
-                fixed={**held, name: value},
-                max_nfev=300,
-            )
+            with np.errstate(all="ignore"):  # far out, the simulation may overflow
+                refit = match_trials(
+                    match.model,
+                    match.data.trials,
+                    start={**start, name: value},
+                    fixed={**held, name: value},
+                    max_nfev=300,
+                )
         except BalancerIdError:
             return math.inf
         return float(np.sum(refit.residual**2))
@@ -155,8 +160,16 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     step0 = est.stderr if est.stderr and np.isfinite(est.stderr) and est.stderr > 0 else None
     step0 = min(step0 or 0.1 * max(abs(est.value), 1e-3 * span), 0.25 * span)
 
+    # a positive parameter is profiled within a factor of PROFILE_FACTOR of its value (the
+    # bounds of any scale, 0.01 kg to 1e5 kg, are no place to simulate a balancer)
+    lo_end, hi_end = spec.min, spec.max
+    if spec.min >= 0 and est.value > 0:
+        if spec.min > 0:  # 0 is a physical null worth reaching (no viscosity, no friction)
+            lo_end = max(spec.min, est.value / PROFILE_FACTOR)
+        hi_end = min(spec.max, est.value * PROFILE_FACTOR)
+
     def end(side: int) -> tuple[float, bool]:
-        bound = spec.min if side < 0 else spec.max
+        bound = lo_end if side < 0 else hi_end
         inside, step = est.value, step0
         for _ in range(MAX_REFITS_PER_END):
             trial = est.value + side * step

@@ -13,7 +13,9 @@ from balancer_id.errors import IdentificationError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import error_metrics
+from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
+from balancer_id.notes import Note
 from balancer_id.status import tell
 
 
@@ -78,10 +80,15 @@ class MatchResult(Displayable):
     success: bool
     message: str
     nfev: int
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[Note | str] = field(default_factory=list)
 
     def _shown_match(self) -> MatchResult:
         return self
+
+    @property
+    def trusted(self) -> bool:
+        """False when a note says the fit cannot be trusted (severity ``error``)."""
+        return not any(isinstance(n, Note) and n.severity == "error" for n in self.warnings)
 
     def _headline(self) -> str:
         values = ", ".join(f"{k}={p.value:.4g}" for k, p in list(self.parameters.items())[:4])
@@ -123,6 +130,14 @@ def _gram(a: np.ndarray, r: np.ndarray, rows: int = 2048) -> np.ndarray:
     """``[a | r]^T [a | r]`` in blocks of rows, each too small for BLAS to start its threads."""
     k = a.shape[1]
     g = np.zeros((k + 1, k + 1))
+    with np.errstate(over="ignore", invalid="ignore"):  # far from the data (a profile's end)
+        _accumulate_gram(g, a, r, rows)
+    return g
+
+
+def _accumulate_gram(g: np.ndarray, a: np.ndarray, r: np.ndarray, rows: int) -> None:
+    """Add ``[a | r]^T [a | r]`` to ``g`` block by block (see :func:`_gram`)."""
+    k = a.shape[1]
     for i in range(0, a.shape[0], rows):
         block = a[i : i + rows]
         rb = r[i : i + rows]
@@ -130,7 +145,6 @@ def _gram(a: np.ndarray, r: np.ndarray, rows: int = 2048) -> np.ndarray:
         g[k, :k] += rb @ block
         g[k, k] += rb @ rb
     g[:k, k] = g[k, :k]
-    return g
 
 
 def _triangular(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -194,6 +208,12 @@ class _Problem:
         self._last_q: float | None = None
         #: The Gauss-Newton step from the point :meth:`converged` last looked at.
         self.gn_step: np.ndarray | None = None
+        #: The fit's bounds of the free parameters, the names bounded by the user and
+        #: the shortest drive lag the samples resolve (set by :func:`match_trials`).
+        self.lo = np.full(len(free), -np.inf)
+        self.hi = np.full(len(free), np.inf)
+        self.user_bounds: set[str] = set()
+        self.lag_floor = 0.0
 
     def full(self, x: np.ndarray) -> np.ndarray:
         """The whole parameter vector with the free ones set to ``x``."""
@@ -388,7 +408,7 @@ def match_trials(
     if not trials:
         raise IdentificationError("no trial to fit; check the log with 'balancer-id inspect'")
     fixed = dict(fixed or {})
-    notes: list[str] = []
+    notes: list[Note | str] = []
     levels = thrust_levels(trials)
     for name in model.thrust_level_names:
         if name in model.param_names and name not in fixed and len(levels) < 2:
@@ -417,8 +437,20 @@ def match_trials(
         base[i] = float(np.clip(base[i], b_lo, b_hi))
         if i in free:
             lo[free.index(i)], hi[free.index(i)] = b_lo, b_hi
+    floor = lag_floor(trials)  # a drive lag shorter than the samples resolve is not fitted
+    for name in model.drive_lag_names:
+        i = names.index(name) if name in names else -1
+        if i in free and name not in (bounds or {}):
+            j = free.index(i)
+            lo[j] = max(lo[j], floor)
+    for j, i in enumerate(free):  # starts strictly inside the bounds
+        inner = 1e-3 * (hi[j] - lo[j]) if np.isfinite(hi[j] - lo[j]) else 1e-3
+        base[i] = float(np.clip(base[i], lo[j] + min(inner, abs(lo[j]) + 1e-9), hi[j] - inner))
     data = FitData.build(trials)
     problem = _Problem(model, data, base, free)
+    problem.lo, problem.hi = lo.copy(), hi.copy()
+    problem.user_bounds = set(bounds or {})
+    problem.lag_floor = floor
 
     if free and diff_step is None:
         problem.fun(base[free])  # the first start's evaluation, kept for the optimizer
@@ -450,6 +482,7 @@ def match_trials(
             raise StopIteration
 
     best = None
+    ends: list[_Outcome] = []
     if not free:
         r = problem.residual(base[free])
         best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
@@ -462,6 +495,7 @@ def match_trials(
             if last is not None:
                 r, jac = problem.linear_step(x0, last)
                 outcome = _Outcome(x0 + last, r, jac, True, CONVERGED, problem.nfev - used)
+                ends.append(outcome)
                 if best is None or outcome.chisqr < best.chisqr:
                     best = outcome
                 continue
@@ -497,6 +531,7 @@ def match_trials(
         else:
             r, jac = problem.at(x_end)
         outcome = _Outcome(x_end, r, jac, ret.status > 0 or message == CONVERGED, message, ret.nfev)
+        ends.append(outcome)
         if best is None or outcome.chisqr < best.chisqr:
             best = outcome
     if best is None:
@@ -505,7 +540,44 @@ def match_trials(
             "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
         )
     best.nfev = problem.nfev
-    return _collect(model, best, problem, data, notes)
+    result = _collect(model, best, problem, data, notes)
+    disagreement = _starts_disagree(result, best, ends, [model.param_names[i] for i in free])
+    if disagreement is not None:
+        result.warnings.insert(0, disagreement)
+    return result
+
+
+def _starts_disagree(
+    result: MatchResult, best: _Outcome, ends: list[_Outcome], free_names: list[str]
+) -> Note | None:
+    """A note when another start ended about as well at another point (several optima).
+
+    "About as well": its cost exceeds the best by less than 10 times the noise variance
+    (a chi-square difference of 10: not told apart by the data); "another point": some
+    parameter more than 3 standard errors (and 1 %) away.
+    """
+    n = result.y.size
+    k = len(free_names)
+    if len(ends) < 2 or n <= k:
+        return None
+    s2 = best.chisqr / (n - k)
+    for other in ends:
+        if other is best or not np.isfinite(other.chisqr) or other.chisqr - best.chisqr > 10 * s2:
+            continue
+        for j, name in enumerate(free_names):
+            se = result.parameters[name].stderr or 0.0
+            a, b = float(best.x[j]), float(other.x[j])
+            if abs(a - b) > max(3 * se, 0.01 * max(abs(a), abs(b))):
+                return Note(
+                    "fit.starts_disagree",
+                    f"starts ended at different optima about as good as each other ({name} "
+                    f"{a:.4g} and {b:.4g}, {abs(a - b) / max(se, 1e-300):.1f} standard errors "
+                    "apart): the trials do not decide between them; the fit cannot be trusted "
+                    "until more trials (other thrust levels, longer motions) or --fix settle it",
+                    subject=name,
+                    severity="error",
+                )
+    return None
 
 
 def evaluate_trials(
@@ -542,6 +614,60 @@ def evaluate_trials(
     return match_trials(model, trials, start=held, fixed=held)
 
 
+def _at_bound(value: float, lo: float, hi: float) -> str | None:
+    """``"min"``/``"max"`` when ``value`` sits on that bound (relative to its own scale)."""
+    span = hi - lo if np.isfinite(hi - lo) else abs(lo) + 1.0
+    for bound, side in ((lo, "min"), (hi, "max")):
+        if abs(value - bound) <= max(1e-3 * max(abs(bound), abs(value)), 1e-9 * span):
+            return side
+    return None
+
+
+def _bound_note(model: Model, name: str, value: float, side: str, problem: _Problem) -> Note:
+    """What a parameter at a bound means: below resolution, absent, chosen, or untrusted."""
+    spec = model.param(name)
+    where = f"{name} = {value:.4g} {spec.unit}"
+    if name in problem.user_bounds:
+        return Note(
+            "fit.at_bound",
+            f"{where} is at the {side}imum you set with --bounds; the data would take it "
+            "further: widen the bound or check that value",
+            subject=name,
+        )
+    if side == "min" and name in model.drive_lag_names and problem.lag_floor > 0:
+        return _unresolved_lag_note(name, value, problem.lag_floor)
+    if side == "min" and spec.min == 0.0:
+        return Note(
+            "fit.at_bound",
+            f"{name} = 0 {spec.unit}: at its physical limit, the data show none of it "
+            f"({spec.description})",
+            subject=name,
+            severity="info",
+        )
+    return Note(
+        "fit.at_bound",
+        f"{where} ended at its {side}imum bound, a limit the data did not choose: this fit "
+        f"cannot be trusted (the model does not describe these trials, or they do not "
+        f"determine {name}); check the trials with 'balancer-id inspect --plot', or hold "
+        f"known values with --fix",
+        subject=name,
+        severity="error",
+    )
+
+
+def _unresolved_lag_note(name: str, value: float, floor: float) -> Note:
+    """A drive lag shorter than one sample interval: an upper bound, not a measurement."""
+    interval = 2 * floor
+    return Note(
+        "fit.below_resolution",
+        f"{name} = {value * 1e3:.2g} ms is below what the {1 / interval:.0f} Hz samples "
+        f"resolve (one sample interval, {interval * 1e3:.2g} ms): read it as {name} < "
+        f"{interval * 1e3:.2g} ms (no drive lag seen), not as a measured value",
+        subject=name,
+        severity="info",
+    )
+
+
 def _covariance(out: _Outcome) -> np.ndarray | None:
     """Parameter covariance ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it)."""
     n, k = out.jac.shape
@@ -556,7 +682,7 @@ def _covariance(out: _Outcome) -> np.ndarray | None:
 
 
 def _collect(
-    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[str]
+    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[Note | str]
 ) -> MatchResult:
     y_model = data.y + out.residual
     values = problem.full(out.x)
@@ -572,11 +698,8 @@ def _collect(
         value = float(values[i])
         at_bound = None
         if vary:
-            span = spec.max - spec.min
-            if value <= spec.min + 1e-6 * span:
-                at_bound = "min"
-            elif value >= spec.max - 1e-6 * span:
-                at_bound = "max"
+            j = problem.free.index(i)
+            at_bound = _at_bound(value, float(problem.lo[j]), float(problem.hi[j]))
         stderr = None
         if vary and sd is not None and cov is not None:
             j = free_names.index(spec.name)
@@ -592,10 +715,9 @@ def _collect(
             spec.name, value, stderr, spec.unit, vary, at_bound
         )
         if at_bound:
-            notes.append(
-                f"{spec.name} stopped at its {at_bound}imum bound ({value:g} {spec.unit}): "
-                "the data push it out of range or it is not in the data"
-            )
+            notes.append(_bound_note(model, spec.name, value, at_bound, problem))
+        elif vary and spec.name in model.drive_lag_names and value < 2 * problem.lag_floor:
+            notes.append(_unresolved_lag_note(spec.name, value, problem.lag_floor))
     poorly = [
         e.name
         for e in estimates.values()

@@ -21,6 +21,7 @@ from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
+from balancer_id.notes import Note, notes_json, texts
 from balancer_id.trials import TrialSet
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
@@ -66,7 +67,7 @@ class FitResult(Displayable):
     coupling: Coupling | None = None
     per_trial: list[PerTrialFit] = field(default_factory=list)
     include_per_trial: bool = False
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[Note | str] = field(default_factory=list)
     advice: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
 
@@ -81,7 +82,20 @@ class FitResult(Displayable):
         return f"{self.model}: {values}{more}; fit {fit:.1f} % over {n} trials"
 
     def _summary_warnings(self) -> list[str]:
-        return [*self.warnings, *self.match.warnings]
+        return texts(self.all_notes)
+
+    @property
+    def all_notes(self) -> list[Note | str]:
+        """The fit's notes, those that make it untrusted first (then in order)."""
+        notes = [*self.warnings, *self.match.warnings]
+        first = [n for n in notes if isinstance(n, Note) and n.severity == "error"]
+        return [*first, *(n for n in notes if n not in first)]
+
+    @property
+    def trusted(self) -> bool:
+        """False when a note says the fit cannot be trusted (a bound the data did not
+        choose, starts that disagree): the values are then no identification."""
+        return not any(isinstance(n, Note) and n.severity == "error" for n in self.all_notes)
 
     @property
     def model(self) -> str:
@@ -206,6 +220,7 @@ class FitResult(Displayable):
                     "decimated_from_hz": td.decimation.rate_in_hz if td.decimation else None,
                 }
             )
+        sampling = [Note("fit.decimated", t, severity="info") for t in self.sampling_notes()]
         out: dict[str, object] = {
             "model": self.model,
             "files": self.sources,
@@ -216,8 +231,12 @@ class FitResult(Displayable):
             "metrics": self.metrics,
             "converged": self.match.success,
             "optimizer_message": self.match.message,
-            "warnings": self.warnings + self.match.warnings,
-            "notes": self.sampling_notes(),
+            "warnings": texts(self.all_notes),
+            "notes": notes_json([*self.all_notes, *sampling]),
+            "trusted": self.trusted,
+            "untrusted_because": [
+                n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"
+            ],
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()

@@ -94,7 +94,8 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
 
 
 _KIND_TITLES = {"step": ("step trial", "step trials"), "move": ("robot move", "robot moves"),
-                "guided": ("guided move", "guided moves")}
+                "guided": ("guided move", "guided moves"),
+                "window": ("given window", "given windows")}
 
 
 def trials_title(trials: list[dict[str, Any]]) -> str:
@@ -138,6 +139,9 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         The CONTRACT.md ``fit`` object (:meth:`FitResult.to_dict`); the per-trial table
         and the robot coupling are printed when it holds them.
     """
+    if result.get("trusted") is False:  # lead with it: the user must not act on the values
+        for why in result.get("untrusted_because", []):
+            _stderr(console).print(f"[bold red]NOT TRUSTED:[/bold red] {why}")
     table = Table(title=f"model {result['model']}: simulation matching over all trials")
     for col in ("parameter", "value", "std. error", "95% interval", "unit", "note"):
         table.add_column(col)
@@ -195,10 +199,15 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
                 _fmt(row["rmse"]),
             )
         console.print(per)
+    shown = set(result.get("warnings", []))
     for note in result.get("notes", []):
-        console.print(f"note: {note}")
+        text = note["text"] if isinstance(note, dict) else str(note)
+        if text not in shown:
+            console.print(f"note: {text}")
     err = _stderr(console)
     for w in result.get("warnings", []):
+        if result.get("trusted") is False and w in result.get("untrusted_because", []):
+            continue  # printed first
         err.print(f"[yellow]warning:[/yellow] {w}")
 
 

@@ -60,6 +60,9 @@ class Trial:
         The up direction in the sensor frame (``"+z"``, ``"-x, 12 deg off"``).
     vertical_sign_known : bool
         False when the up sign is a convention (linear acceleration, nothing fixed it).
+    initial_state : tuple of float or None
+        The load's state ``(f, v, z)`` at the window's first sample when it does not start
+        at rest (a window given by ``--window``); None: at rest.
     """
 
     index: int
@@ -81,6 +84,7 @@ class Trial:
     kind: str = "step"
     vertical: str = ""
     vertical_sign_known: bool = True
+    initial_state: tuple[float, float, float] | None = None
 
     @property
     def change_N(self) -> float:

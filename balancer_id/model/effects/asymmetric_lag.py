@@ -20,8 +20,8 @@ class AsymmetricLag(Effect):
     replaces = ("T_a",)
     example = {"T_up": 0.3, "T_down": 0.38}
     parameters = (
-        Param("T_up", 0.3, 0.005, 5.0, "s", "drive lag while the drive force rises", True),
-        Param("T_down", 0.3, 0.005, 5.0, "s", "drive lag while the drive force falls", True),
+        Param("T_up", 0.3, 0.0005, 10.0, "s", "drive lag while the drive force rises", True),
+        Param("T_down", 0.3, 0.0005, 10.0, "s", "drive lag while the drive force falls", True),
     )
 
     @staticmethod

@@ -23,9 +23,9 @@ class Base(Effect):
     source = "paper III.A, eq. (1)"
     example = {"m_a": 15.1, "T_a": 0.33}
     parameters = (
-        Param("m_a", 15.0, 0.5, 500.0, "kg", "virtual equivalent mass"),
+        Param("m_a", 15.0, 0.01, 1e5, "kg", "virtual equivalent mass"),
         Param(
-            "T_a", 0.3, 0.005, 5.0, "s", "time constant of the drive's first-order lag",
+            "T_a", 0.3, 0.0005, 10.0, "s", "time constant of the drive's first-order lag",
             drive_lag=True,
         ),
     )

@@ -22,7 +22,7 @@ class Karnopp(Effect):
     summary = "stick-slip friction f_s = f_d with a zero-velocity band (paper eqs. 3-5)"
     source = "paper III.C, eqs. (3)-(5); Karnopp (1985)"
     example = {"f_s": 0.98}
-    parameters = (Param("f_s", 1.0, 0.0, 50.0, "N", "static (= dynamic) friction force"),)
+    parameters = (Param("f_s", 1.0, 0.0, 1e5, "N", "static (= dynamic) friction force"),)
 
     @staticmethod
     def friction(v: float, F: float, f_s: float) -> float:

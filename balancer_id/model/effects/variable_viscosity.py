@@ -22,12 +22,12 @@ class VariableViscosity(Effect):
     excludes = ("viscous",)
     example = {"D0": 6.0, "A": 0.4}
     parameters = (
-        Param("D0", 3.0, 0.0, 200.0, "kg/s", "viscosity at zero operating force"),
+        Param("D0", 3.0, 0.0, 1e6, "kg/s", "viscosity at zero operating force"),
         Param(
             "A",
             0.4,
             0.0,
-            5.0,
+            1e3,
             "1/N",
             "sensitivity of the viscosity to the operating force",
             needs_thrust_levels=True,

@@ -17,7 +17,7 @@ class Viscous(Effect):
     source = "paper III.B (A = 0)"
     excludes = ("variable_viscosity",)
     example = {"D0": 6.0}
-    parameters = (Param("D0", 3.0, 0.0, 200.0, "kg/s", "velocity viscosity coefficient"),)
+    parameters = (Param("D0", 3.0, 0.0, 1e6, "kg/s", "velocity viscosity coefficient"),)
 
     @staticmethod
     def force(f: float, v: float, z: float, h: float, D0: float) -> float:

@@ -1,0 +1,193 @@
+"""Trials from windows the user gives (``--window START:END``): a lab rig, a free motion.
+
+Where the log is no step experiment (a weight on a bungee pulled by hand and released, a
+cart pushed along a track), the user knows the stretches in which only the measured force
+acts on the load. Each stretch is one trial driven by the measured force; nothing is
+detected, so no drive lag is assumed. The force's and the acceleration's resting levels
+come from the quietest stretch of the run before the window (the run's start when none is
+quiet), and the load's velocity at the window's start is integrated from the measured
+acceleration since that rest (the load may be moving when the window opens).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import numpy as np
+
+from balancer_id.errors import NoTrialError, UsageError
+from balancer_id.read.recording import Log, Recording
+from balancer_id.segment.assign import vertical_name
+from balancer_id.segment.gravity import vertical_motion
+from balancer_id.segment.robust import fill_nan, n_samples, rate_of, smooth
+from balancer_id.segment.trial import Trial
+
+#: Length of the resting stretch looked for before a window (s).
+REST_S = 0.5
+
+
+def _quietest(x: np.ndarray, width: int, stop: int) -> slice:
+    """The ``width`` samples before ``stop`` where ``x`` varies least."""
+    if stop <= width:
+        return slice(0, max(stop, 1))
+    csum = np.concatenate([[0.0], np.cumsum(x[:stop])])
+    csq = np.concatenate([[0.0], np.cumsum(x[:stop] ** 2)])
+    mean = (csum[width:] - csum[:-width]) / width
+    var = (csq[width:] - csq[:-width]) / width - mean**2
+    k = int(np.argmin(var))
+    return slice(k, k + width)
+
+
+def check_windows(windows: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The windows sorted, each with START < END and none overlapping.
+
+    Parameters
+    ----------
+    windows : sequence of (float, float)
+        ``(start, end)`` in seconds of the run's time base.
+
+    Returns
+    -------
+    list of (float, float)
+        Sorted by start.
+
+    Raises
+    ------
+    UsageError
+        For a window that is empty, not finite or overlaps another.
+    """
+    out = sorted((float(a), float(b)) for a, b in windows)
+    for a, b in out:
+        if not (np.isfinite(a) and np.isfinite(b) and a < b):
+            raise UsageError(f"--window {a:g}:{b:g}: give START:END in seconds with START < END")
+    for (a0, b0), (a1, b1) in itertools.pairwise(out):
+        if a1 < b0:
+            raise UsageError(
+                f"--window {a0:g}:{b0:g} and {a1:g}:{b1:g} overlap; give separate stretches"
+            )
+    return out
+
+
+def window_trials(
+    log: Log,
+    windows: Sequence[tuple[float, float]],
+    *,
+    vertical: str = "auto",
+    g: float = 9.80665,
+    force_sign: int | None = None,
+) -> list[Trial]:
+    """One trial per given window and run, driven by the measured force.
+
+    Parameters
+    ----------
+    log : Log
+        The log (every run is windowed on its own time base).
+    windows : sequence of (float, float)
+        Stretches ``(start, end)`` in seconds where only the measured force acts.
+    vertical : str
+        The vertical axis option (``auto``, ``z``, ``-z`` ...).
+    g : float
+        Gravity (m/s^2).
+    force_sign : int or None
+        Sign of the force channel; None: the sign that makes force and acceleration agree.
+
+    Returns
+    -------
+    list of Trial
+        ``kind="window"``, in time order, run by run.
+
+    Raises
+    ------
+    NoTrialError
+        When no window holds samples with force and acceleration.
+    """
+    wins = check_windows(windows)
+    trials: list[Trial] = []
+    why: list[str] = []
+    for rec in log.recordings:
+        made = _run_windows(rec, wins, vertical, g, force_sign, str(log.path), len(trials))
+        if isinstance(made, str):
+            why.append(f"{rec.name}: {made}")
+        else:
+            trials.extend(made)
+    if not trials:
+        raise NoTrialError(f"{log.path}: no trial in the windows given ({'; '.join(why)})")
+    return trials
+
+
+def _run_windows(
+    rec: Recording,
+    wins: list[tuple[float, float]],
+    vertical: str,
+    g: float,
+    force_sign: int | None,
+    source: str,
+    first_index: int,
+) -> list[Trial] | str:
+    """The window trials of one run, or why there are none."""
+    if rec.force is None or not np.isfinite(rec.force).any():
+        return "no force channel (a window is driven by the measured force)"
+    motion = vertical_motion(rec, vertical=vertical, g=g)
+    if motion is None:
+        return "no acceleration channel"
+    time = rec.time
+    rate = rate_of(time)
+    force = fill_nan(rec.force)
+    accel = fill_nan(motion.accel)
+    width = n_samples(REST_S, rate, minimum=5)
+    # the sign: a rise of the force moves the load up (over every window together)
+    inside = np.zeros(time.size, dtype=bool)
+    for a, b in wins:
+        inside |= (time >= a) & (time <= b)
+    if inside.sum() < 10:
+        span = f"{time[0]:.2f}-{time[-1]:.2f} s"
+        return f"fewer than 10 samples inside the windows (the run spans {span})"
+    if force_sign is None:
+        fc = force[inside] - np.mean(force[inside])
+        ac = accel[inside] - np.mean(accel[inside])
+        orientation = float(np.sign(fc @ ac)) or 1.0
+        how = "force sign from the motion"
+    else:
+        orientation = float(force_sign)
+        how = "force sign as given"
+    out: list[Trial] = []
+    for a, b in wins:
+        sl = np.flatnonzero((time >= a) & (time <= b))
+        if sl.size < 10:
+            continue
+        lo, hi = int(sl[0]), int(sl[-1]) + 1
+        rest = _quietest(smooth(force, 3), width, lo)
+        f_ref = float(np.median(force[rest]))
+        a_ref = float(np.median(accel[rest]))
+        # the velocity at the window's start: the measured motion since that rest
+        k0 = rest.stop
+        seg_t, seg_a = time[k0 : lo + 1], accel[k0 : lo + 1] - a_ref
+        v0 = float(np.sum(0.5 * (seg_a[1:] + seg_a[:-1]) * np.diff(seg_t)))
+        u = orientation * (force[lo:hi] - f_ref)
+        peak = float(u[int(np.argmax(np.abs(u)))])
+        out.append(
+            Trial(
+                index=first_index + len(out),
+                recording=rec.name,
+                t_step=float(time[lo]),
+                t_start=float(time[lo]),
+                t_end=float(time[hi - 1]),
+                thrust_N=peak,
+                direction="up" if peak >= 0 else "down",
+                time=time[lo:hi].copy(),
+                accel=accel[lo:hi] - a_ref,
+                force=u,
+                end_reason="window",
+                source=source,
+                notes=[
+                    f"window {a:g}:{b:g} s given: the measured force drives the model; {how}; "
+                    f"rest levels from {time[rest.start]:.2f}-{time[rest.stop - 1]:.2f} s"
+                ],
+                kind="window",
+                vertical=vertical_name(motion, rec.accel_axes),
+                vertical_sign_known=motion.sign_known,
+                initial_state=(float(u[0]), v0, 0.0),
+            )
+        )
+    return out or "no samples inside the windows"
