@@ -125,6 +125,7 @@ def _request_variants():
         "vertical": "z",
         "g": 9.81,
         "accel_unit": "g",
+        "windows": ((2.0, 5.0),),
     }
     fields = {f.name for f in dataclasses.fields(FitRequest)} - {"options"}
     assert fields == set(changed), "a new request field needs a variant here"
