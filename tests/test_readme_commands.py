@@ -22,6 +22,7 @@ README = (REPO / "README.md").read_text(encoding="utf-8")
 LOG_COMMANDS = {"inspect", "fit", "compare", "diagnose", "improve", "batch", "report"}
 
 
+
 def readme_commands() -> list[str]:
     """The runnable ``balancer-id`` command lines of the README, in order of appearance."""
     found: list[tuple[int, str]] = []
@@ -56,6 +57,10 @@ def test_the_readme_commands_are_found():
     assert len(COMMANDS) >= 8
 
 
+#: The commands run so far in each work folder (by this worker).
+RAN: dict[str, list[str]] = {}
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     """A fresh folder holding the README's inputs: sample_logs/, examples/ and logs/."""
@@ -88,7 +93,15 @@ def run_readme_command(cli, root: Path, command: str) -> tuple[int, str, str]:
 @pytest.mark.parametrize("command", COMMANDS, ids=[c[12:60] for c in COMMANDS])
 def test_a_readme_command_runs_and_says_what_the_readme_says(cli, workdir, monkeypatch, command):
     monkeypatch.chdir(workdir)
+    # the commands build on each other (a batch writes results/, a fit saves a model):
+    # under xdist this worker may not have run the earlier ones; it runs them first
+    ran = RAN.setdefault(str(workdir), [])
+    for earlier in COMMANDS[: COMMANDS.index(command)]:
+        if earlier not in ran:
+            run_readme_command(cli, workdir, earlier)
+            ran.append(earlier)
     code, out, err = run_readme_command(cli, workdir, command)
+    ran.append(command)
     assert code == 0, f"{command}\n{err}"
     assert "Traceback" not in err
     words = shlex.split(command)
