@@ -73,5 +73,5 @@ def test_a_profile_far_narrower_than_wald_is_called_out_on_a_misfit():
     low, high = m_a.ci95
     wald_low, wald_high = m_a.wald_ci95
     assert (high - low) * 3 < wald_high - wald_low
-    note = next(w for w in result.warnings if w.startswith("m_a:"))
+    note = next(str(w) for w in result.warnings if str(w).startswith("m_a:"))
     assert "far from quadratic" in note and "no uncertainty" in note

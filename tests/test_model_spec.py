@@ -122,3 +122,14 @@ def test_a_hook_with_a_wrong_signature_is_refused_by_name(tmp_path, body, words)
     with pytest.raises(ModelSpecError, match="bad_hose") as info:
         default_registry([path])
     assert words in str(info.value)
+
+
+def test_an_effects_file_python_cannot_import_is_refused_by_its_spec(tmp_path):
+    # decided on importlib's spec, not on an ImportError's wording (issue 20)
+    from balancer_id.errors import EffectError
+    from balancer_id.model.registry import default_registry
+
+    bad = tmp_path / "effects.txt"
+    bad.write_text("x = 1\n")
+    with pytest.raises(EffectError, match="cannot be imported as a Python module"):
+        default_registry([bad])

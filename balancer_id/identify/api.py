@@ -187,7 +187,13 @@ def fit(
 
         if not start_given(ts.trajectory):  # the move's start, refined by the fit
             data, shift = refine_move_start(mdl, data, start, fixed)
-            notes.append(f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)")
+            notes.append(
+                Note(
+                    "fit.other",
+                    f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)",
+                    severity="info",
+                )
+            )
     match = match_trials(
         mdl,
         data,
@@ -232,10 +238,13 @@ def fit(
                     "far from quadratic here, as where parameters trade at first order and "
                     "the model misfits; its standard error is no uncertainty)"
                 )
-            notes.append(note)
-    result = fit_match(match, ts, classic=classic, fixed=fixed, effects_files=effects_files)
-    result.warnings = notes
-    if per_trial:
-        result.include_per_trial = True
-        result.per_trial_fits()
-    return result
+            notes.append(Note("fit.other", note, subject=name, severity="info"))
+    return fit_match(
+        match,
+        ts,
+        classic=classic,
+        fixed=fixed,
+        effects_files=effects_files,
+        warnings=notes,
+        per_trial=per_trial,
+    )

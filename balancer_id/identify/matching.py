@@ -415,8 +415,13 @@ def match_trials(
             value = dict(start or {}).get(name, model.param(name).value)
             fixed[name] = value
             notes.append(
-                f"{name} is only identifiable from trials at two or more thrust levels "
-                f"(found {len(levels)}: {', '.join(f'{x:g} N' for x in levels)}); held at {value:g}"
+                Note(
+                    "fit.not_identifiable",
+                    f"{name} is only identifiable from trials at two or more thrust levels "
+                    f"(found {len(levels)}: {', '.join(f'{x:g} N' for x in levels)}); "
+                    f"held at {value:g}",
+                    subject=name,
+                )
             )
     values = dict(start or {})
     values.update(fixed)
@@ -518,7 +523,7 @@ def match_trials(
                     callback=callback if diff_step is None else None,
                 )
             except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
-                notes.append(f"a start failed: {exc}")
+                notes.append(Note("fit.other", f"a start failed: {exc}"))
                 continue
         x_end = ret.x
         message = str(ret.message)
@@ -727,8 +732,13 @@ def _collect(
     ]
     if poorly:
         notes.append(
-            f"the data cannot determine {', '.join(poorly)} (standard error larger than the value "
-            "or undefined); fix them with --fix NAME=VALUE or add trials that excite them"
+            Note(
+                "fit.not_identifiable",
+                f"the data cannot determine {', '.join(poorly)} (standard error larger than "
+                "the value or undefined); fix them with --fix NAME=VALUE or add trials that "
+                "excite them",
+                subject=poorly[0] if len(poorly) == 1 else None,
+            )
         )
     strong = sorted(
         {
@@ -739,7 +749,14 @@ def _collect(
         }
     )
     for a, b in strong:
-        notes.append(f"{a} and {b} are almost fully correlated ({correlations[a][b]:+.3f})")
+        notes.append(
+            Note(
+                "fit.not_identifiable",
+                f"{a} and {b} are almost fully correlated ({correlations[a][b]:+.3f})",
+                subject=a,
+                severity="info",
+            )
+        )
     trial_rmse = [float(np.sqrt(np.mean((data.y[s] - y_model[s]) ** 2))) for s in data.slices()]
     return MatchResult(
         model=model,

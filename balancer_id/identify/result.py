@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import shlex
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,10 +21,15 @@ from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
-from balancer_id.notes import Note, notes_json, texts
+from balancer_id.notes import Note, as_note, notes_json, texts
 from balancer_id.trials import TrialSet
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
+
+#: The only field that may be set after construction: the robot settings advice,
+#: attached by :func:`~balancer_id.diagnostics.advice.attach_advice` (issue 20 moves it
+#: into the library call; until then it is the one exception).
+_LATE_FIELDS = frozenset({"advice"})
 
 
 @dataclass(repr=False)
@@ -51,12 +56,22 @@ class FitResult(Displayable):
         Per-trial refits, once computed (:meth:`per_trial_fits`).
     include_per_trial : bool
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
-    warnings : list of str
-        What the user should know (fixed parameters, poorly determined ones, ...).
+    warnings : list of Note
+        What the user should know from the identification around the fit (the start,
+        the move start, the profile intervals); strings given become ``fit.other`` notes.
+        The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
     advice : object or None
         Settings advice for a robot-balancer pair
         (:class:`~balancer_id.diagnostics.advice.Advice`), attached by whoever computed
         it (:func:`~balancer_id.diagnostics.advice.attach_advice`); reports render it.
+
+    Notes
+    -----
+    A result is complete when returned (:func:`~balancer_id.identify.api.fit` and
+    :func:`fit_match` compute the notes and the per-trial fits before returning it) and
+    immutable afterwards: setting any field but ``advice`` raises
+    :class:`dataclasses.FrozenInstanceError`. The per-trial fits of a result made without
+    them are computed once on demand (:meth:`per_trial_fits`) and cached.
     """
 
     match: MatchResult
@@ -70,6 +85,16 @@ class FitResult(Displayable):
     warnings: list[Note | str] = field(default_factory=list)
     advice: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
+    _frozen: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.warnings = [as_note(w) for w in self.warnings]
+        self._frozen = True
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if getattr(self, "_frozen", False) and name not in _LATE_FIELDS:
+            raise FrozenInstanceError(f"a FitResult is complete when returned; cannot set {name}")
+        object.__setattr__(self, name, value)
 
     def _shown_match(self) -> MatchResult:
         return self.match
@@ -147,10 +172,11 @@ class FitResult(Displayable):
             One per trial whose fit succeeded.
         """
         if not self._per_trial_done:
-            self.per_trial = fit_each_trial(
+            fits = fit_each_trial(
                 self.match.model, self.match.data.trials, self.values, self.fixed or None
             )
-            self._per_trial_done = True
+            object.__setattr__(self, "per_trial", fits)  # a cache, not a change
+            object.__setattr__(self, "_per_trial_done", True)
         return self.per_trial
 
     def command(self, model: str | Model | None = None, subcommand: str = "fit") -> str:
@@ -273,6 +299,8 @@ def fit_match(
     classic: ClassicResult | None = None,
     fixed: Mapping[str, float] | None = None,
     effects_files: Sequence[str | Path] = (),
+    warnings: Sequence[Note | str] = (),
+    per_trial: bool = False,
 ) -> FitResult:
     """A :class:`FitResult` around a ready simulation-matching fit.
 
@@ -292,16 +320,26 @@ def fit_match(
         Values held in the fit (kept for the refits and the printed commands).
     effects_files : sequence of str or Path
         User effect files the model was resolved with.
+    warnings : sequence of Note or str
+        Notes of the identification around the fit (a string becomes ``fit.other``).
+    per_trial : bool
+        Fit each trial alone now and show the fits in :meth:`FitResult.to_dict`.
 
     Returns
     -------
     FitResult
+        Complete: nothing is set on it afterwards.
     """
-    return FitResult(
+    result = FitResult(
         match=match,
         classic=classic if classic is not None else paper_method(match.data.trials),
         trial_set=trials if trials is not None else TrialSet(),
         fixed=dict(fixed or {}),
         effects_files=[str(f) for f in effects_files],
         coupling=robot_coupling(match.model, match.values()),
+        include_per_trial=per_trial,
+        warnings=list(warnings),
     )
+    if per_trial:
+        result.per_trial_fits()
+    return result

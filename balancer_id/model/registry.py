@@ -9,6 +9,7 @@ defined in that file. Callers (and tests) may build their own registry.
 from __future__ import annotations
 
 import hashlib
+import sys
 from collections.abc import Iterable, Iterator
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -217,12 +218,15 @@ def import_file_module(file: Path):
     EffectError
         When the file cannot be imported; it is then not left in ``sys.modules``.
     """
+    import importlib.util
+
+    name = module_name_for(file)
+    if name not in sys.modules:  # decided on the spec itself, never on an error's wording
+        spec = importlib.util.spec_from_file_location(name, file)
+        if spec is None or spec.loader is None:
+            raise EffectError(f"{file}: cannot be imported as a Python module")
     try:
-        return import_path(module_name_for(file), file)
-    except ImportError as exc:
-        if "cannot be imported as a Python module" in str(exc):
-            raise EffectError(f"{file}: cannot be imported as a Python module") from None
-        raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
+        return import_path(name, file)
     except Exception as exc:
         raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
 
