@@ -54,15 +54,18 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from diagnose_cases import LAYOUTS, _write_and_read
+from diagnose_cases import LAYOUTS, ONE_RUN_LAYOUTS
 
 from balancer_id.diagnostics.diagnosis import diagnose
 from balancer_id.identify.classic import paper_method
+from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.result import fit_match
 from balancer_id.model import parse_model
 from balancer_id.model.effect import Effect, Param
 from balancer_id.model.registry import Registry
+from balancer_id.read import read_log, write_log
+from balancer_id.segment import find_trials
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 
 #: Scales of the balancer: m_a and D0 and the thrusts are multiplied by these.
@@ -292,7 +295,18 @@ def simulate(case: Case, p: Plan, folder: Path) -> list:
             rec = dataclasses.replace(rec, accel=_lowpass(rec.accel, p.lowpass_hz, fs))
         recordings.append(dataclasses.replace(rec, name=f"Run #{i + 1}"))
     layout = LAYOUTS[case.seed % len(LAYOUTS)]
-    trials, _, _ = _write_and_read(folder, recordings, layout)
+    groups = [[r] for r in recordings] if layout in ONE_RUN_LAYOUTS else [recordings]
+    trials = []
+    # a user sets the smallest step to the balancer's scale (the default is 1 N)
+    min_step = 0.4 * min(abs(u) for u in p.thrusts)
+    for k, group in enumerate(groups):
+        path = folder / f"{layout}_{k + 1}.csv"
+        write_log(path, group, layout)
+        trials.extend(
+            TrialData.from_trial(t) for t in find_trials(read_log(path), min_step_N=min_step)
+        )
+    for k, td in enumerate(trials):
+        td.index = k
     return trials
 
 
