@@ -212,7 +212,10 @@ def plan(case: Case) -> Plan:
         ratio = float(rng.uniform(1.3, 1.8))
         t_up = base["T_a"] * (2 / (1 + ratio))
         up_slow = bool(rng.integers(2))
-        extra = {"T_up": t_up * ratio if up_slow else t_up, "T_down": t_up if up_slow else t_up * ratio}
+        extra = {
+            "T_up": t_up * ratio if up_slow else t_up,
+            "T_down": t_up if up_slow else t_up * ratio,
+        }
         if k == "asym-up-then-down":
             thrusts = [u * s for u in _up_then_down(rng)]
     elif k == "variable_viscosity":
@@ -234,9 +237,7 @@ def plan(case: Case) -> Plan:
         truth_spec += "+drag"
         # the drag takes 15-35 % of the viscous force at the top speed
         extra = {"c": base["D0"] * float(rng.uniform(0.15, 0.35)) / v_ss}
-    per_run = [
-        {**{p: base[p] * factors[p][i] for p in base}, **extra} for i in range(n)
-    ]
+    per_run = [{**{p: base[p] * factors[p][i] for p in base}, **extra} for i in range(n)]
     if "asymmetric_lag" in truth_spec:
         for values in per_run:
             values.pop("T_a")
@@ -249,9 +250,7 @@ def _lowpass(x: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
 
     b, a = butter(2, cutoff / (fs / 2))
     zi = lfilter_zi(b, a)
-    return np.column_stack(
-        [lfilter(b, a, x[:, j], zi=zi * x[0, j])[0] for j in range(x.shape[1])]
-    )
+    return np.column_stack([lfilter(b, a, x[:, j], zi=zi * x[0, j])[0] for j in range(x.shape[1])])
 
 
 def _noise_gain(cutoff: float, fs: float) -> float:
@@ -335,7 +334,14 @@ def judge(klass: str, verdict: str, named: list[str]) -> bool:
     """Whether the verdict is the class's."""
     if klass.startswith("null"):
         return verdict == "adequate"
-    if klass in ("karnopp", "speed_limit", "dead_time", "bias", "asymmetric_lag", "variable_viscosity"):
+    if klass in (
+        "karnopp",
+        "speed_limit",
+        "dead_time",
+        "bias",
+        "asymmetric_lag",
+        "variable_viscosity",
+    ):
         return verdict == "effect missing" and bool(named) and named[0] == klass
     if klass == "payload":
         return verdict == "parameter changed" and "m_a" in named
@@ -388,16 +394,20 @@ def run_all(cases: list[Case], jobs: int, log: Callable[[str], None]) -> list[Ou
         for k, case in enumerate(cases):
             done[k] = run_case(case)
             o = done[k]
-            log(f"  {k + 1}/{len(cases)} {case.klass} s{case.seed}: {o.verdict} {o.named} "
-                f"{'ok' if o.right else 'WRONG'} ({time.perf_counter() - t0:.0f} s) {o.error}")
+            log(
+                f"  {k + 1}/{len(cases)} {case.klass} s{case.seed}: {o.verdict} {o.named} "
+                f"{'ok' if o.right else 'WRONG'} ({time.perf_counter() - t0:.0f} s) {o.error}"
+            )
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(run_case, c): k for k, c in enumerate(cases)}
             for n, fut in enumerate(as_completed(futures), 1):
                 k = futures[fut]
                 done[k] = o = fut.result()
-                log(f"  {n}/{len(cases)} {o.case.klass} s{o.case.seed}: {o.verdict} {o.named} "
-                    f"{'ok' if o.right else 'WRONG'} ({time.perf_counter() - t0:.0f} s) {o.error}")
+                log(
+                    f"  {n}/{len(cases)} {o.case.klass} s{o.case.seed}: {o.verdict} {o.named} "
+                    f"{'ok' if o.right else 'WRONG'} ({time.perf_counter() - t0:.0f} s) {o.error}"
+                )
     return [o for o in done if o is not None]
 
 
@@ -429,7 +439,8 @@ def table(outcomes: list[Outcome]) -> str:
 
     def line(cells: list[str]) -> str:
         return "  ".join(
-            c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))
+            c.ljust(w) if i == 0 else c.rjust(w)
+            for i, (c, w) in enumerate(zip(cells, widths, strict=True))
         )
 
     return "\n".join([line(header), line(["-" * w for w in widths]), *map(line, rows)])

@@ -151,6 +151,7 @@ def consistency_test(
     thrusts: Sequence[float],
     paper_m_a: tuple[float, float] | None = None,
     fit_m_a: tuple[float, float | None] | None = None,
+    inflation: float = 1.0,
 ) -> dict[str, object]:
     """Each parameter's per-run estimates against one value; the paper's m_a against the fit's.
 
@@ -168,6 +169,9 @@ def consistency_test(
         ``(m_a, stderr)`` of the paper's method.
     fit_m_a : tuple, optional
         ``(m_a, stderr)`` of the fit.
+    inflation : float
+        Variance inflation of the per-trial estimates by the noise's colour
+        (``(1 + r1) / (1 - r1)`` of the resting noise; 1 for white noise).
 
     Returns
     -------
@@ -189,14 +193,18 @@ def consistency_test(
         x = np.array([e.value for e in est])
         w = 1.0 / np.array([e.stderr for e in est]) ** 2
         mean = float(np.average(x, weights=w))
-        chi2 = float(np.sum(w * (x - mean) ** 2))
+        chi2 = float(np.sum(w * (x - mean) ** 2)) / max(inflation, 1.0)
         dof = len(est) - 1
         spread = float(np.sqrt(np.average((x - mean) ** 2, weights=w))) / max(abs(mean), 1e-300)
         rows.append((name, chi2, dof, spread))
     for name, chi2, dof, spread in rows:
         p = min(float(chdtrc(dof, chi2)) * max(tested, 1), 1.0)
-        row = {"parameter": name, "chi2_per_dof": chi2 / dof, "p_value": p,
-               "relative_spread": spread}
+        row = {
+            "parameter": name,
+            "chi2_per_dof": chi2 / dof,
+            "p_value": p,
+            "relative_spread": spread,
+        }
         if worst is None or p < float(worst["p_value"]):  # type: ignore[arg-type]
             worst = row
         if p < CONSISTENCY_ALPHA and spread > CONSISTENCY_MIN_SPREAD:
@@ -210,7 +218,7 @@ def consistency_test(
         paper_z is not None
         and abs(paper_z) > 5
         and fit_m_a is not None
-        and abs(paper_m_a[0] - fit_m_a[0]) > 0.1 * abs(fit_m_a[0])  # type: ignore[index]
+        and abs(paper_m_a[0] - fit_m_a[0]) > 0.2 * abs(fit_m_a[0])  # type: ignore[index]
     )
     text = "the parameters agree across runs"
     if failed:
@@ -226,7 +234,10 @@ def consistency_test(
         )
     return {
         "name": "consistency",
-        "passed": not failed and not paper_off,
+        # the paper's method is biased by the very effects a model may miss (and by the
+        # force noise of a light balancer): its disagreement is reported, not a failure
+        "passed": not failed,
+        "paper_disagrees": bool(paper_off),
         "worst": worst,
         "failed": failed,
         "paper_z": paper_z,
@@ -239,6 +250,23 @@ NOTE_OF = {
     "whiteness": "diagnose.not_white",
     "consistency": "diagnose.inconsistent",
 }
+
+
+def colour_inflation(colour: dict[str, object]) -> float:
+    """``(1 + r1) / (1 - r1)`` of the resting noise (1 without resting samples).
+
+    Parameters
+    ----------
+    colour : dict
+        :func:`colour_test`'s record.
+
+    Returns
+    -------
+    float
+    """
+    acf = colour.get("rest_acf") or []
+    r1 = min(max(float(acf[0]), 0.0), 0.95) if acf else 0.0  # type: ignore[index]
+    return (1.0 + r1) / (1.0 - r1)
 
 
 def failed_notes(tests: Sequence[dict[str, object]]) -> list[Note]:

@@ -122,6 +122,9 @@ class ArenaInput:
         ``(effect name, refitted MatchResult)`` of the library candidates.
     rest_cutoff_hz : float or None
         The resting noise's -3 dB frequency when its spectrum rolls off, else None.
+    ar : tuple of float
+        AR(2) coefficients of the resting noise: every residual is prewhitened with them
+        before its BIC (the likelihood of coloured noise); ``(0, 0)`` for white noise.
     """
 
     match: MatchResult
@@ -131,6 +134,7 @@ class ArenaInput:
     independence: float
     effect_fits: list[tuple[str, MatchResult]] = field(default_factory=list)
     rest_cutoff_hz: float | None = None
+    ar: tuple[float, float] = (0.0, 0.0)
 
 
 def bic(rss: float, n: int, k: int) -> float:
@@ -172,7 +176,7 @@ def _fit_varying(
     design: np.ndarray,
     post: Callable[[int, np.ndarray], np.ndarray] | None = None,
     extra: tuple[float, float, float] | None = None,
-) -> tuple[float, dict[str, float], np.ndarray, float | None]:
+) -> tuple[list[np.ndarray], dict[str, float], np.ndarray, float | None]:
     """Least squares of ``model`` where ``name = base + c * design[i]`` in trial ``i``.
 
     ``post(i, y)`` (optional) transforms each trial's simulated output, with one extra
@@ -192,8 +196,11 @@ def _fit_varying(
     lo_all = np.r_[lo, -np.inf * np.ones(q), [] if extra is None else [extra[1]]]
     hi_all = np.r_[hi, np.inf * np.ones(q), [] if extra is None else [extra[2]]]
     xs = np.r_[x0, c0, e0]
-    xscale = np.r_[scale, scale[names.index(name)] * np.ones(q) if name in names else np.ones(q),
-                   [] if extra is None else [max(abs(extra[0]), 1e-3)]]
+    xscale = np.r_[
+        scale,
+        scale[names.index(name)] * np.ones(q) if name in names else np.ones(q),
+        [] if extra is None else [max(abs(extra[0]), 1e-3)],
+    ]
     ys = [d.y for d in sims.data]
     k_name = names.index(name) if name in names else None
     full_names = model.param_names
@@ -221,10 +228,11 @@ def _fit_varying(
 
     sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=60)
     r = resid(sol.x)
+    cuts = np.cumsum([y.size for y in ys])[:-1]
     base = dict(fixed)
     base.update(zip(names, sol.x[: len(names)], strict=True))
     ex = float(sol.x[-1]) if extra is not None else None
-    return float(r @ r), base, sol.x[len(names) : len(names) + q], ex
+    return np.split(r, cuts), base, sol.x[len(names) : len(names) + q], ex
 
 
 def held(match: MatchResult) -> dict[str, float]:
@@ -242,18 +250,72 @@ def held(match: MatchResult) -> dict[str, float]:
     return {n: p.value for n, p in match.parameters.items() if not p.vary}
 
 
+def ar_coefficients(acf: Sequence[float], n: int) -> tuple[float, float]:
+    """AR(2) coefficients from the lag-1 and lag-2 autocorrelation (Yule-Walker).
+
+    Parameters
+    ----------
+    acf : sequence of float
+        Autocorrelation at lags 1, 2, ... of the resting noise.
+    n : int
+        Samples it was measured on; a lag-one correlation within 3 / sqrt(n) of 0 is
+        taken as white noise.
+
+    Returns
+    -------
+    tuple of float
+    """
+    if len(acf) < 2 or n <= 0 or abs(acf[0]) < 3.0 / np.sqrt(n):
+        return 0.0, 0.0
+    r1, r2 = float(acf[0]), float(acf[1])
+    den = 1.0 - r1 * r1
+    if den <= 1e-6:
+        return min(r1, 0.99), 0.0
+    return r1 * (1.0 - r2) / den, (r2 - r1 * r1) / den
+
+
+def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[float, int]:
+    """RSS and samples of residuals prewhitened trial by trial with AR(2) coefficients.
+
+    Parameters
+    ----------
+    parts : sequence of numpy.ndarray
+        Residuals, one array per trial.
+    ar : tuple of float
+        ``(phi1, phi2)``.
+
+    Returns
+    -------
+    tuple
+    """
+    p1, p2 = ar
+    rss, n = 0.0, 0
+    for r in parts:
+        if r.size < 3:
+            continue
+        e = r[2:] - p1 * r[1:-1] - p2 * r[:-2]
+        rss += float(e @ e)
+        n += e.size
+    return rss, n
+
+
 def _current(inp: ArenaInput) -> tuple[float, int, int]:
-    """RSS, samples and fitted parameters of the current fit."""
+    """Whitened RSS, samples and fitted parameters of the current fit."""
     r = inp.match.residual
+    parts = [r[sl] for sl in inp.match.data.slices()]
+    rss, n = whitened_rss(parts, inp.ar)
     k = len([n for n in inp.match.model.param_names if n not in held(inp.match)])
-    return float(r @ r), int(r.size), k
+    return rss, n, k
 
 
-def _score(inp: ArenaInput, rss: float, k_extra: int) -> tuple[float, float]:
-    """(scaled fall of BIC, RMSE) of a fit with ``k_extra`` more parameters."""
+def _score(inp: ArenaInput, parts: Sequence[np.ndarray], k_extra: int) -> tuple[float, float]:
+    """(fall of BIC on whitened residuals, RMSE) of a fit with ``k_extra`` more parameters."""
     rss0, n, k = _current(inp)
-    d = (bic(rss0, n, k) - bic(rss, n, k + k_extra)) * inp.independence
-    return float(d), float(np.sqrt(rss / n))
+    rss, _ = whitened_rss(parts, inp.ar)
+    raw = float(sum(float(p @ p) for p in parts))
+    size = int(sum(p.size for p in parts))
+    d = bic(rss0, n, k) - bic(rss, n, k + k_extra)
+    return float(d), float(np.sqrt(raw / max(size, 1)))
 
 
 def run_index(runs: Sequence[str]) -> np.ndarray:
@@ -299,10 +361,10 @@ def _split_and_drift(
     for name in free:
         for k in range(2, n_runs - 1):
             design = (run >= k).astype(float)[:, None]
-            rss, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
+            parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
             before, after = base[name], base[name] + float(c[0])
             rel = abs(after - before) / max(abs(before), abs(after), 1e-300)
-            d, rmse = _score(inp, rss, 1 + k_base)
+            d, rmse = _score(inp, parts, 1 + k_base)
             out.append(
                 Explanation(
                     "pair" if prefix else "split",
@@ -311,16 +373,21 @@ def _split_and_drift(
                     rmse,
                     list(effects),
                     [name],
-                    {"split_after_run": k, "before": before, "after": after,
-                     "relative_change": rel, "group_by": f"runs:1-{k},{k + 1}-{n_runs}"},
+                    {
+                        "split_after_run": k,
+                        "before": before,
+                        "after": after,
+                        "relative_change": rel,
+                        "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
+                    },
                     null=rel < MIN_RELATIVE_CHANGE,
                 )
             )
         design = (run / max(n_runs - 1, 1)).astype(float)[:, None]
-        rss, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
+        parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
         first, last = base[name], base[name] + float(c[0])
         rel = abs(last - first) / max(abs(first), abs(last), 1e-300)
-        d, rmse = _score(inp, rss, 1 + k_base)
+        d, rmse = _score(inp, parts, 1 + k_base)
         out.append(
             Explanation(
                 "pair" if prefix else "drift",
@@ -329,8 +396,7 @@ def _split_and_drift(
                 rmse,
                 list(effects),
                 [name],
-                {"first_run": first, "last_run": last, "relative_change": rel,
-                 "drift": True},
+                {"first_run": first, "last_run": last, "relative_change": rel, "drift": True},
                 null=rel < MIN_RELATIVE_CHANGE,
             )
         )
@@ -436,11 +502,17 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
 
     fixed = held(inp.match)
     names = [n for n in model.param_names if n not in fixed]
-    rss, base, _, fc = _fit_varying(
-        model, sims, inp.match.values(), fixed, names[0], np.zeros((len(inp.trials), 0)),
-        post=post, extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
+    parts, base, _, fc = _fit_varying(
+        model,
+        sims,
+        inp.match.values(),
+        fixed,
+        names[0],
+        np.zeros((len(inp.trials), 0)),
+        post=post,
+        extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
     )
-    d, rmse = _score(inp, rss, 1)
+    d, rmse = _score(inp, parts, 1)
     return [
         Explanation(
             "sensor",
@@ -461,11 +533,17 @@ def library_effects(inp: ArenaInput) -> list[Explanation]:
         r = refit.residual
         k = len([n for n in refit.model.param_names if n not in held(refit)])
         _, _, k0 = _current(inp)
-        d, rmse = _score(inp, float(r @ r), k - k0)
+        d, rmse = _score(inp, [r[sl] for sl in refit.data.slices()], k - k0)
         out.append(
             Explanation(
-                "effect", f"+{name}", d, rmse, [name], [],
-                {"values": refit.values()}, null=is_null(refit, name),
+                "effect",
+                f"+{name}",
+                d,
+                rmse,
+                [name],
+                [],
+                {"values": refit.values()},
+                null=is_null(refit, name),
             )
         )
     return out

@@ -241,7 +241,8 @@ class Diagnosis(Displayable):
     def _summary_extra(self) -> list[str]:
         lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]
         for t in self.checks:
-            lines.append(f"    test {t['name']}: {'passed' if t['passed'] else 'FAILED'}; {t['text']}")
+            state = "passed" if t["passed"] else "FAILED"
+            lines.append(f"    test {t['name']}: {state}; {t['text']}")
         if self.explanations:
             lines.append("[[Explanations]] (fitted, best first; BIC fall)")
             for e in self.explanations[:5]:
@@ -341,6 +342,7 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
             (match.parameters["m_a"].value, match.parameters["m_a"].stderr)
             if "m_a" in match.parameters
             else None,
+            adequacy.colour_inflation(colour),
         ),
     ]
     suggestions: list[Suggestion] = []
@@ -384,6 +386,7 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
         independence=independence(match),
         effect_fits=[(s.effect, s.refit) for s in suggestions if s.refit is not None],
         rest_cutoff_hz=arena.rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
+        ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
     )
     explanations = _explain(inp, suggestions, failures)
     verdict, summary, notes, ambiguity, best = _arena_verdict(
@@ -396,8 +399,17 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
     else:
         suggestions = [s for s in suggestions if s.delta_bic > 0 and not s.null]
     return Diagnosis(
-        fit, ctx, tests, suggestions, verdict, summary, failures,
-        explanations, checks, notes, ambiguity,
+        fit,
+        ctx,
+        tests,
+        suggestions,
+        verdict,
+        summary,
+        failures,
+        explanations,
+        checks,
+        notes,
+        ambiguity,
     )
 
 
@@ -413,18 +425,14 @@ def _explain(
             failures.append(f"explanations of {getattr(gen, '__name__', gen)} failed: {exc!r}")
     for e in out:
         e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
-    effects = [e for e in out if e.kind == "effect" and _valid(e)]
+    effects = [e for e in out if e.kind == "effect" and _valid(e, True)]
     if effects:
         top = max(effects, key=lambda e: e.delta_bic)
-        refit = next(
-            (s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None
-        )
+        refit = next((s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None)
         if refit is not None:
             try:
                 for e in arena.pairs(inp, top, refit):
-                    e.excess_drop = excess_drop(
-                        inp.match.metrics["rmse"], e.rmse, inp.noise_floor
-                    )
+                    e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
                     out.append(e)
             except Exception as exc:
                 failures.append(f"explanations of pairs failed: {exc!r}")
@@ -432,16 +440,17 @@ def _explain(
     return out
 
 
-def _valid(e: Explanation) -> bool:
-    """An explanation with a benefit: BIC falls enough, a real drop, not at its null value."""
+def _valid(e: Explanation, tests_failed: bool = False) -> bool:
+    """An explanation with a benefit: BIC falls enough, not at its null value, and (when
+    the adequacy tests pass) a real drop of the error above the noise floor."""
     if e.null or e.delta_bic <= BIC_THRESHOLD:
         return False
-    return e.excess_drop > MIN_EXCESS_DROP
+    return tests_failed or e.excess_drop > MIN_EXCESS_DROP
 
 
-def _standing(explanations: list[Explanation]) -> list[Explanation]:
+def _standing(explanations: list[Explanation], tests_failed: bool) -> list[Explanation]:
     """The valid explanations; a pair only when it beats both its parts by the threshold."""
-    valid = [e for e in explanations if _valid(e)]
+    valid = [e for e in explanations if _valid(e, tests_failed)]
     by_label = {e.label: e for e in explanations}
     out = []
     for e in valid:
@@ -474,8 +483,8 @@ def _arena_verdict(
 ) -> tuple[str, str, list[Note], dict[str, object] | None, Explanation | None]:
     """The verdict from the tests and the best explanation."""
     notes = adequacy.failed_notes(checks)
-    standing = _standing(explanations)
     failed = [t for t in checks if not t["passed"]]
+    standing = _standing(explanations, bool(failed))
     if not standing:
         if not failed:
             verdict, summary = _verdict(ctx, tests, [])
@@ -568,7 +577,10 @@ def _tell_apart(best: Explanation, rival: Explanation) -> str:
 
 def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
     d = e.detail
-    head = f"{e.label} lowers BIC by {e.delta_bic:.0f} and removes {e.excess_drop:.0%} of the error above the noise floor"
+    head = (
+        f"{e.label} lowers BIC by {e.delta_bic:.0f} and removes {e.excess_drop:.0%} of the "
+        "error above the noise floor"
+    )
     if e.kind == "effect":
         return f"adding {e.effects[0]}: {head}. Fit it: {fit.command(_model_for(fit, e))}"
     if "split_after_run" in d:
@@ -605,9 +617,7 @@ def _model_for(fit: FitResult, e: Explanation) -> str:
     return f"{spec}+{e.effects[0]}" if e.effects and v is not None else spec
 
 
-def _groups_record(
-    best: Explanation, per: list, runs_of_per: list[str]
-) -> dict[str, object]:
+def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict[str, object]:
     d = best.detail
     return {
         "parameter": best.parameters[0],
