@@ -396,8 +396,15 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
         tests.parameter_groups = _groups_record(best, per, runs_of_per)
     if verdict == "adequate":
         suggestions = []  # nothing offered without benefit
+    elif best is not None and best.kind in ("split", "drift", "sensor") and ambiguity is None:
+        suggestions = []  # no effect that would only mimic it
     else:
-        suggestions = [s for s in suggestions if s.delta_bic > 0 and not s.null]
+        keep = set(best.effects) if best is not None and best.kind == "pair" else None
+        suggestions = [
+            s
+            for s in suggestions
+            if s.delta_bic > 0 and not s.null and (keep is None or s.effect in keep)
+        ]
     return Diagnosis(
         fit,
         ctx,
@@ -487,8 +494,20 @@ def _arena_verdict(
     standing = _standing(explanations, bool(failed))
     if not standing:
         if not failed:
-            verdict, summary = _verdict(ctx, tests, [])
-            return verdict, summary, notes, None, None
+            excess = ctx.excess_rmse()
+            ratio = excess / ctx.noise_floor if ctx.noise_floor > 0 else float("inf")
+            return (
+                "adequate",
+                (
+                    "the residual is consistent with noise: error above the noise floor "
+                    f"{excess:.4f} m/s^2 ({ratio:.2f}x the noise of {ctx.noise_floor:.4f} "
+                    "m/s^2), as white as the resting noise, the parameters agree across "
+                    "runs; no explanation tried improves BIC enough"
+                ),
+                notes,
+                None,
+                None,
+            )
         why = "; ".join(str(t["text"]) for t in failed)
         verdict = "effect missing"
         summary = (
@@ -585,9 +604,14 @@ def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
         return f"adding {e.effects[0]}: {head}. Fit it: {fit.command(_model_for(fit, e))}"
     if "split_after_run" in d:
         k = int(d["split_after_run"])  # type: ignore[arg-type]
+        n = int(str(d["group_by"]).rsplit("-", 1)[-1])
         p = e.parameters[0]
+        u = " kg" if p == "m_a" else ""
+        first = "run 1" if k == 1 else f"runs 1-{k}"
+        second = f"run {n}" if k + 1 == n else f"runs {k + 1}-{n}"
         return (
-            f"{p} is {float(d['before']):.3g} in runs 1-{k} and {float(d['after']):.3g} after: "  # type: ignore[arg-type]
+            f"{p} is {float(d['before']):.3g}{u} in {first} and "  # type: ignore[arg-type]
+            f"{float(d['after']):.3g}{u} in {second}: "  # type: ignore[arg-type]
             f"the payload or the balancer's setting changed between runs {k} and {k + 1}"
             + (f" (with {e.effects[0]} added)" if e.effects else "")
             + f"; {head}. Fit each group on its own: {fit.command()} --group-by "
@@ -618,15 +642,29 @@ def _model_for(fit: FitResult, e: Explanation) -> str:
 
 
 def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict[str, object]:
+    """CONTRACT.md ``parameter_groups`` of a split, with the per-run estimates."""
+    from balancer_id.diagnostics.groups import run_estimates
+
     d = best.detail
+    name = best.parameters[0]
+    est = run_estimates(
+        runs_of_per,
+        [p.values.get(name, np.nan) for p in per],
+        [p.stderr.get(name) for p in per],
+        [p.thrust_N for p in per],
+    )
     return {
-        "parameter": best.parameters[0],
+        "parameter": name,
         "split_after_run": d.get("split_after_run"),
         "before": {"value": d.get("before")},
         "after": {"value": d.get("after")},
         "group_by": d.get("group_by"),
         "with_effects": list(best.effects),
         "delta_bic": best.delta_bic,
+        "runs": [
+            {"run": e.run, "value": e.value, "stderr": e.stderr, "thrust_N": e.thrust_N}
+            for e in est
+        ],
     }
 
 
