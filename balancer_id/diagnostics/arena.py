@@ -308,8 +308,27 @@ def _current(inp: ArenaInput) -> tuple[float, int, int]:
     return rss, n, k
 
 
-def _score(inp: ArenaInput, parts: Sequence[np.ndarray], k_extra: int) -> tuple[float, float]:
-    """(fall of BIC on whitened residuals, RMSE) of a fit with ``k_extra`` more parameters."""
+def score(inp: ArenaInput, parts: Sequence[np.ndarray], k_extra: int) -> tuple[float, float]:
+    """The arena's criterion: the fall of BIC on prewhitened residuals, and the RMSE.
+
+    Every generator scores its fits with this (a discovered term too).
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit (its residual is the reference).
+    parts : sequence of numpy.ndarray
+        The explanation's residuals, one array per trial, in the trials' order.
+    k_extra : int
+        Parameters it fits beyond the current model.
+
+    Returns
+    -------
+    delta_bic : float
+        Positive when the explanation is better.
+    rmse : float
+        Its RMSE (m/s^2).
+    """
     rss0, n, k = _current(inp)
     rss, _ = whitened_rss(parts, inp.ar)
     raw = float(sum(float(p @ p) for p in parts))
@@ -364,7 +383,7 @@ def _split_and_drift(
             parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
             before, after = base[name], base[name] + float(c[0])
             rel = abs(after - before) / max(abs(before), abs(after), 1e-300)
-            d, rmse = _score(inp, parts, 1 + k_base)
+            d, rmse = score(inp, parts, 1 + k_base)
             out.append(
                 Explanation(
                     "pair" if prefix else "split",
@@ -379,6 +398,7 @@ def _split_and_drift(
                         "after": after,
                         "relative_change": rel,
                         "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
+                        "n_samples": sims.n,
                     },
                     null=rel < MIN_RELATIVE_CHANGE,
                 )
@@ -387,7 +407,7 @@ def _split_and_drift(
         parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
         first, last = base[name], base[name] + float(c[0])
         rel = abs(last - first) / max(abs(first), abs(last), 1e-300)
-        d, rmse = _score(inp, parts, 1 + k_base)
+        d, rmse = score(inp, parts, 1 + k_base)
         out.append(
             Explanation(
                 "pair" if prefix else "drift",
@@ -512,7 +532,7 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
         post=post,
         extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
     )
-    d, rmse = _score(inp, parts, 1)
+    d, rmse = score(inp, parts, 1)
     return [
         Explanation(
             "sensor",
@@ -533,7 +553,7 @@ def library_effects(inp: ArenaInput) -> list[Explanation]:
         r = refit.residual
         k = len([n for n in refit.model.param_names if n not in held(refit)])
         _, _, k0 = _current(inp)
-        d, rmse = _score(inp, [r[sl] for sl in refit.data.slices()], k - k0)
+        d, rmse = score(inp, [r[sl] for sl in refit.data.slices()], k - k0)
         out.append(
             Explanation(
                 "effect",

@@ -643,10 +643,15 @@ def _model_for(fit: FitResult, e: Explanation) -> str:
 
 def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict[str, object]:
     """CONTRACT.md ``parameter_groups`` of a split, with the per-run estimates."""
+    from scipy.special import chdtrc
+
     from balancer_id.diagnostics.groups import run_estimates
 
     d = best.detail
     name = best.parameters[0]
+    n = int(best.detail.get("n_samples", 0) or 0)
+    # the split's likelihood-ratio statistic from its BIC fall (one more parameter)
+    delta_chi2 = best.delta_bic + (float(np.log(n)) if n > 1 else 0.0)
     est = run_estimates(
         runs_of_per,
         [p.values.get(name, np.nan) for p in per],
@@ -661,6 +666,8 @@ def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict
         "group_by": d.get("group_by"),
         "with_effects": list(best.effects),
         "delta_bic": best.delta_bic,
+        "delta_chi2": delta_chi2,
+        "p_value": float(min(chdtrc(1, max(delta_chi2, 0.0)) * max(len(est) - 3, 1), 1.0)),
         "runs": [
             {"run": e.run, "value": e.value, "stderr": e.stderr, "thrust_N": e.thrust_N}
             for e in est
