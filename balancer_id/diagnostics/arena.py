@@ -79,6 +79,8 @@ class Explanation:
     detail: dict[str, object] = field(default_factory=dict)
     excess_drop: float = 0.0
     null: bool = False
+    #: Share of the BIC fall a perfect model would bring (:meth:`ArenaInput.available`).
+    share: float | None = None
 
     @property
     def verdict(self) -> str:
@@ -96,6 +98,7 @@ class Explanation:
             "delta_bic": self.delta_bic,
             "rmse_after": self.rmse,
             "excess_error_drop": self.excess_drop,
+            "share_of_excess": self.share,
             "effects": list(self.effects),
             "parameters": list(self.parameters),
             "detail": self.detail,
@@ -135,6 +138,15 @@ class ArenaInput:
     effect_fits: list[tuple[str, MatchResult]] = field(default_factory=list)
     rest_cutoff_hz: float | None = None
     ar: tuple[float, float] = (0.0, 0.0)
+    #: Mean square of the resting noise prewhitened alike: what a perfect model leaves.
+    rest_innovation: float | None = None
+
+    def available(self) -> float | None:
+        """The BIC fall a perfect model would bring (the current whitened excess), or None."""
+        if not self.rest_innovation or self.rest_innovation <= 0:
+            return None
+        rss0, n, _ = _current(self)
+        return max(bic(rss0, n, 0) - bic(n * self.rest_innovation, n, 0), 0.0)
 
 
 def bic(rss: float, n: int, k: int) -> float:

@@ -388,6 +388,8 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
         rest_cutoff_hz=arena.rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
         ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
     )
+    rest_rss, rest_n = arena.whitened_rss(adequacy.rest_noise(ctx), inp.ar)
+    inp.rest_innovation = rest_rss / rest_n if rest_n >= 50 else None
     explanations = _explain(inp, suggestions, failures)
     verdict, summary, notes, ambiguity, best = _arena_verdict(
         ctx, tests, checks, explanations, suggestions, inp, fit
@@ -425,6 +427,7 @@ def _explain(
 ) -> list[Explanation]:
     """Every generator's explanations, plus the best effect paired with a split or drift."""
     out: list[Explanation] = []
+    available = inp.available()
     for gen in arena.GENERATORS:
         try:
             out.extend(gen(inp))
@@ -432,6 +435,7 @@ def _explain(
             failures.append(f"explanations of {getattr(gen, '__name__', gen)} failed: {exc!r}")
     for e in out:
         e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+        e.share = e.delta_bic / available if available else None
     effects = [e for e in out if e.kind == "effect" and _valid(e, True)]
     if effects:
         top = max(effects, key=lambda e: e.delta_bic)
@@ -440,6 +444,7 @@ def _explain(
             try:
                 for e in arena.pairs(inp, top, refit):
                     e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+                    e.share = e.delta_bic / available if available else None
                     out.append(e)
             except Exception as exc:
                 failures.append(f"explanations of pairs failed: {exc!r}")
@@ -448,11 +453,16 @@ def _explain(
 
 
 def _valid(e: Explanation, tests_failed: bool = False) -> bool:
-    """An explanation with a benefit: BIC falls enough, not at its null value, and (when
-    the adequacy tests pass) a real drop of the error above the noise floor."""
+    """An explanation with a benefit: BIC falls enough, not at its null value, and a real
+    drop of the error above the noise floor (or of the prewhitened excess)."""
     if e.null or e.delta_bic <= BIC_THRESHOLD:
         return False
-    return tests_failed or e.excess_drop > MIN_EXCESS_DROP
+    if e.excess_drop > MIN_EXCESS_DROP:
+        return True
+    # a sensor's low-pass hides part of the noise from the floor's estimate (its resting
+    # parts are short and smooth), so its drop is understated: the sensor explanation
+    # (offered only when the resting noise rolls off, its own evidence) needs BIC only
+    return e.kind == "sensor"
 
 
 def _standing(explanations: list[Explanation], tests_failed: bool) -> list[Explanation]:
