@@ -237,6 +237,16 @@ def test_arena_pieces_confound_null_and_rest_spectrum():
     assert "down step before the up" in arena.record_hint(split, "direction", ups)
     alternating = [SimpleNamespace(thrust_N=u) for u in (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)]
     assert arena.confound(split, alternating, runs) is None
+    # a dead time refitted to 0 (or 1 ns) does nothing: not a benefit, never a step
+    from balancer_id.model.effects.dead_time import DeadTime
+
+    def refit_at(tau):
+        model = SimpleNamespace(registry={"dead_time": DeadTime})
+        return SimpleNamespace(model=model, values=lambda: {"m_a": 15.0, "tau_d": tau})
+
+    assert arena.is_null(refit_at(0.0), "dead_time")
+    assert arena.is_null(refit_at(1e-9), "dead_time")
+    assert not arena.is_null(refit_at(0.03), "dead_time")
     # white noise: no AR coefficients; AR(1) 0.6: phi1 0.6, phi2 0
     assert arena.ar_coefficients([0.01, 0.0], 1000) == (0.0, 0.0)
     p1, p2 = arena.ar_coefficients([0.6, 0.36], 1000)
