@@ -9,9 +9,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from balancer_id.diagnostics import adequacy, arena
+from balancer_id.diagnostics.arena import ArenaInput, Explanation
 from balancer_id.diagnostics.candidates import Candidate, Refit, candidates, quick_refit
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
-from balancer_id.diagnostics.groups import detect_groups
 from balancer_id.diagnostics.residual_tests import (
     input_correlation,
     regime_table,
@@ -26,6 +27,7 @@ from balancer_id.identify.data import TrialData
 from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
+from balancer_id.notes import Note
 from balancer_id.simulation.kernel import compile_models, get_kernel
 from balancer_id.status import tell
 
@@ -50,6 +52,8 @@ class Suggestion:
     command: str
     model: str
     refit: MatchResult | None = field(default=None, repr=False)
+    #: The added effect's parameters sit where it does nothing (dead time 0): no benefit.
+    null: bool = False
 
     def to_dict(self) -> dict[str, object]:
         """CONTRACT.md suggestion record."""
@@ -174,6 +178,14 @@ class Diagnosis(Displayable):
     verdict: str
     summary: str  # type: ignore[assignment]  # also callable: CallableText
     failures: list[str] = field(default_factory=list)
+    #: Every fitted explanation, best first (:mod:`~balancer_id.diagnostics.arena`).
+    explanations: list[Explanation] = field(default_factory=list)
+    #: The tests "adequate" must pass (:mod:`~balancer_id.diagnostics.adequacy`).
+    checks: list[dict[str, object]] = field(default_factory=list)
+    #: Typed notes: failed tests, ambiguity, confounding, sensor effects.
+    notes: list[Note] = field(default_factory=list)
+    #: The runner-up when it is close or confounded with the best, and how to tell them.
+    ambiguity: dict[str, object] | None = None
 
     def __post_init__(self) -> None:
         # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
@@ -228,6 +240,13 @@ class Diagnosis(Displayable):
 
     def _summary_extra(self) -> list[str]:
         lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]
+        for t in self.checks:
+            state = "passed" if t["passed"] else "FAILED"
+            lines.append(f"    test {t['name']}: {state}; {t['text']}")
+        if self.explanations:
+            lines.append("[[Explanations]] (fitted, best first; BIC fall)")
+            for e in self.explanations[:5]:
+                lines.append(f"    {e.label}: {e.delta_bic:.0f}")
         if self.suggestions:
             lines.append("[[Suggestions]] (best first)")
             for k, s in enumerate(self.suggestions[:5], 1):
@@ -256,6 +275,10 @@ class Diagnosis(Displayable):
                 "summary": self.summary,
                 "suggestions": [s.to_dict() for s in self.suggestions],
                 "failed_candidates": self.failures,
+                "tests": self.checks,
+                "explanations": [e.to_dict() for e in self.explanations],
+                "ambiguity": self.ambiguity,
+                "notes": [n.to_dict() for n in self.notes],
             }
         )
 
@@ -304,23 +327,24 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
     )
     per = fit.per_trial_fits()
     source_of = {td.index: td.source for td in trials}
-    split = detect_groups(
-        match.model.param_names,
-        [source_of.get(p.index, "") for p in per],
-        [p.values for p in per],
-        [p.stderr for p in per],
-        [p.thrust_N for p in per],
-    )
-    if split is not None:  # say it first; an effect would only mimic it: none is offered
-        tests.parameter_groups = split.to_dict()
-        summary = (
-            split.sentence("kg" if split.parameter == "m_a" else "")
-            + ". Fit each group on its own: "
-            + fit.command()
-            + " --group-by "
-            + shlex.quote(split.group_spec())
-        )
-        return Diagnosis(fit, ctx, tests, [], "parameter changed", summary, [])
+    runs_of_per = [source_of.get(p.index, "") for p in per]
+    colour = adequacy.colour_test(ctx)
+    checks = [
+        adequacy.level_test(ctx, colour),
+        colour,
+        adequacy.consistency_test(
+            match.model.param_names,
+            runs_of_per,
+            [p.values for p in per],
+            [p.stderr for p in per],
+            [p.thrust_N for p in per],
+            (classic.m_a, classic.m_a_stderr) if classic is not None else None,
+            (match.parameters["m_a"].value, match.parameters["m_a"].stderr)
+            if "m_a" in match.parameters
+            else None,
+            adequacy.colour_inflation(colour),
+        ),
+    ]
     suggestions: list[Suggestion] = []
     failures: list[str] = []
     with_trajectory = fit.trial_set.trajectory is not None
@@ -350,11 +374,315 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
                 command=fit.command(cand.model),
                 model=cand.model.spec,
                 refit=refit.match,
+                null=arena.is_null(refit.match, cand.effect.name),
             )
         )
     suggestions.sort(key=lambda s: -s.score)
-    verdict, summary = _verdict(ctx, tests, suggestions)
-    return Diagnosis(fit, ctx, tests, suggestions, verdict, summary, failures)
+    inp = ArenaInput(
+        match=match,
+        trials=trials,
+        runs=[source_of.get(td.index, "") for td in trials],
+        noise_floor=ctx.noise_floor,
+        independence=independence(match),
+        effect_fits=[(s.effect, s.refit) for s in suggestions if s.refit is not None],
+        rest_cutoff_hz=arena.rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
+        ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
+    )
+    rest_rss, rest_n = arena.whitened_rss(adequacy.rest_noise(ctx), inp.ar)
+    inp.rest_innovation = rest_rss / rest_n if rest_n >= 50 else None
+    explanations = _explain(inp, suggestions, failures)
+    verdict, summary, notes, ambiguity, best = _arena_verdict(
+        ctx, tests, checks, explanations, suggestions, inp, fit
+    )
+    if best is not None and best.verdict == "parameter changed":
+        tests.parameter_groups = _groups_record(best, per, runs_of_per)
+    if verdict == "adequate":
+        suggestions = []  # nothing offered without benefit
+    elif best is not None and best.kind in ("split", "drift", "sensor") and ambiguity is None:
+        suggestions = []  # no effect that would only mimic it
+    else:
+        keep = set(best.effects) if best is not None and best.kind == "pair" else None
+        suggestions = [
+            s
+            for s in suggestions
+            if s.delta_bic > 0 and not s.null and (keep is None or s.effect in keep)
+        ]
+    return Diagnosis(
+        fit,
+        ctx,
+        tests,
+        suggestions,
+        verdict,
+        summary,
+        failures,
+        explanations,
+        checks,
+        notes,
+        ambiguity,
+    )
+
+
+def _explain(
+    inp: ArenaInput, suggestions: list[Suggestion], failures: list[str]
+) -> list[Explanation]:
+    """Every generator's explanations, plus the best effect paired with a split or drift."""
+    out: list[Explanation] = []
+    available = inp.available()
+    for gen in arena.GENERATORS:
+        try:
+            out.extend(gen(inp))
+        except Exception as exc:  # one generator must not stop the others
+            failures.append(f"explanations of {getattr(gen, '__name__', gen)} failed: {exc!r}")
+    for e in out:
+        e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+        e.share = e.delta_bic / available if available else None
+    effects = [e for e in out if e.kind == "effect" and _valid(e, True)]
+    if effects:
+        top = max(effects, key=lambda e: e.delta_bic)
+        refit = next((s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None)
+        if refit is not None:
+            try:
+                for e in arena.pairs(inp, top, refit):
+                    e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+                    e.share = e.delta_bic / available if available else None
+                    out.append(e)
+            except Exception as exc:
+                failures.append(f"explanations of pairs failed: {exc!r}")
+    out.sort(key=lambda e: -e.delta_bic)
+    return out
+
+
+def _valid(e: Explanation, tests_failed: bool = False) -> bool:
+    """An explanation with a benefit: BIC falls enough, not at its null value, and a real
+    drop of the error above the noise floor (or of the prewhitened excess)."""
+    if e.null or e.delta_bic <= BIC_THRESHOLD:
+        return False
+    if e.excess_drop > MIN_EXCESS_DROP:
+        return True
+    # a sensor's low-pass hides part of the noise from the floor's estimate (its resting
+    # parts are short and smooth), so its drop is understated: the sensor explanation
+    # (offered only when the resting noise rolls off, its own evidence) needs BIC only
+    return e.kind == "sensor"
+
+
+def _standing(explanations: list[Explanation], tests_failed: bool) -> list[Explanation]:
+    """The valid explanations; a pair only when it beats both its parts by the threshold."""
+    valid = [e for e in explanations if _valid(e, tests_failed)]
+    by_label = {e.label: e for e in explanations}
+    out = []
+    for e in valid:
+        if e.kind == "pair":
+            part_effect = by_label.get(f"+{e.effects[0]}") if e.effects else None
+            alone = e.label.split(" and ", 1)[-1]
+            part_split = by_label.get(alone)
+            gain = min(
+                e.delta_bic - (part_effect.delta_bic if part_effect else 0.0),
+                e.delta_bic - (part_split.delta_bic if part_split else 0.0),
+            )
+            if gain <= BIC_THRESHOLD:
+                continue
+        out.append(e)
+    return sorted(out, key=lambda e: -e.delta_bic)
+
+
+#: A runner-up of another kind within this share of the best's BIC fall is "close".
+CLOSE_SHARE = 0.05
+
+
+def _arena_verdict(
+    ctx: DiagnosisContext,
+    tests: ResidualTests,
+    checks: list[dict[str, object]],
+    explanations: list[Explanation],
+    suggestions: list[Suggestion],
+    inp: ArenaInput,
+    fit: FitResult,
+) -> tuple[str, str, list[Note], dict[str, object] | None, Explanation | None]:
+    """The verdict from the tests and the best explanation."""
+    notes = adequacy.failed_notes(checks)
+    failed = [t for t in checks if not t["passed"]]
+    standing = _standing(explanations, bool(failed))
+    if not standing:
+        if not failed:
+            excess = ctx.excess_rmse()
+            ratio = excess / ctx.noise_floor if ctx.noise_floor > 0 else float("inf")
+            return (
+                "adequate",
+                (
+                    "the residual is consistent with noise: error above the noise floor "
+                    f"{excess:.4f} m/s^2 ({ratio:.2f}x the noise of {ctx.noise_floor:.4f} "
+                    "m/s^2), as white as the resting noise, the parameters agree across "
+                    "runs; no explanation tried improves BIC enough"
+                ),
+                notes,
+                None,
+                None,
+            )
+        why = "; ".join(str(t["text"]) for t in failed)
+        verdict = "effect missing"
+        summary = (
+            "no explanation tried (library effects, a parameter changed or drifting between "
+            f"runs, the sensor's low-pass) accounts for it: {why}. "
+            + _unknown_hint(tests)
+            + " Write a user effect for it (README: 'Writing your own effect')."
+        )
+        return verdict, summary, notes, None, None
+    best = standing[0]
+    verdict = best.verdict
+    summary = _explanation_sentence(best, fit)
+    ambiguity = None
+    how = arena.confound(best, inp.trials, inp.runs)
+    rival = next(
+        (
+            e
+            for e in standing[1:]
+            if e.verdict != best.verdict
+            and (how is not None or e.delta_bic >= best.delta_bic * (1 - CLOSE_SHARE))
+        ),
+        None,
+    )
+    if how is not None and rival is None:
+        rival = next((e for e in standing[1:] if e.kind == "effect"), None)
+    if rival is not None:
+        hint = (
+            arena.record_hint(best, how, inp.trials)
+            if how is not None
+            else _tell_apart(best, rival)
+        )
+        ambiguity = {
+            "best": best.label,
+            "runner_up": rival.label,
+            "delta_bic": [best.delta_bic, rival.delta_bic],
+            "confounded_by": how,
+            "record": hint,
+        }
+        text = (
+            f"{best.label} (BIC -{best.delta_bic:.0f}) and {rival.label} "
+            f"(BIC -{rival.delta_bic:.0f}) both explain the residual"
+            + (f"; the split coincides with the {how} of the runs" if how else "")
+            + f": {hint}"
+        )
+        notes.append(
+            Note("diagnose.confounded" if how else "diagnose.ambiguous", text, None, "warning")
+        )
+        verdict = "ambiguous"
+        summary = text + ". Best: " + summary
+    if best.kind == "sensor":
+        notes.append(Note("diagnose.sensor", summary, None, "warning"))
+    return verdict, summary, notes, ambiguity, best
+
+
+def _unknown_hint(tests: ResidualTests) -> str:
+    where = tests.worst_windows[0] if tests.worst_windows else None
+    corr = tests.state_correlation
+    name, r = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("-", 0.0)
+    peaks = tests.spectrum["peaks"]
+    return (
+        (
+            f"Worst in trial {where['trial']} at {where['t_start']:.2f}-{where['t_end']:.2f} s; "
+            if where
+            else ""
+        )
+        + f"it follows the {name} (r = {r:+.2f})"
+        + (f"; spectrum peak at {peaks[0]['frequency_hz']:.2f} Hz" if peaks else "")
+        + "."
+    )
+
+
+def _tell_apart(best: Explanation, rival: Explanation) -> str:
+    kinds = {best.kind, rival.kind}
+    if "sensor" in kinds:
+        return (
+            "record a few seconds at rest with the sensor on the frame (its noise spectrum "
+            "shows the sensor's filter) and one step with a second, unfiltered sensor"
+        )
+    if kinds & {"split", "drift", "pair"}:
+        return (
+            "repeat the first run at the end of the session: a change or drift of the "
+            "balancer shows as a different result, a missing effect as the same"
+        )
+    return "record more thrust levels in both directions"
+
+
+def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
+    d = e.detail
+    head = (
+        f"{e.label} lowers BIC by {e.delta_bic:.0f} and removes {e.excess_drop:.0%} of the "
+        "error above the noise floor"
+    )
+    if e.kind == "effect":
+        return f"adding {e.effects[0]}: {head}. Fit it: {fit.command(_model_for(fit, e))}"
+    if "split_after_run" in d:
+        k = int(d["split_after_run"])  # type: ignore[arg-type]
+        n = int(str(d["group_by"]).rsplit("-", 1)[-1])
+        p = e.parameters[0]
+        u = " kg" if p == "m_a" else ""
+        first = "run 1" if k == 1 else f"runs 1-{k}"
+        second = f"run {n}" if k + 1 == n else f"runs {k + 1}-{n}"
+        return (
+            f"{p} is {float(d['before']):.3g}{u} in {first} and "  # type: ignore[arg-type]
+            f"{float(d['after']):.3g}{u} in {second}: "  # type: ignore[arg-type]
+            f"the payload or the balancer's setting changed between runs {k} and {k + 1}"
+            + (f" (with {e.effects[0]} added)" if e.effects else "")
+            + f"; {head}. Fit each group on its own: {fit.command()} --group-by "
+            + shlex.quote(str(d["group_by"]))
+        )
+    if d.get("drift"):
+        p = e.parameters[0]
+        return (
+            f"{p} drifts from {float(d['first_run']):.3g} in the first run to "  # type: ignore[arg-type]
+            f"{float(d['last_run']):.3g} in the last (oil warming, wear)"  # type: ignore[arg-type]
+            + (f", with {e.effects[0]} added" if e.effects else "")
+            + f"; {head}"
+        )
+    if e.kind == "sensor":
+        return (
+            f"the accelerometer smooths its signal: a low-pass at {float(d['cutoff_hz']):.1f} Hz "  # type: ignore[arg-type]
+            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz); "  # type: ignore[arg-type]
+            f"{head}. Not the balancer: record with the sensor's filter off or a higher "
+            "bandwidth, or read its delay as part of the sensor"
+        )
+    return head
+
+
+def _model_for(fit: FitResult, e: Explanation) -> str:
+    v = e.detail.get("values")
+    spec = fit.model
+    return f"{spec}+{e.effects[0]}" if e.effects and v is not None else spec
+
+
+def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict[str, object]:
+    """CONTRACT.md ``parameter_groups`` of a split, with the per-run estimates."""
+    from scipy.special import chdtrc
+
+    from balancer_id.diagnostics.groups import run_estimates
+
+    d = best.detail
+    name = best.parameters[0]
+    n = int(best.detail.get("n_samples", 0) or 0)
+    # the split's likelihood-ratio statistic from its BIC fall (one more parameter)
+    delta_chi2 = best.delta_bic + (float(np.log(n)) if n > 1 else 0.0)
+    est = run_estimates(
+        runs_of_per,
+        [p.values.get(name, np.nan) for p in per],
+        [p.stderr.get(name) for p in per],
+        [p.thrust_N for p in per],
+    )
+    return {
+        "parameter": name,
+        "split_after_run": d.get("split_after_run"),
+        "before": {"value": d.get("before")},
+        "after": {"value": d.get("after")},
+        "group_by": d.get("group_by"),
+        "with_effects": list(best.effects),
+        "delta_bic": best.delta_bic,
+        "delta_chi2": delta_chi2,
+        "p_value": float(min(chdtrc(1, max(delta_chi2, 0.0)) * max(len(est) - 3, 1), 1.0)),
+        "runs": [
+            {"run": e.run, "value": e.value, "stderr": e.stderr, "thrust_N": e.thrust_N}
+            for e in est
+        ],
+    }
 
 
 #: A candidate, its signature, its refit and why its signature check failed (or None).

@@ -202,6 +202,9 @@ def improve(
     for k in range(max_steps):
         chosen = None
         for s in diagnosis.suggestions:
+            if s.null:  # the effect's parameter sits where it does nothing: no step
+                rejected.append(f"{s.label}: its parameters sit at the value that does nothing")
+                continue
             if not is_missing(s) or s.refit is None:
                 break
             cv_new = cross_validated_rmse(s.refit.model, trials, s.refit.values(), fixed)
