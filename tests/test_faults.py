@@ -281,3 +281,40 @@ def test_escape_sequences_from_a_log_are_shown_escaped(cli, tmp_path):
 
     shown = _printable({"runs": [{"name": "Run \x1b[2J#1"}], "n": 3})
     assert shown == {"runs": [{"name": "Run \\x1b[2J#1"}], "n": 3}
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--thrust", "inf"], "--thrust inf: give a finite value"),
+        (["--thrust", "1e308"], "--thrust 1e+308: give a finite value"),
+        (["--noise", "1e308"], "--noise 1e+308: give a finite value"),
+        (["--force-noise", "1e308"], "--force-noise 1e+308: give a finite value"),
+        (["--rate", "1e308"], "--rate 1e+308: give a finite value"),
+        (["--rest", "1e308"], "--rest 1e+308: give a finite value"),
+        (["--duration", "1e308"], "--duration 1e+308: give a finite value"),
+        (["--seed", "-1"], "--seed -1: give a seed >= 0"),
+        (["--rate", "100000", "--duration", "86400"], "samples; shorten the runs"),
+    ],
+)
+def test_simulate_refuses_values_that_would_write_no_finite_log(cli, tmp_path, args, message):
+    out = tmp_path / "sim.csv"
+    code, _, err = cli("simulate", *args, "--out", out)
+    assert code == 2 and message in " ".join(err.split())
+    assert not out.exists()
+
+
+def test_simulate_never_writes_over_its_params_file(cli, tmp_path):
+    params = tmp_path / "model.json"
+    params.write_text('{"model": "variable_viscosity", "parameters": {"m_a": {"value": 15.1}}}')
+    before = params.read_bytes()
+    code, _, err = cli("simulate", "--params", params, "--out", params, "--overwrite")
+    assert code == 2 and "model.json" in err
+    assert params.read_bytes() == before
+
+
+def test_fit_refuses_an_absurd_number_of_starts(cli):
+    from conftest import SAMPLE_LOGS
+
+    code, _, err = cli("fit", SAMPLE_LOGS / "paper_balancer.csv", "--starts", "100000")
+    assert code == 2 and "at most 1000 starts" in err

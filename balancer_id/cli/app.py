@@ -37,6 +37,7 @@ from balancer_id.cli.options import (
     trajectory,
 )
 from balancer_id.cli.progress import stage
+from balancer_id.errors import UsageError
 
 if TYPE_CHECKING:
     from balancer_id.trials import ReadOptions
@@ -81,6 +82,17 @@ def _help_types_in_words() -> None:
 
 
 _help_types_in_words()
+
+
+#: Physical ranges of simulate's options: beyond them a log would hold inf/NaN samples or
+#: not fit in memory (issue 21: nothing silent).
+MAX_THRUST_N = 1e6
+MAX_ACCEL_NOISE = 1e3
+MAX_RATE_HZ = 1e5
+MAX_DURATION_S = 86400.0
+MAX_SIM_SAMPLES = 5e7
+#: More optimizer starts than this is a mistake (each start is a whole fit).
+MAX_STARTS = 1000
 
 app = typer.Typer(
     add_completion=True,
@@ -139,7 +151,6 @@ def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
 
 def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
     """``NAME=MIN:MAX`` items (``--bounds``) as a dict."""
-    from balancer_id.errors import UsageError
 
     out: dict[str, tuple[float, float]] = {}
     for item in items or []:
@@ -298,6 +309,8 @@ def fit(
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
     at_least(starts, 1, "--starts")
+    if starts > MAX_STARTS:
+        raise UsageError(f"--starts {starts}: give at most {MAX_STARTS} starts")
     user_start = assignments(start_values, "--start")
     user_bounds = _bounds(bounds)
     ins = inputs_of(logs, effects_file, trajectory_text)
@@ -306,7 +319,6 @@ def fit(
     check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
-            from balancer_id.errors import UsageError
 
             raise UsageError(
                 "--start, --bounds, --save and --series are for one fit: not with --group-by"
@@ -377,7 +389,6 @@ def fit(
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
     """``fit --group-by``: one identification per group of trials."""
-    from balancer_id.errors import UsageError
     from balancer_id.identify.api import fit as run_fit
     from balancer_id.identify.api import trial_data
     from balancer_id.identify.data import group_trials
@@ -440,7 +451,6 @@ def simulate(
 
     Example: balancer-id simulate --param m_a=0.5 --out sim.csv
     """
-    from balancer_id.errors import UsageError
     from balancer_id.identify.api import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
@@ -456,6 +466,26 @@ def simulate(
     thrusts = floats(thrust, "--thrust") or []
     if not thrusts:
         raise UsageError("--thrust: give at least one thrust")
+    for name, low, high, what, value in [
+        *(("--thrust", -MAX_THRUST_N, MAX_THRUST_N, "N", f) for f in thrusts),
+        ("--noise", 0.0, MAX_ACCEL_NOISE, "m/s^2", noise),
+        ("--force-noise", 0.0, MAX_THRUST_N, "N", force_noise),
+        ("--rate", 1e-9, MAX_RATE_HZ, "Hz", rate),
+        ("--rest", 0.0, MAX_DURATION_S, "s", rest),
+        ("--duration", 1e-9, MAX_DURATION_S, "s", duration),
+    ]:
+        if not (math.isfinite(value) and low <= value <= high):
+            raise UsageError(
+                f"{name} {value:g}: give a finite value in {low:g}..{high:g} {what} (a log "
+                "outside these would hold overflowing or unreadable samples)"
+            )
+    if rate * (rest + duration) * len(thrusts) > MAX_SIM_SAMPLES:
+        raise UsageError(
+            f"--rate {rate:g} x (--rest + --duration) x {len(thrusts)} runs is more than "
+            f"{MAX_SIM_SAMPLES:.0e} samples; shorten the runs or lower the rate"
+        )
+    if seed < 0:
+        raise UsageError(f"--seed {seed}: give a seed >= 0")
     traj = trajectory(trajectory_text)
     if mdl.needs_reference_move and traj is None:
         names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
@@ -474,7 +504,8 @@ def simulate(
         raise UsageError(f"--drop {drop}: give the fraction of samples dropped, in [0, 1)")
     if not math.isfinite(tilt):
         raise UsageError(f"--tilt {tilt}: give the sensor's tilt in degrees")
-    check_outputs({"--out": out}, inputs_of([], effects_file, trajectory_text), overwrite)
+    inputs = inputs_of([], effects_file, trajectory_text) + ([params] if params else [])
+    check_outputs({"--out": out}, inputs, overwrite)
     sensor = SensorSettings(
         rate_hz=rate,
         accel_noise=noise,
@@ -549,7 +580,6 @@ def compare(
     Example: balancer-id compare sample_logs/paper_balancer.csv -m viscous,karnopp
     """
     from balancer_id.diagnostics.api import compare as run_compare
-    from balancer_id.errors import UsageError
 
     fixed = assignments(fix, "--fix")
     if params is not None:  # issue 11: an identified model on new logs, as MATLAB's compare
@@ -695,7 +725,6 @@ def improve(
         overwrite,
     )
     if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
-        from balancer_id.errors import UsageError
 
         raise UsageError("--report and --plot name the same file; give two names")
     if report is not None:
