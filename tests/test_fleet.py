@@ -150,3 +150,49 @@ def test_cli_batch_report_and_progress_off_a_terminal(two_logs: Path, tmp_path: 
     assert again.exit_code == 2
     bad = CliRunner().invoke(app, [*args[:4], "--out", str(tmp_path / "o3"), "--report", "x.txt"])
     assert bad.exit_code == 2 and "must end in .html or .pdf" in bad.output
+
+
+def test_a_value_within_three_of_its_standard_errors_is_never_an_outlier():
+    from balancer_id.report.fleet import robust_outliers
+
+    # ten logs at 6.0 +- 0.01 and one at 5.6 whose own standard error is 0.2 (2 se away)
+    rng = np.random.default_rng(4)
+    values = [*list(6.0 + rng.normal(0, 0.01, 10)), 5.6]
+    assert robust_outliers(values)[-1]  # the spread alone would flag it
+    stderrs = [0.01] * 10 + [0.2]
+    assert not robust_outliers(values, stderrs)[-1]
+    # the same value with a tight standard error is an outlier
+    assert robust_outliers(values, [0.01] * 10 + [0.01])[-1]
+
+
+def test_flat_logs_with_outliers_show_no_trend_and_a_real_drift_shows_one():
+    from balancer_id.report.fleet import robust_outliers, robust_trend
+
+    rng = np.random.default_rng(5)
+    day = 86400.0
+    t = np.arange(12) * day
+    flat = 0.27 + rng.normal(0, 0.005, 12)
+    flat[[9, 11]] = [0.45, 0.46]  # two late outliers pull a least-squares line up
+    out = robust_outliers(flat)
+    assert out[[9, 11]].all() and out.sum() == 2
+    assert robust_trend(t[~out], flat[~out]) is None
+    assert np.polyfit(t, flat, 1)[0] * 11 * day > 0.1  # what least squares claimed
+    rising = 0.27 + 0.01 * np.arange(12) + rng.normal(0, 0.003, 12)
+    trend = robust_trend(t, rising)
+    assert trend is not None
+    slope, _, low, high = trend
+    assert low <= slope <= high and slope * day == pytest.approx(0.01, rel=0.2)
+
+
+def test_summary_verdict_is_the_logs_own_diagnosis_or_untrusted():
+    from balancer_id.batch.rows import BatchRow, judge_row
+
+    row = BatchRow(file="a.csv", status="ok")
+    judge_row(row, {"trusted": True, "diagnosis": {"verdict": "effect missing"}})
+    assert row.verdict == "effect missing"
+    row = BatchRow(file="b.csv", status="ok")
+    judge_row(row, {"trusted": False})
+    assert row.verdict == "not trusted"
+    row = BatchRow(file="c.csv", status="ok")
+    judge_row(row, {"trusted": True})
+    assert row.verdict == "identified"

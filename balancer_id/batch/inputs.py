@@ -12,7 +12,13 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from balancer_id.batch.rows import INTERNAL_EXIT_CODE, METRIC_COLUMNS, BatchRow, _Task
+from balancer_id.batch.rows import (
+    INTERNAL_EXIT_CODE,
+    METRIC_COLUMNS,
+    BatchRow,
+    _Task,
+    judge_row,
+)
 from balancer_id.errors import UsageError
 
 if TYPE_CHECKING:
@@ -109,6 +115,7 @@ def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
         }
         row.metrics = {k: doc.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
         row.warnings = [str(w) for w in doc.get("warnings", [])]
+        judge_row(row, doc)
     else:
         row.error = str(doc.get("error", "failed"))
         row.exit_code = int(doc.get("exit_code") or INTERNAL_EXIT_CODE)

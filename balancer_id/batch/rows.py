@@ -66,6 +66,10 @@ class BatchRow:
         Wall time of the fit in its worker (None when the worker died).
     warnings : list of str
         The fit's warnings (poorly determined parameters, bounds reached, ...).
+    trusted : bool
+        False when the fit's notes say its values cannot be trusted (``fit`` ``trusted``).
+    diagnosis_verdict : str or None
+        The log's own diagnosis verdict (``batch --diagnose``), else None.
     """
 
     file: str
@@ -79,6 +83,8 @@ class BatchRow:
     metrics: dict[str, float | None] = field(default_factory=dict)
     seconds: float | None = None
     warnings: list[str] = field(default_factory=list)
+    trusted: bool = True
+    diagnosis_verdict: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -87,12 +93,19 @@ class BatchRow:
 
     @property
     def verdict(self) -> str:
-        """``identified``, ``identified, check the warnings`` or ``failed`` (summary.csv).
+        """What summary.csv says of the log.
 
-        A fit that cannot determine a parameter (or stops at a bound) is not just "ok".
+        ``failed``; ``not trusted`` (a parameter at a bound the data did not choose,
+        starts that disagree); with ``--diagnose`` the diagnosis's own verdict
+        (``adequate``, ``effect missing``, ...); else ``identified`` or ``identified,
+        check the warnings``. A fit that cannot determine a parameter is not just "ok".
         """
         if not self.ok:
             return "failed"
+        if not self.trusted:
+            return "not trusted"
+        if self.diagnosis_verdict is not None:  # --diagnose: the log's own diagnosis says
+            return self.diagnosis_verdict
         return "identified, check the warnings" if self.warnings else "identified"
 
     def to_dict(self) -> dict[str, object]:
@@ -269,6 +282,7 @@ def _write_log_result(
         }
         row.metrics = {k: data.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
         row.warnings = [str(w) for w in data.get("warnings", [])]
+        judge_row(row, data)
     else:
         error = str(payload.get("error") or "failed")
         if task.display not in error:
@@ -290,6 +304,23 @@ def _write_log_result(
         row.error = f"{task.display}: cannot write {task.output}: {exc}"
         row.exit_code = INTERNAL_EXIT_CODE
     return row
+
+
+def judge_row(row: BatchRow, doc: dict[str, Any]) -> None:
+    """Set a row's ``trusted`` and ``diagnosis_verdict`` from its log's JSON.
+
+    Parameters
+    ----------
+    row : BatchRow
+        An identified log's row.
+    doc : dict
+        The log's result (``fit`` JSON, with ``diagnosis`` under ``--diagnose``).
+    """
+    row.trusted = doc.get("trusted") is not False
+    diagnosis = doc.get("diagnosis")
+    if isinstance(diagnosis, dict) and diagnosis.get("verdict"):
+        row.diagnosis_verdict = str(diagnosis["verdict"])
+
 
 
 def _describe(row: BatchRow) -> str:

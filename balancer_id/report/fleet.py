@@ -7,8 +7,9 @@ else the file's time: the report says which), and the logs whose diagnosis says 
 effect is missing, each with its top suggestion (``batch --diagnose``).
 
 Outliers follow a robust rule: a value more than 3.5 scaled median absolute deviations
-from the fleet's median (the modified z-score of Iglewicz and Hoaglin); it needs at
-least five logs.
+from the fleet's median (the modified z-score of Iglewicz and Hoaglin), and more than 3
+of its own standard errors from it; it needs at least five logs. A trend is a Theil-Sen
+slope over the non-outliers, drawn and claimed only when its 95 % interval excludes 0.
 """
 
 from __future__ import annotations
@@ -29,16 +30,29 @@ BatchRow = Any
 OUTLIER_Z = 3.5
 #: Fewest logs for which outliers are flagged.
 MIN_LOGS_FOR_OUTLIERS = 5
+#: A value this many of its own standard errors from the median is never an outlier.
+WITHIN_STDERR = 3.0
+#: Fewest (non-outlying, dated) logs for which a trend is claimed.
+MIN_LOGS_FOR_TREND = 5
 _MISSING = "effect missing"
 
 
-def robust_outliers(values: Sequence[float]) -> np.ndarray:
+def robust_outliers(
+    values: Sequence[float], stderrs: Sequence[float | None] | None = None
+) -> np.ndarray:
     """Which values lie more than :data:`OUTLIER_Z` scaled MADs from the median.
+
+    A value within :data:`WITHIN_STDERR` of its own standard errors of the median is
+    never an outlier: a fleet of near-equal logs has a tiny MAD, and a log whose value is
+    as close to the median as its own uncertainty allows is no outlier however small the
+    fleet's spread.
 
     Parameters
     ----------
     values : sequence of float
         One value per log (NaN for a log without one: never flagged).
+    stderrs : sequence of float or None, optional
+        Each value's standard error (None or NaN: unknown).
 
     Returns
     -------
@@ -57,7 +71,35 @@ def robust_outliers(values: Sequence[float]) -> np.ndarray:
         return flags
     z = 0.6745 * (x - med) / mad
     flags[ok] = np.abs(z[ok]) > OUTLIER_Z
+    if stderrs is not None:
+        se = np.array([np.nan if e is None else float(e) for e in stderrs], dtype=float)
+        close = np.isfinite(se) & (np.abs(x - med) <= WITHIN_STDERR * se)
+        flags &= ~close
     return flags
+
+
+def robust_trend(t: np.ndarray, v: np.ndarray) -> tuple[float, float, float, float] | None:
+    """Theil-Sen slope of ``v`` against ``t`` with its 95 % interval, when significant.
+
+    Parameters
+    ----------
+    t, v : numpy.ndarray
+        Times (s since the epoch) and values of the non-outlying logs.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(slope, intercept, low, high)`` per second, or None with fewer than
+        :data:`MIN_LOGS_FOR_TREND` logs or when the interval holds 0 (no trend to claim).
+    """
+    from scipy.stats import theilslopes
+
+    if t.size < MIN_LOGS_FOR_TREND or np.ptp(t) <= 0:
+        return None
+    slope, intercept, low, high = theilslopes(v, t, alpha=0.95)
+    if not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0 <= high:
+        return None
+    return float(slope), float(intercept), float(low), float(high)
 
 
 def _load(row: BatchRow) -> dict[str, Any]:
@@ -113,7 +155,11 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
         )
         for n in names
     }
-    flagged = {n: robust_outliers(v) for n, v in values.items()}
+    stderrs = {
+        n: [rows[k].parameters.get(n, {}).get("stderr") for k in ok] for n in names
+    }
+    flagged = {n: robust_outliers(v, stderrs[n]) for n, v in values.items()}
+    units = {n: _unit(docs, ok, n) for n in names}
     times = [_when(docs[k]) for k in ok]
     sources = {s for _, s in times if s}
     diagnosed = [k for k in ok if isinstance(docs[k].get("diagnosis"), dict)]
@@ -135,11 +181,23 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     sections.append(Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged)]))
     if names and ok:
         sections.append(
-            Section("Parameters across logs", blocks=_plots(names, values, flagged, times, sources))
+            Section(
+                "Parameters across logs",
+                blocks=_plots(names, values, flagged, times, sources, units),
+            )
         )
     if diagnosed:
         sections.append(Section("Effect missing", blocks=_missing_blocks(rows, docs, diagnosed)))
     return sections
+
+
+def _unit(docs: list[dict[str, Any]], ok: list[int], name: str) -> str:
+    """A parameter's unit, from the first log's JSON that gives one."""
+    for k in ok:
+        unit = docs[k].get("parameters", {}).get(name, {}).get("unit")
+        if unit:
+            return str(unit)
+    return ""
 
 
 def _summary_table(
@@ -199,6 +257,7 @@ def _plots(
     flagged: dict[str, np.ndarray],
     times: list[tuple[datetime | None, str | None]],
     sources: set[str],
+    units: dict[str, str],
 ) -> list[Any]:
     from balancer_id.report.plots import _new_figure
 
@@ -218,6 +277,7 @@ def _plots(
     fig = _new_figure(9.0, 2.2 * n + 0.6)
     axes = fig.subplots(n, 2, squeeze=False)
     stamps = np.array([t.timestamp() if t is not None else np.nan for t, _ in times])
+    claims: list[str] = []
     for i, name in enumerate(names):
         v, out = values[name], flagged[name]
         finite = np.isfinite(v)
@@ -226,7 +286,8 @@ def _plots(
         if out.any():
             ax.plot(v[out], np.zeros(out.sum()), "v", color="#cc3311", label="outlier")
             ax.legend(fontsize=7)
-        ax.set_xlabel(name)
+        label = f"{name} ({units[name]})" if units.get(name) else name
+        ax.set_xlabel(label)
         ax.set_ylabel("logs")
         ax = axes[i][1]
         when = finite & np.array(have_time, dtype=bool)
@@ -243,9 +304,11 @@ def _plots(
                     mfc="none",
                     color="#cc3311",
                 )
-            if when.sum() >= 3 and np.ptp(stamps[when]) > 0:
-                slope, icept = np.polyfit(stamps[when], v[when], 1)
-                t_line = np.array([np.nanmin(stamps[when]), np.nanmax(stamps[when])])
+            fit_on = when & ~out  # the trend over the non-outliers only
+            trend = robust_trend(stamps[fit_on], v[fit_on])
+            if trend is not None:
+                slope, icept, low, high = trend
+                t_line = np.array([np.nanmin(stamps[fit_on]), np.nanmax(stamps[fit_on])])
                 ax.plot(
                     [datetime.fromtimestamp(t) for t in t_line],
                     slope * t_line + icept,
@@ -253,13 +316,29 @@ def _plots(
                     color="#228833",
                     lw=1,
                 )
+                day = 86400.0
+                claims.append(
+                    f"{name} changes by {slope * day:.3g} {units.get(name, '')} per day "
+                    f"(95 % {low * day:.3g} .. {high * day:.3g}; Theil-Sen over "
+                    f"{int(fit_on.sum())} logs, outliers left out)"
+                )
             ax.tick_params(axis="x", labelrotation=30, labelsize=7)
-        ax.set_ylabel(name)
+            ax.set_xlabel("recorded")
+        ax.set_ylabel(label)
     blocks.append(
         Plot(
             fig,
             "Left: each parameter's distribution (outliers marked below the axis). "
-            "Right: against time, with a least-squares line (outliers circled).",
+            "Right: against time (outliers circled), with a Theil-Sen line over the "
+            "non-outliers only where its 95 % interval excludes no change.",
+        )
+    )
+    blocks.append(
+        Paragraph(
+            "Trends: " + "; ".join(claims) + "."
+            if claims
+            else "No parameter has a significant trend over time (Theil-Sen slope over the "
+            "non-outlying logs, 95 % interval holding zero)."
         )
     )
     return blocks
@@ -274,6 +353,8 @@ def _missing_blocks(
         if diag.get("verdict") != _MISSING:
             continue
         top = (diag.get("suggestions") or [None])[0]
+        if isinstance(top, dict) and not _helps(top):
+            top = None  # its own diagnosis: the refit removed nothing
         if isinstance(top, dict):
             suggestion = str(top.get("change") or top.get("effect") or "-")
             command = str(top.get("command") or "-")
@@ -286,6 +367,12 @@ def _missing_blocks(
         Paragraph(f"{len(body)} log(s) whose diagnosis says an effect is missing."),
         Table(["log", "top suggestion", "command"], body),
     ]
+
+
+def _helps(suggestion: dict[str, Any]) -> bool:
+    """Whether a suggestion's refit removed some of the error above the noise floor."""
+    drop = suggestion.get("excess_error_drop")
+    return drop is None or (isinstance(drop, int | float) and drop > 0)
 
 
 def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
