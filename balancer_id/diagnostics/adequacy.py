@@ -45,7 +45,18 @@ CONSISTENCY_MIN_SPREAD = 0.03
 
 
 def rest_noise(ctx: DiagnosisContext) -> list[np.ndarray]:
-    """The resting samples before each onset (mean and slope removed), trial by trial."""
+    """The resting samples before each onset (mean and slope removed), trial by trial.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The diagnosis's trials (time from each onset, measured acceleration).
+
+    Returns
+    -------
+    list of numpy.ndarray
+        One array of rest noise per trial with enough rest (m/s^2).
+    """
     out = []
     for tv in ctx.trials:
         rest = tv.t < -0.02

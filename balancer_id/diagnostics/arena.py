@@ -350,7 +350,18 @@ def score(inp: ArenaInput, parts: Sequence[np.ndarray], k_extra: int) -> tuple[f
 
 
 def run_index(runs: Sequence[str]) -> np.ndarray:
-    """Each trial's run number (0, 1, ...), in order of first appearance."""
+    """Each trial's run number (0, 1, ...), in order of first appearance.
+
+    Parameters
+    ----------
+    runs : sequence of str
+        Each trial's run (its source).
+
+    Returns
+    -------
+    numpy.ndarray
+        Integer run numbers.
+    """
     order: dict[str, int] = {}
     return np.array([order.setdefault(r, len(order)) for r in runs])
 
@@ -559,7 +570,18 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
 
 
 def library_effects(inp: ArenaInput) -> list[Explanation]:
-    """The library candidates' refits as explanations (scored as every other)."""
+    """The library candidates' refits as explanations (scored as every other).
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The fit, its trials and the candidates' refits.
+
+    Returns
+    -------
+    list of Explanation
+        One per refitted library effect.
+    """
     out = []
     for name, refit in inp.effect_fits:
         r = refit.residual
@@ -688,7 +710,22 @@ def confound(e: Explanation, trials: Sequence[TrialData], runs: Sequence[str]) -
 
 
 def record_hint(e: Explanation, how: str, trials: Sequence[TrialData]) -> str:
-    """The trial to record that tells a confounded split from the effect it mimics."""
+    """The trial to record that tells a confounded split from the effect it mimics.
+
+    Parameters
+    ----------
+    e : Explanation
+        The split (or drift) that is confounded.
+    how : str
+        ``"direction"`` or ``"thrust"``: what the split coincides with.
+    trials : sequence of TrialData
+        The trials, in recording order.
+
+    Returns
+    -------
+    str
+        The advice, one sentence.
+    """
     if how == "direction":
         first = "up" if trials[0].thrust_N > 0 else "down"
         other = "down" if first == "up" else "up"
