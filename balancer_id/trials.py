@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import NoTrialError, UsageError
+from balancer_id.notes import Note, notes_json
 from balancer_id.read.recording import Log
 from balancer_id.segment.trial import Trial
 
@@ -527,6 +528,13 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
     """
     runs = []
     gaps = []
+    # a trial's warnings reach the top level, named by the trial
+    trial_warnings = [
+        f"trial {t.index}: {n.removeprefix('warning:').strip()}"
+        for t in trials
+        for n in t.notes
+        if str(n).startswith("warning:")
+    ]
     for rec in log.recordings:
         channels = ["time"]
         if rec.force is not None:
@@ -545,6 +553,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
                 "channels": channels,
                 "saturated": dict(rec.saturated),
                 **_vertical_of(rec.name, trials),
+                **_no_trial_reason(log, rec.name, trials),
             }
         )
         gaps += [{"run": rec.name, **g.to_dict()} for g in rec.gaps]
@@ -555,9 +564,20 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "n_samples": log.n_samples,
         "gaps": gaps,
         "runs": runs,
-        "warnings": list(log.warnings),
+        "warnings": [*log.warnings, *trial_warnings],
+        "notes": notes_json([*log.notes, *(Note("segment.other", w) for w in trial_warnings)]),
         "trials": [t.to_dict() for t in trials],
     }
+
+
+def _no_trial_reason(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, object]:
+    """``{"no_trial_reason": ...}`` for a run that gave no trial (when the log says why)."""
+    if any(t.recording == run for t in trials):
+        return {}
+    for note in log.notes:
+        if note.code == "segment.run_without_trial" and note.subject == run:
+            return {"no_trial_reason": note.text}
+    return {}
 
 
 def _vertical_of(run: str, trials: Sequence[Trial]) -> dict[str, object]:

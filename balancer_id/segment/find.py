@@ -9,6 +9,7 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError, NoTrialError, UsageError
+from balancer_id.notes import Note
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
@@ -34,7 +35,7 @@ def find_trials(
     force_sign: int | None = None,
     vertical: str = "auto",
     g: float = G_DEFAULT,
-    min_step_N: float = 1.0,
+    min_step_N: float = 0.0,
 ) -> list[Trial]:
     """Find every step trial in every run of a log.
 
@@ -116,6 +117,17 @@ def find_trials(
             f"acceleration shows {total} onset(s) at {_onsets(runs)}; give one thrust per "
             "onset, in order, with --thrust F1,F2,...)"
         )
+    empty = [r for r in runs if not r.steps]  # a run without a trial says why
+    for r in empty:
+        _note_run_without_trial(log, r.rec.name, r.why, quiet=len(empty) > MAX_RUN_WARNINGS)
+    if len(empty) > MAX_RUN_WARNINGS:
+        text = (
+            f"{len(empty)} of {len(runs)} runs gave no step trial ("
+            + ", ".join(r.rec.name for r in empty)
+            + "); each run's reason is in inspect --json (runs[].no_trial_reason)"
+        )
+        if text not in log.warnings:
+            log.warnings.append(text)
     first = np.cumsum([0] + [len(r.steps) for r in runs])
     run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
     for run, gv in zip(runs, run_given, strict=True):
@@ -132,8 +144,8 @@ def _check_arguments(
     check_vertical(vertical)
     if force_sign is not None and force_sign not in (1, -1):
         raise UsageError(f"force_sign must be +1 or -1, not {force_sign!r}")
-    if not (np.isfinite(min_step_N) and min_step_N > 0):
-        raise UsageError(f"min_step_N must be a positive number of newtons, not {min_step_N!r}")
+    if not (np.isfinite(min_step_N) and min_step_N >= 0):
+        raise UsageError(f"min_step_N must be a number of newtons >= 0, not {min_step_N!r}")
     if thrusts is None:
         return None
     values = [float(v) for v in thrusts]
@@ -237,6 +249,21 @@ def _windows(
         else:
             signs.append(int(np.sign(st.size * mounting)) if np.isfinite(st.size) else 1)
     return trial_windows(time, *chans, steps, signs, breaks, settings)
+
+
+#: More runs without a trial than this are summed up in one warning (each keeps its note).
+MAX_RUN_WARNINGS = 5
+
+
+def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:
+    """Add the note that ``run`` gave no trial, and why, to the log (once)."""
+    note = Note(
+        "segment.run_without_trial", f"{run}: no step trial found ({why})", subject=run
+    )
+    if note not in log.notes:
+        log.notes.append(note)
+        if not quiet:
+            log.warnings.append(note.text)
 
 
 def _why(det: Detection, what: str) -> str:

@@ -34,6 +34,14 @@ from balancer_id.segment.robust import (
     spread,
 )
 
+#: A force step this many times the force channel's noise (measured on the log) stands
+#: out of it: smaller ones are never reported, larger ones always are (issue 17: a light
+#: balancer's small steps, tens of times the noise, are trials).
+STEP_K_NOISE = 4.0
+#: ... and at least this fraction of the run's largest change: a hand's force wandering
+#: under a big step (a few tenths of it) is no step of its own.
+STEP_FRACTION_OF_LARGEST = 0.1
+
 
 @dataclass(frozen=True)
 class StepSettings:
@@ -42,7 +50,8 @@ class StepSettings:
     Attributes
     ----------
     min_step_N : float
-        Smallest force step reported (N).
+        Smallest force step reported (N) on top of the noise rule (0: the noise decides:
+        a step of :data:`STEP_K_NOISE` times the force's noise is a trial).
     force_window_s : float
         Difference-of-means window on the force.
     despike_s : float
@@ -78,7 +87,7 @@ class StepSettings:
         bridged; longer ones split the run (no window, no filter crosses them).
     """
 
-    min_step_N: float = 1.0
+    min_step_N: float = 0.0
     force_window_s: float = 0.3
     despike_s: float = 0.05
     level_window_s: float = 0.5
@@ -236,8 +245,14 @@ def detect_force_steps(
     before, after = before_after_means(fm, w)
     d = np.nan_to_num(after - before)
     sigma = block_noise(f, n_samples(settings.noise_block_s, rate, 5), floor=1e-3)
-    thr = max(settings.min_step_N, 6.0 * sigma * np.sqrt(2.0 / w))
-    det = Detection([], float(np.max(np.abs(d))) if n else 0.0, thr, "N")
+    largest = float(np.max(np.abs(d))) if n else 0.0
+    thr = max(
+        settings.min_step_N,
+        STEP_K_NOISE * sigma,
+        6.0 * sigma * np.sqrt(2.0 / w),
+        STEP_FRACTION_OF_LARGEST * largest,
+    )
+    det = Detection([], largest, thr, "N")
     peaks = find_peaks(np.abs(d), thr, w)
     win = n_samples(settings.level_window_s, rate, 3)
     gb = n_samples(settings.guard_before_s, rate)
@@ -272,10 +287,11 @@ def detect_force_steps(
         if not (steady_pre and steady_post):
             det.reject("force not steady around the change (a transient, not a step)")
             continue
-        near = f[max(lo, k - w) : min(hi, k + w)]
-        between = (np.abs(near - level(pre)) > 0.25 * mag) & (
-            np.abs(near - level(post)) > 0.25 * mag
-        )
+        # between the two levels: farther than a quarter of the step and than the noise
+        # from both (a small step's noise alone would read as a slow change)
+        near = fm[max(lo, k - w) : min(hi, k + w)]
+        band = 0.25 * mag + 1.5 * sigma
+        between = (np.abs(near - level(pre)) > band) & (np.abs(near - level(post)) > band)
         if np.count_nonzero(between) > n_samples(settings.max_transition_s, rate) + 2:
             det.reject("force changed too slowly (a transient, not a step)")
             continue
