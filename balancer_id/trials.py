@@ -535,6 +535,12 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         for n in t.notes
         if str(n).startswith("warning:")
     ]
+    if log.recordings and all(rec.accel is None for rec in log.recordings):
+        trial_warnings.insert(
+            0,
+            "no acceleration channel: the trials found cannot be identified (fit needs the "
+            "load's acceleration); record or export it, or map it with --columns a=COLUMN",
+        )
     for rec in log.recordings:
         channels = ["time"]
         if rec.force is not None:

@@ -51,3 +51,18 @@ def test_a_run_without_a_trial_says_why(tmp_path):
         n["code"] == "segment.run_without_trial" and n["subject"] == "Run #3"
         for n in record["notes"]
     )
+
+
+def test_a_log_without_acceleration_is_warned_in_inspect(tmp_path, cli):
+    import json
+
+    import numpy as np
+
+    t = np.arange(0, 10, 0.005)
+    force = np.where(t > 3, 2.45, 0.0) + np.random.default_rng(1).normal(0, 0.02, t.size)
+    path = tmp_path / "force_only.csv"
+    rows = "\n".join(f"{a:.3f},{b:.4f}" for a, b in zip(t, force, strict=True))
+    path.write_text("Time (s),Force (N)\n" + rows + "\n", encoding="utf-8")
+    _, out, _ = cli("inspect", path, "--json")
+    record = json.loads(out)
+    assert any(w.startswith("no acceleration channel") for w in record["warnings"])
