@@ -155,3 +155,13 @@ def test_the_batch_key_tells_long_trajectory_tables_apart(tmp_path):
     assert repr(one) == repr(other)
     keys = {request_key(str(log), "viscous+servo", None, None, (), move) for move in (one, other)}
     assert len(keys) == 2
+
+
+def test_batch_never_sends_a_files_control_characters_to_the_terminal(cli, tmp_path):
+    # a log whose name carries terminal escapes (a title change, a screen clear)
+    bad = tmp_path / "evil\x1b]0;pwned\x07\x1b[2J.csv"
+    bad.write_text("Time (s),Force (N)\n0,1\n", encoding="utf-8")
+    code, _, err = cli("batch", bad, "--out", tmp_path / "out")
+    assert code == 3
+    assert "\x1b" not in err and "\x07" not in err
+    assert "evil" in err

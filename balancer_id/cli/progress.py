@@ -75,8 +75,10 @@ def batch_progress(
     tuple
         ``(say, tick)``.
     """
-    if not enabled():
-        yield echo, None
+    from balancer_id.cli.options import one_line
+
+    if not enabled():  # anything read from a file (names, headers) is shown, not obeyed
+        yield (lambda message: echo(one_line(message))), None
         return
     from rich.console import Console
     from rich.progress import (
@@ -116,7 +118,7 @@ def batch_progress(
             progress.update(task, total=total, completed=done)
 
     def say(message: str) -> None:
-        progress.console.print(message, markup=False, highlight=False, soft_wrap=True)
+        progress.console.print(one_line(message), markup=False, highlight=False, soft_wrap=True)
 
     with progress:
         yield say, tick
