@@ -157,11 +157,17 @@ def test_the_batch_key_tells_long_trajectory_tables_apart(tmp_path):
     assert len(keys) == 2
 
 
-def test_batch_never_sends_a_files_control_characters_to_the_terminal(cli, tmp_path):
-    # a log whose name carries terminal escapes (a title change, a screen clear)
+
+def test_batch_progress_never_sends_control_characters_to_the_terminal(cli, tmp_path):
+    from balancer_id.cli.progress import batch_progress
+
+    shown: list[str] = []
+    with batch_progress(shown.append) as (say, _):
+        say("[1/1] run '\x1b]0;pwned\x07\x1b[2J' ok")
+    assert shown and "\x1b" not in shown[0] and "\x07" not in shown[0]
+    assert "pwned" in shown[0]
+    # end to end: a log named with escapes
     bad = tmp_path / "evil\x1b]0;pwned\x07\x1b[2J.csv"
     bad.write_text("Time (s),Force (N)\n0,1\n", encoding="utf-8")
     code, _, err = cli("batch", bad, "--out", tmp_path / "out")
-    assert code == 3
-    assert "\x1b" not in err and "\x07" not in err
-    assert "evil" in err
+    assert code == 3 and "\x1b" not in err and "\x07" not in err
