@@ -171,3 +171,37 @@ def test_batch_progress_never_sends_control_characters_to_the_terminal(cli, tmp_
     bad.write_text("Time (s),Force (N)\n0,1\n", encoding="utf-8")
     code, _, err = cli("batch", bad, "--out", tmp_path / "out")
     assert code == 3 and "\x1b" not in err and "\x07" not in err
+
+
+def test_batch_never_replaces_a_file_it_did_not_write(cli, tmp_path):
+    from conftest import SAMPLE_LOGS
+
+    out = tmp_path / "out"
+    out.mkdir()
+    log = tmp_path / "log0.csv"
+    log.write_bytes((SAMPLE_LOGS / "paper_balancer.csv").read_bytes())
+    theirs = out / "log0.json"
+    theirs.write_text('{"my": "notes"}', encoding="utf-8")
+    for extra in ([], ["--overwrite"]):
+        code, _, err = cli("batch", log, "--out", out, *extra)
+        assert code == 2 and "log0.json is not a result of balancer-id" in err
+        assert theirs.read_text(encoding="utf-8") == '{"my": "notes"}'
+
+
+def test_the_batch_lock_is_never_followed_through_a_symlink_nor_removed(cli, tmp_path):
+    from conftest import SAMPLE_LOGS
+
+    from balancer_id.batch.inputs import LOCK_NAME
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious", encoding="utf-8")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).symlink_to(victim)
+    code, _, err = cli("batch", SAMPLE_LOGS / "paper_balancer.csv", "--out", out)
+    assert code == 2 and "symbolic link" in err
+    assert victim.read_text(encoding="utf-8") == "precious"
+    (out / LOCK_NAME).unlink()
+    code, _, err = cli("batch", SAMPLE_LOGS / "paper_balancer.csv", "--out", out)
+    assert code == 0, err
+    assert (out / LOCK_NAME).is_file() and not (out / LOCK_NAME).is_symlink()

@@ -198,7 +198,10 @@ def test_a_second_batch_into_the_same_folder_is_refused(tmp_path):
     out.mkdir()
     with _folder_lock(out), pytest.raises(UsageError, match="another batch"):
         run_batch([LOG], out, jobs=1)
-    assert not (out / LOCK_NAME).exists()
+    # the lock file stays (never unlinked while held), empty and unlocked
+    assert (out / LOCK_NAME).read_text() == ""
+    with _folder_lock(out):
+        pass
 
 
 def test_earlier_results_need_resume_or_overwrite(tmp_path):

@@ -48,6 +48,7 @@ from balancer_id.batch.inputs import (
     _is_regular,
     _output_names,
     _resumed_row,
+    check_own_outputs,
     collect_logs,
     request_key,
 )
@@ -231,6 +232,7 @@ def run_batch(
             _Task(str(log), str(log.resolve()), out / name)
             for log, name in zip(logs, _output_names(logs), strict=True)
         ]
+        check_own_outputs([t.output for t in tasks], out, replace=resume or overwrite)
         worker = partial(
             _identify,
             model=mdl.spec,

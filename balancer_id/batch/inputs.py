@@ -149,10 +149,18 @@ def _folder_lock(out: Path) -> Iterator[None]:
         yield
         return
     path = out / LOCK_NAME
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:  # never through a symlink planted in the folder; the lock file stays (race-free)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
     except OSError as exc:
-        raise UsageError(f"--out {out}: cannot write into the folder ({exc.strerror})") from None
+        why = "its lock is a symbolic link" if path.is_symlink() else exc.strerror
+        raise UsageError(f"--out {out}: cannot write into the folder ({why})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or (hasattr(os, "getuid") and info.st_uid != os.getuid()):
+        os.close(fd)
+        raise UsageError(
+            f"--out {out}: its lock file {LOCK_NAME} is not a plain file of yours; remove it "
+            "or give another --out"
+        )
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -166,8 +174,8 @@ def _folder_lock(out: Path) -> Iterator[None]:
         os.pwrite(fd, str(os.getpid()).encode(), 0)
         try:
             yield
-        finally:
-            path.unlink(missing_ok=True)
+        finally:  # the file stays: unlinking a held lock lets two batches lock two inodes
+            os.ftruncate(fd, 0)
             fcntl.flock(fd, fcntl.LOCK_UN)
     finally:
         os.close(fd)
@@ -273,3 +281,53 @@ def _output_names(logs: Sequence[Path]) -> list[str]:
         taken.add(name.lower())
         names.append(f"{name}.json")
     return names
+
+
+def check_own_outputs(outputs: Iterable[Path], out: Path, replace: bool) -> None:
+    """Refuse to write over a file this batch did not write (a user's own file).
+
+    A per-log result of balancer-id is a JSON object with ``file`` and ``request``; any
+    other file (or a symbolic link) at an output's name is refused by name, whatever the
+    options. A result of an earlier batch is replaced only with ``replace``
+    (``--resume`` or ``--overwrite``).
+
+    Parameters
+    ----------
+    outputs : iterable of Path
+        The per-log JSON files the batch will write.
+    out : Path
+        The output folder (for the message).
+    replace : bool
+        Whether results of an earlier batch may be replaced.
+
+    Raises
+    ------
+    OutputExistsError
+        Naming the first file that may not be written.
+    """
+    from balancer_id.errors import OutputExistsError
+
+    for path in outputs:
+        if path.is_symlink():
+            raise OutputExistsError(
+                f"--out {out}: {path.name} is a symbolic link; batch never writes through one "
+                "(remove it or give another --out)"
+            )
+        if not path.exists():
+            continue
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            doc = None
+        ours = isinstance(doc, dict) and "file" in doc and "request" in doc
+        if not ours:
+            raise OutputExistsError(
+                f"--out {out}: {path.name} is not a result of balancer-id and would be "
+                "replaced by a log's result; move it away or give another --out"
+            )
+        if not replace:
+            raise OutputExistsError(
+                f"--out {out} holds the results of an earlier batch ({path.name}); add "
+                "--resume to keep them and fit only what is missing or changed, or "
+                "--overwrite to replace them"
+            )
