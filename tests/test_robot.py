@@ -335,3 +335,18 @@ def test_diagnose_suggestion_of_a_robot_log_runs_as_printed(cli, robot_log, tmp_
     code, out, err = cli(*argv[1:], "--json")
     assert code == 0, err
     assert json.loads(out)["model"] == suggestions[0]["model"]
+
+
+def test_a_lightly_damped_loop_is_a_warning_never_plainly_stable(tmp_path):
+    from balancer_id.identify.coupling import LIGHTLY_DAMPED
+
+    m, T, D, c = 15.1, 0.33, 6.0, 180.0
+    k_boundary = (T * D + m) * (D + c) / (T * m)
+    ringing = coupling(m, T, D, 0.8 * k_boundary, c)  # stable, close to the boundary
+    assert ringing.stable and 0 < ringing.damping_ratio < LIGHTLY_DAMPED
+    assert ringing.lightly_damped and ringing.verdict == "lightly damped"
+    assert ringing.to_dict()["verdict"] == "lightly damped"
+    calm = coupling(m, T, D, 0.05 * k_boundary, 4 * c)
+    if calm.oscillation_hz == 0 or calm.damping_ratio >= LIGHTLY_DAMPED:
+        assert calm.verdict == "well damped"
+    assert coupling(m, T, D, 1.1 * k_boundary, c).verdict == "unstable"

@@ -17,6 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: Below this damping ratio a stable loop still rings: the load vibrates (a warning).
+LIGHTLY_DAMPED = 0.3
+
 
 @dataclass(frozen=True)
 class Coupling:
@@ -49,6 +52,18 @@ class Coupling:
         return all(p.real < 0 for p in self.poles)
 
     @property
+    def lightly_damped(self) -> bool:
+        """Stable but ringing: an oscillating pole pair damped less than ``LIGHTLY_DAMPED``."""
+        return self.stable and self.oscillation_hz > 0 and self.damping_ratio < LIGHTLY_DAMPED
+
+    @property
+    def verdict(self) -> str:
+        """``unstable``, ``lightly damped`` or ``well damped`` (what the reports say)."""
+        if not self.stable:
+            return "unstable"
+        return "lightly damped" if self.lightly_damped else "well damped"
+
+    @property
     def dominant(self) -> str:
         """Which term carries the stabilizing side ``(T_a D + m_a)(D + c_r)`` (text)."""
         if not self.terms:
@@ -72,6 +87,8 @@ class Coupling:
             "damping_ratio": self.damping_ratio,
             "stability_margin": self.stability_margin,
             "stable": self.stable,
+            "verdict": self.verdict,
+            "damping_source": "the identified model's closed-loop poles (least damped pair)",
             "poles": [[p.real, p.imag] for p in self.poles],
         }
         if self.terms:

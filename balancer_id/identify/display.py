@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -34,9 +35,13 @@ class ShownFit(Protocol):
     nfev: int
     parameters: dict[str, Any]
     success: bool
-    warnings: list[str]
     y: np.ndarray
     y_model: np.ndarray
+
+    @property
+    def warnings(self) -> Sequence[Any]:
+        """Notes or sentences (read only: any sequence of them will do)."""
+        ...
 
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
 

@@ -472,7 +472,14 @@ def _coupling_section(result: FitResult) -> Section:
                 format_value(cp.oscillation_hz, 3),
                 format_value(cp.damping_ratio, 3),
                 f"{cp.stability_margin:+.3g}",
-                Cell("stable" if stable else "UNSTABLE: oscillates", "good" if stable else "bad"),
+                Cell(
+                    "UNSTABLE: oscillates"
+                    if not stable
+                    else f"lightly damped: vibrates (damping {cp.damping_ratio:.2g} < 0.3)"
+                    if cp.lightly_damped
+                    else "stable, well damped",
+                    "bad" if not stable else "warn" if cp.lightly_damped else "good",
+                ),
                 ", ".join(f"{p.real:.3g}{p.imag:+.3g}j" for p in cp.poles),
             ]
         ],

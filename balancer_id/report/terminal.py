@@ -211,6 +211,15 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         err.print(f"[yellow]warning:[/yellow] {w}")
 
 
+def _coupling_word(coupling: dict[str, Any]) -> str:
+    """``UNSTABLE``, ``stable but lightly damped: vibrates`` or ``stable``."""
+    if not coupling.get("stable"):
+        return "UNSTABLE"
+    if coupling.get("verdict") == "lightly damped":
+        return f"stable but lightly damped: vibrates, damping {coupling['damping_ratio']:.2g}"
+    return "stable"
+
+
 def print_effects(console: Console, effects: list[dict[str, Any]]) -> None:
     """Print the effect library.
 
@@ -399,7 +408,7 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
     if cond:
         console.print(
             f"stability: {cond['text']}: {cond['lhs']:.4g} vs {cond['rhs']:.4g} "
-            f"({'stable' if result['coupling'].get('stable') else 'UNSTABLE'}); "
+            f"({_coupling_word(result['coupling'])}); "
             f"dominated by {result['coupling'].get('dominant', '')}"
         )
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
