@@ -13,6 +13,7 @@ replaced only when the user said ``--overwrite``, and a read-only file never.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import importlib.util
 import os
@@ -261,7 +262,9 @@ def import_path(name: str, path: str | Path) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     try:
-        spec.loader.exec_module(module)
+        # what the file prints while it is imported goes to stderr: stdout carries --json
+        with contextlib.redirect_stdout(sys.stderr):
+            spec.loader.exec_module(module)
     except BaseException:
         sys.modules.pop(name, None)
         raise

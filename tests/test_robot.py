@@ -176,9 +176,9 @@ def test_params_file_errors(tmp_path):
 
 
 def test_servo_without_trajectory_is_refused(robot_log):
-    from balancer_id.errors import IdentificationError
+    from balancer_id.errors import UsageError
 
-    with pytest.raises(IdentificationError, match="--trajectory"):
+    with pytest.raises(UsageError, match="--trajectory"):  # a missing option: exit 2
         fit([robot_log], model=SERVO_MODEL)
 
 

@@ -73,6 +73,30 @@ def available_cpus() -> int:
 
 
 @contextmanager
+def _interrupt_ignored() -> Iterator[None]:
+    """Processes started inside ignore Ctrl-C from their first instruction.
+
+    Ctrl-C reaches the whole process group; the fork server (and the resource tracker it
+    starts) would take it while Python starts up and print a traceback. An ignored signal
+    stays ignored across ``exec`` and Python then installs no handler of its own; the fork
+    server ignores it anyway once loaded, and its workers inherit that. The batch itself
+    stops the workers. Starting the server takes milliseconds: a Ctrl-C in that window is
+    lost (the next one stops the batch). Main thread only.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, saved)
+
+
+@contextmanager
 def _one_thread_env() -> Iterator[None]:
     """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)."""
     added = [name for name in _THREAD_ENV if name not in os.environ]
@@ -120,7 +144,7 @@ def _mp_context(
         {"models": list(models), "diagnose": diagnose, "trajectory": trajectory}
     )
     try:
-        with _one_thread_env():
+        with _one_thread_env(), _interrupt_ignored():
             forkserver.ensure_running()
     except OSError:  # the pool will try again, and report
         pass

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 
 #: Environment variable with what to load: JSON ``{"models": [spec, ...], "diagnose":
 #: bool, "trajectory": bool}``.
@@ -75,10 +76,28 @@ def preload(specs: list[str], *, diagnose: bool = False, trajectory: bool = Fals
             continue
 
 
+def _worker_start_failed(kind: type[BaseException], exc: BaseException, tb: object) -> None:
+    """The fork server's hook for a worker that fails before it runs: one line, no traceback.
+
+    A worker forked while an interrupted batch removes the pool's semaphores finds them gone
+    (an ``OSError``): the batch is stopping and says so itself, so nothing is printed. The
+    batch reports any other worker that dies as a failed log.
+    """
+    if not isinstance(exc, OSError):
+        sys.stderr.write(f"balancer-id: a worker process could not start: {kind.__name__}: {exc}\n")
+
+
 def _from_environment() -> None:
     """Preload what :data:`ENV` names; without it (imported elsewhere), do nothing."""
     if ENV not in os.environ:
         return
+    import signal
+
+    # Ctrl-C reaches the whole process group. The fork server ignores it once loaded (and
+    # its workers inherit that); ignore it from now, so that a Ctrl-C while loading does
+    # not print a traceback from here. The batch itself stops the workers.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.excepthook = _worker_start_failed
     try:
         asked = json.loads(os.environ[ENV] or "{}")
     except ValueError:

@@ -906,6 +906,12 @@ def effects(
         print_effects(_console(), printable(items))
 
 
+def _asks_for_json(argv: list[str]) -> bool:
+    """Whether the command line asks for ``--json`` (before a ``--`` that ends options)."""
+    words = argv[: argv.index("--")] if "--" in argv else argv
+    return "--json" in words
+
+
 def main() -> None:
     """Entry point of the ``balancer-id`` console script.
 
@@ -925,7 +931,10 @@ def main() -> None:
             typer.echo(ctx.get_help(), err=True)
         else:
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
-            typer.echo(f"balancer-id: error: {one_line(exc.format_message())}{hint}", err=True)
+            line = one_line(exc.format_message()) + hint
+            typer.echo(f"balancer-id: error: {line}", err=True)
+            if _asks_for_json(sys.argv[1:]):  # the error object, as for every other failure
+                emit_json({"error": error_record(line, exc.exit_code, UsageError(line))})
         code = exc.exit_code
     sys.exit(code if isinstance(code, int) else 0)
 

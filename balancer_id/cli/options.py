@@ -254,7 +254,13 @@ def guarded(func: F) -> F:
             fail(str(exc), exc.exit_code, exc, json_out)
         except KeyboardInterrupt as exc:
             fail("interrupted", 130, exc, json_out)
-        except SystemExit as exc:  # sys.exit() inside a user's effects file
+        except BrokenPipeError:
+            closed_pipe()
+        except SystemExit as exc:
+            if isinstance(exc.__context__, BrokenPipeError):  # rich's answer to a closed pipe
+                closed_pipe()
+            if not _raised_by_user_code(exc):
+                raise
             fail(
                 f"a user effects file called sys.exit({exc.code!r}) while loading or running; "
                 "effects must not exit: remove the call",
@@ -279,6 +285,43 @@ def guarded(func: F) -> F:
             )
 
     return wrapper  # type: ignore[return-value]
+
+
+#: The exit status of a writer whose reader closed the pipe (128 + SIGPIPE), as ``head``
+#: expects of ``yes``.
+CLOSED_PIPE_EXIT = 141
+
+
+def closed_pipe() -> None:
+    """Stop quietly: the reader of stdout (``| head``) closed the pipe.
+
+    stdout is pointed at the null device so that the interpreter's final flush cannot fail
+    again; nothing is printed.
+    """
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    raise typer.Exit(CLOSED_PIPE_EXIT)
+
+
+def _raised_by_user_code(exc: BaseException) -> bool:
+    """Whether ``exc`` was raised in a file outside balancer-id and the installed libraries
+    (a user's effects file)."""
+    import sysconfig
+
+    ours = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    libraries = {sysconfig.get_paths()[k] for k in ("stdlib", "purelib", "platlib")}
+    tb = exc.__traceback__
+    while tb is not None:
+        name = os.path.abspath(tb.tb_frame.f_code.co_filename)
+        tb = tb.tb_next
+        if name.startswith(ours) or any(name.startswith(lib) for lib in libraries):
+            continue
+        if not name.startswith("<"):
+            return True
+    return False
 
 
 def check_outputs(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from balancer_id.errors import IdentificationError
+from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
@@ -160,7 +160,7 @@ def fit(
     mdl = resolve_model(model, effects_files, registry)
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     if mdl.needs_reference_move and given is None:  # before any log is read
-        raise IdentificationError(
+        raise UsageError(
             f"a model with '{'+'.join(e.name for e in mdl.effects if e.needs_reference_move())}'"
             " needs the robot's reference move: give --trajectory "
             "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
@@ -176,8 +176,6 @@ def fit(
     start = {**auto_start, **user_start}
     for name in [*user_start, *(bounds or {})]:
         if name not in mdl.param_names:
-            from balancer_id.errors import UsageError
-
             raise UsageError(
                 f"{name} is not a parameter of '{mdl.spec}' "
                 f"(its parameters: {', '.join(mdl.param_names)})"

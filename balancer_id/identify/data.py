@@ -602,7 +602,13 @@ def group_trials(trials: Sequence[TrialData], by: str) -> list[tuple[str, list[T
         key = {r: r.split(" [")[0] for r in runs}
     elif by.startswith("runs:"):
         key = {}
-        for part in filter(None, by[5:].split(",")):
+        parts = [part.strip() for part in by[5:].split(",")]
+        if not all(parts):
+            raise UsageError(
+                f"--group-by '{by}': give run numbers or ranges separated by commas, "
+                "e.g. runs:1-3,4-6"
+            )
+        for part in parts:
             lo, _, hi = part.partition("-")
             try:
                 a, b = int(lo), int(hi or lo)
@@ -613,6 +619,12 @@ def group_trials(trials: Sequence[TrialData], by: str) -> list[tuple[str, list[T
                     f"--group-by '{by}': runs {part} not in 1-{len(runs)} (the runs found)"
                 )
             label = f"runs {a}-{b}" if b > a else f"run {a}"
+            taken = [runs[i - 1] for i in range(a, b + 1) if runs[i - 1] in key]
+            if taken:
+                raise UsageError(
+                    f"--group-by '{by}': run {runs.index(taken[0]) + 1} is in two groups; "
+                    "give each run to one group"
+                )
             key.update({runs[i - 1]: label for i in range(a, b + 1)})
     else:
         raise UsageError(f"--group-by must be run, log or runs:1-3,4-6, not {by!r}")

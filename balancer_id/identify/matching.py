@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from balancer_id.errors import IdentificationError
+from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import error_metrics
@@ -433,8 +433,8 @@ def match_trials(
     hi = np.array([model.params[i].max for i in free], dtype=float)
     for name, (b_lo, b_hi) in (bounds or {}).items():
         spec = model.param(name)
-        if not (spec.min <= b_lo < b_hi <= spec.max):
-            raise IdentificationError(
+        if not (spec.min <= b_lo < b_hi <= spec.max):  # NaN fails too
+            raise UsageError(
                 f"--bounds {name}={b_lo:g}:{b_hi:g}: give MIN < MAX inside the parameter's "
                 f"own range {spec.min:g}:{spec.max:g}"
             )

@@ -262,7 +262,13 @@ def parse_model(spec: str | None = None, registry: Registry | None = None) -> Mo
 
         registry = default_registry()
     spec = DEFAULT_SPEC if spec is None else spec
-    names = [n.strip() for n in spec.replace(" ", "").split("+") if n.strip()]
+    raw = spec.replace(" ", "").split("+")
+    if spec.strip() and not all(raw):
+        raise ModelSpecError(
+            f"model '{spec}': an empty effect name; give effects joined by '+', "
+            "e.g. viscous+karnopp"
+        )
+    names = [n for n in raw if n]
     names = [n for n in names if n != "base"]
     effects: list[type[Effect]] = []
     for name in names:

@@ -164,6 +164,10 @@ def read_trajectory_csv(path: str | Path) -> TabulatedMove:
         lines = path.read_text(encoding="utf-8-sig").splitlines()
     except OSError as exc:
         raise LogReadError(path, f"cannot read the trajectory: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise LogReadError(
+            path, "the trajectory is not a text file", hint="give a CSV of time,position rows"
+        ) from None
     rows: list[tuple[float, float]] = []
     for k, line in enumerate(lines, start=1):
         text = line.strip()
@@ -185,8 +189,14 @@ def read_trajectory_csv(path: str | Path) -> TabulatedMove:
     if len(rows) < 2:
         raise LogReadError(path, "the trajectory needs at least two rows of time,position")
     table = np.array(rows, dtype=float)
-    if not np.all(np.isfinite(table)) or np.any(np.diff(table[:, 0]) <= 0):
-        raise LogReadError(path, "the trajectory's time column must be finite and increasing")
+    bad = np.flatnonzero(~np.isfinite(table).all(axis=1))
+    if bad.size:
+        raise LogReadError(
+            path, f"row {bad[0] + 1} of the data holds a value that is not finite",
+            hint="every time and position must be a number",
+        )
+    if np.any(np.diff(table[:, 0]) <= 0):
+        raise LogReadError(path, "the trajectory's time column must be increasing")
     t0 = float(table[0, 0])
     return TabulatedMove(table[:, 0] - t0, table[:, 1] - table[0, 1], start=t0)
 
