@@ -145,3 +145,35 @@ def test_ctrl_c_in_a_batch_then_resume_prints_no_traceback(tmp_path):
     assert again.returncode == 0, again.stderr
     assert "Traceback" not in again.stderr
     assert "12 identified" in again.stderr
+
+
+# -- terminal conventions (issue 20, item 6) -----------------------------------------------
+def test_bare_command_shows_its_usage_once():
+    res = _run()
+    assert res.returncode == 2
+    assert (res.stdout + res.stderr).count("Usage:") == 1
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_quiet_is_taken_before_or_after_the_command(tmp_path, where):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for k in range(2):
+        (folder / f"log{k}.csv").write_bytes(LOG.read_bytes())
+    args = ["batch", folder, "--out", tmp_path / "out"]
+    res = _run("-q", *args) if where == "before" else _run(*args, "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert "log0.csv" not in res.stderr  # no line per log
+    assert "2 identified, 0 failed" in res.stderr  # the outcome is still said
+
+
+def test_without_a_terminal_no_name_is_cut():
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    res = subprocess.run(
+        [sys.executable, "-m", "balancer_id", "compare", str(SAMPLE_LOGS / "hose_walkthrough.csv"),
+         "-m", "viscous,variable_viscosity+dead_time+karnopp"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert "…" not in res.stdout  # rich cut names to fit 80 columns when stdout is a pipe
+    assert "variable_viscosity+dead_time+karnopp" in res.stdout

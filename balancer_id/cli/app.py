@@ -22,6 +22,7 @@ from balancer_id.cli.options import (
     LogsArg,
     ModelOpt,
     OverwriteOpt,
+    QuietOpt,
     TrajectoryOpt,
     assignments,
     at_least,
@@ -91,6 +92,9 @@ MAX_ACCEL_NOISE = 1e3
 MAX_RATE_HZ = 1e5
 MAX_DURATION_S = 86400.0
 MAX_SIM_SAMPLES = 5e7
+#: Text width when stdout is not a terminal (rich would take 80 and cut names): wide
+#: enough for any table row; tables are as wide as their content, not this.
+WIDTH_WITHOUT_TERMINAL = 160
 #: More optimizer starts than this is a mistake (each start is a whole fit).
 MAX_STARTS = 1000
 
@@ -133,7 +137,12 @@ def _main(
 def _console():
     from rich.console import Console
 
-    return Console()  # the terminal's real width (80 when stdout is not a terminal)
+    import os
+
+    if sys.stdout.isatty() or os.environ.get("COLUMNS"):
+        return Console()  # the terminal's real width
+    # a pipe or a file: no width to fit, so never cut a name; tables keep their own width
+    return Console(width=WIDTH_WITHOUT_TERMINAL)
 
 
 def _advised(result):
@@ -219,6 +228,7 @@ def inspect(
     plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Show what was read from LOG and the step trials (or the robot move) found in it.
@@ -294,6 +304,7 @@ def fit(
         str | None,
         typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
     ] = None,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS.
@@ -446,6 +457,7 @@ def simulate(
         Path | None,
         typer.Option("--params", help="The model and values of 'fit --save' (or --json)."),
     ] = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
 
@@ -570,6 +582,7 @@ def compare(
         typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
     ] = None,
     overwrite: OverwriteOpt = False,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails.
@@ -671,6 +684,7 @@ def diagnose(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Residual tests and ranked suggestions of missing effects.
@@ -710,6 +724,7 @@ def improve(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve.
@@ -768,6 +783,7 @@ def report(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots.
@@ -833,6 +849,7 @@ def batch(
         Path | None,
         typer.Option("--report", help="FILE.html or FILE.pdf: the fleet view of the logs."),
     ] = None,
+    quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT.
@@ -887,6 +904,7 @@ def batch(
 def effects(
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """List the effects available, built in and user-supplied, with their parameters.
 
@@ -927,8 +945,8 @@ def main() -> None:
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
         ctx = getattr(exc, "ctx", None)
-        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
-            typer.echo(ctx.get_help(), err=True)
+        if type(exc).__name__ == "NoArgsIsHelpError":
+            pass  # typer has shown the usage already: once is enough
         else:
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
             line = one_line(exc.format_message()) + hint

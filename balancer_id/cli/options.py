@@ -58,6 +58,13 @@ WindowOpt = Annotated[
         "each is a trial, nothing is detected (a lab rig).",
     ),
 ]
+QuietOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quiet", "-q", help="No progress on stderr (no spinner, no per-log lines); warnings "
+        "and errors stay."
+    ),
+]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 FixOpt = Annotated[
     list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
@@ -242,6 +249,10 @@ def guarded(func: F) -> F:
         from balancer_id.errors import BalancerIdError
 
         json_out = bool(kwargs.get("json_out"))
+        if kwargs.get("quiet"):
+            from balancer_id.cli import progress
+
+            progress.QUIET = True
         try:
             with warnings.catch_warnings():
                 # numpy's floating-point RuntimeWarnings mean nothing to a user; what matters

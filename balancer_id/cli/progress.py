@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
-#: Set by the global ``--quiet`` option.
+#: Set by ``--quiet`` (``-q``), given before the command or after it.
 QUIET = False
 
 
@@ -77,6 +77,9 @@ def batch_progress(
     """
     from balancer_id.cli.options import one_line
 
+    if QUIET:  # --quiet: no line per log (the summary line and summary.csv say it all)
+        yield (lambda message: None), None
+        return
     if not enabled():  # anything read from a file (names, headers) is shown, not obeyed
         yield (lambda message: echo(one_line(message))), None
         return
