@@ -8,6 +8,7 @@ whatever order they are called (no subpackage carries the name of one of them)::
     diagnose(fit) -> Diagnosis                     residual tests, suggested effects
     improve(fit) -> ImproveResult                  add effects while they help
     compare(trials, models) -> [ModelComparison]
+    validate(fit_or_params, new_logs) -> Validation  does a saved model hold on new logs?
     simulate(model, values, thrust, ...)           the balancer's response
     read_log(path) -> Log
 
@@ -50,6 +51,7 @@ _LAZY = {
     "diagnose": "balancer_id.diagnostics.api",
     "improve": "balancer_id.diagnostics.api",
     "compare": "balancer_id.diagnostics.api",
+    "validate": "balancer_id.diagnostics.validate",
 }
 
 

@@ -402,6 +402,38 @@ def load_log(
     return LoadedLog(log, segment(log, options, trajectory))
 
 
+def reference_move(spec: str | Path) -> Any:
+    """The robot's reference move from its ``--trajectory`` spelling.
+
+    Parameters
+    ----------
+    spec : str or Path
+        ``"trapezoid:distance=..,speed=..,accel=..[,start=..]"`` or a CSV file of
+        time,position rows.
+
+    Returns
+    -------
+    Trapezoid or TabulatedMove
+
+    Raises
+    ------
+    UsageError
+        A malformed ``trapezoid:`` spec.
+    LogReadError
+        A trajectory file that cannot be read.
+    """
+    from balancer_id.segment.move import read_trajectory_csv
+    from balancer_id.simulation.inputs import parse_trajectory
+
+    text = str(spec).strip()
+    if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
+        return read_trajectory_csv(text)
+    try:
+        return parse_trajectory(text)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def load_trials(
     paths: str | Path | Sequence[str | Path],
     options: ReadOptions | None = None,
@@ -419,9 +451,10 @@ def load_trials(
     options : ReadOptions, optional
         How the logs are read and segmented; None uses the defaults. ``thrusts`` may only
         be given with a single log.
-    trajectory : Trapezoid or TabulatedMove, optional
+    trajectory : Trapezoid, TabulatedMove, str or Path, optional
         The robot's reference move, when a robot held the load (``servo``): each log
-        then holds move windows instead of step trials.
+        then holds move windows instead of step trials. Text is read by
+        :func:`reference_move` (``"trapezoid:..."`` or a CSV file of time,position).
     trajectory_source : str, optional
         ``--trajectory`` as the user gave it (kept for printed commands).
 
@@ -442,6 +475,9 @@ def load_trials(
     paths = list(paths)
     if not paths:
         raise UsageError("give at least one log")
+    if isinstance(trajectory, str | Path):
+        trajectory_source = trajectory_source or str(trajectory)
+        trajectory = reference_move(trajectory)
     options = options or ReadOptions()
     if options.thrusts is not None and len(paths) > 1:
         raise UsageError("--thrust lists the trials of one log; give one log per command")
@@ -479,8 +515,9 @@ def as_trial_set(
         trials of the logs come first.
     options : ReadOptions, optional
         How the logs are read; None uses the defaults. Not allowed with a ready set.
-    trajectory : Trapezoid or TabulatedMove, optional
-        The robot's reference move; not allowed with a ready set (it carries its own).
+    trajectory : Trapezoid, TabulatedMove, str or Path, optional
+        The robot's reference move (text as for :func:`reference_move`); not allowed with
+        a ready set (it carries its own).
 
     Returns
     -------
@@ -505,7 +542,12 @@ def as_trial_set(
     if paths:
         ts = load_trials(paths, options, trajectory)
     else:
-        ts = TrialSet(options=options or ReadOptions(), trajectory=trajectory)
+        source = str(trajectory) if isinstance(trajectory, str | Path) else None
+        if source is not None:
+            trajectory = reference_move(source)
+        ts = TrialSet(
+            options=options or ReadOptions(), trajectory=trajectory, trajectory_source=source
+        )
     ts.loose = loose
     return ts
 

@@ -23,7 +23,9 @@ def test_a_fit_result_is_complete_when_returned_and_immutable():
         with pytest.raises(dataclasses.FrozenInstanceError, match=name):
             setattr(result, name, value)
     assert result.to_dict() == data  # nothing changed it
-    result.advice = None  # the one field attached later (the robot advice)
+    with pytest.raises(AttributeError):
+        result.advice = None  # derived from the fit (a robot pair's advice), never set
+    assert result.advice is None  # no robot in this model
 
 
 def test_per_trial_fits_of_a_result_made_without_them_are_a_cache():
@@ -33,3 +35,27 @@ def test_per_trial_fits_of_a_result_made_without_them_are_a_cache():
     assert len(first) == len(result.match.data.trials)
     assert result.per_trial_fits() is first  # computed once
     assert "per_trial" not in result.to_dict()  # shown only when asked for at the fit
+
+
+ROBOT_MOVE = "trapezoid:distance=0.2,speed=0.1,accel=0.5"
+
+
+@pytest.mark.parametrize(
+    ("log", "extra"),
+    [
+        ("paper_balancer.csv", {"model": "viscous"}),
+        ("robot/robot_assist.csv", {"model": "viscous+servo", "trajectory": ROBOT_MOVE}),
+    ],
+)
+def test_the_library_result_is_the_commands_json(cli, log, extra):
+    """``bid.fit(...).to_dict()`` equals ``fit --json`` (the robot's advice included)."""
+    import json
+
+    path = SAMPLE_LOGS / log
+    data = fit(path, **extra).to_dict()
+    args = [a for k, v in extra.items() for a in (f"--{k}", v)]
+    code, out, err = cli("fit", path, *args, "--json")
+    assert code == 0, err
+    assert json.loads(out) == json.loads(json.dumps(data))
+    if "trajectory" in extra:
+        assert data["advice"]["settings"]  # computed by the library call, not the command

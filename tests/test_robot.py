@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from conftest import PAPER
 
-from balancer_id.diagnostics.advice import advise, advise_fit, check_by_simulation, simulate_mode
 from balancer_id.diagnostics.vibration import compare_vibration
 from balancer_id.errors import LogReadError, NoTrialError, UsageError
 from balancer_id.identify import fit, resolve_model
+from balancer_id.identify.advice import advise, advise_fit, check_by_simulation, simulate_mode
 from balancer_id.identify.coupling import coupling, coupling_of
 from balancer_id.identify.params_file import read_params_file
 from balancer_id.read.recording import Log

@@ -135,21 +135,14 @@ def _main(
 
 
 def _console():
-    from rich.console import Console
-
     import os
+
+    from rich.console import Console
 
     if sys.stdout.isatty() or os.environ.get("COLUMNS"):
         return Console()  # the terminal's real width
     # a pipe or a file: no width to fit, so never cut a name; tables keep their own width
     return Console(width=WIDTH_WITHOUT_TERMINAL)
-
-
-def _advised(result):
-    """The fit's robot-balancer advice, computed once and kept on it (None without a robot)."""
-    from balancer_id.diagnostics.advice import attach_advice
-
-    return attach_advice(result)
 
 
 def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
@@ -380,10 +373,7 @@ def fit(
                 start=user_start,
                 bounds=user_bounds,
             )
-        out = result.to_dict()
-        advice = _advised(result)
-        if advice is not None:  # issue 9: advice for the robot-balancer pair
-            out["advice"] = advice.to_dict()
+        out = result.to_dict()  # a robot pair's advice included (issue 9)
         cache.store(key, out)
         if report is not None:
             from balancer_id.report.document import write_fit_report
@@ -619,6 +609,13 @@ def compare(
             effects_files=effects_file or (),
         )
     out = {"models": [r.to_dict() for r in results]}
+    if params is not None and len(results) == 1 and not out["models"][0]["fitted"]:
+        from balancer_id.diagnostics.validate import validate
+
+        # every value known: the saved model on new logs, with a verdict (issue 20.4)
+        out["validation"] = validate(
+            fixed, trials, model=specs[0], effects_files=effects_file or ()
+        ).to_dict()
     if trajectory_text is not None:  # issue 9: the vibration of each move, side by side
         from balancer_id.diagnostics.vibration import compare_vibration
 
@@ -765,7 +762,6 @@ def improve(
     if report is not None:
         from balancer_id.report.sections import write_improve_report
 
-        _advised(result.steps[-1].fit)
         with stage(f"writing {report}"):
             write_improve_report(result, report)
         typer.echo(f"wrote {report}", err=True)
@@ -805,7 +801,6 @@ def report(
         trajectory_text=trajectory_text,
         per_trial=True,
     )
-    _advised(result)
     with stage("diagnosing"):
         diagnosis = run_diagnose(result)
     from balancer_id.diagnostics.improve import improve as run_improve

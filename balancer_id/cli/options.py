@@ -510,14 +510,6 @@ def trajectory(text: str | None) -> Any:
     """
     if text is None:  # before any import: a batch's start waits for this
         return None
-    from balancer_id.errors import UsageError
-    from balancer_id.simulation.inputs import parse_trajectory
+    from balancer_id.trials import reference_move
 
-    if not text.startswith("trapezoid") and Path(text).is_file():  # time,position (issue 9)
-        from balancer_id.segment.move import read_trajectory_csv
-
-        return read_trajectory_csv(text)
-    try:
-        return parse_trajectory(text)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    return reference_move(text)

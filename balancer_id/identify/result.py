@@ -12,7 +12,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from balancer_id.identify.classic import ClassicResult, paper_method
 from balancer_id.identify.coupling import Coupling, coupling_of
@@ -24,13 +24,10 @@ from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
 from balancer_id.trials import TrialSet
 
+if TYPE_CHECKING:
+    from balancer_id.identify.advice import Advice
+
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
-
-#: The only field that may be set after construction: the robot settings advice,
-#: attached by :func:`~balancer_id.diagnostics.advice.attach_advice` (issue 20 moves it
-#: into the library call; until then it is the one exception).
-_LATE_FIELDS = frozenset({"advice"})
-
 
 @dataclass(repr=False)
 class FitResult(Displayable):
@@ -60,18 +57,15 @@ class FitResult(Displayable):
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
         The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
-    advice : object or None
-        Settings advice for a robot-balancer pair
-        (:class:`~balancer_id.diagnostics.advice.Advice`), attached by whoever computed
-        it (:func:`~balancer_id.diagnostics.advice.attach_advice`); reports render it.
 
     Notes
     -----
     A result is complete when returned (:func:`~balancer_id.identify.api.fit` and
     :func:`fit_match` compute the notes and the per-trial fits before returning it) and
-    immutable afterwards: setting any field but ``advice`` raises
-    :class:`dataclasses.FrozenInstanceError`. The per-trial fits of a result made without
-    them are computed once on demand (:meth:`per_trial_fits`) and cached.
+    immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`.
+    What follows from it alone is derived on first use and cached: the per-trial fits of
+    a result made without them (:meth:`per_trial_fits`) and a robot pair's settings
+    advice (:attr:`advice`).
     """
 
     match: MatchResult
@@ -83,8 +77,8 @@ class FitResult(Displayable):
     per_trial: list[PerTrialFit] = field(default_factory=list)
     include_per_trial: bool = False
     warnings: list[Note | str] = field(default_factory=list)
-    advice: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
+    _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -92,7 +86,7 @@ class FitResult(Displayable):
         self._frozen = True
 
     def __setattr__(self, name: str, value: Any) -> None:
-        if getattr(self, "_frozen", False) and name not in _LATE_FIELDS:
+        if getattr(self, "_frozen", False):
             raise FrozenInstanceError(f"a FitResult is complete when returned; cannot set {name}")
         object.__setattr__(self, name, value)
 
@@ -162,6 +156,23 @@ class FitResult(Displayable):
         """
         names = (model or self.match.model).param_names
         return {k: v for k, v in self.fixed.items() if k in names}
+
+    @property
+    def advice(self) -> Advice | None:
+        """Settings that damp the robot-balancer mode (paper section IV), checked by
+        simulation; None for a model without a robot (no ``servo``).
+
+        Derived from the fit alone, once, on first use (it simulates the moves).
+        """
+        if self.coupling is None:
+            return None
+        if self._advice is None:
+            from balancer_id.identify.advice import advise_fit
+
+            moves = [t.input for t in self.match.data.trials]
+            advice = advise_fit(self.match.model, self.values, moves)
+            object.__setattr__(self, "_advice", advice)  # a cache, not a change
+        return self._advice
 
     def per_trial_fits(self) -> list[PerTrialFit]:
         """Each trial fitted alone from the joint fit; computed once, then reused.
@@ -266,6 +277,7 @@ class FitResult(Displayable):
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()
+            out["advice"] = self.advice.to_dict() if self.advice is not None else None
         if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
         return json_ready(out)

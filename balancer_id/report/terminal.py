@@ -284,6 +284,16 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
             *[_fmt(m["trials"][k]["rmse"]) for m in models],
         )
     console.print(per)
+    validation = result.get("validation")
+    if validation:  # compare --params: does the identified model hold on these logs?
+        colour = "green" if validation["holds"] else "red"
+        console.print(
+            f"[bold {colour}]model {validation['model']} {validation['verdict']}[/bold "
+            f"{colour}] on these logs (fit {validation['fit_percent']:.1f} %, nothing refitted)"
+        )
+        for test in validation["tests"]:
+            mark = "ok  " if test["passed"] else "FAIL"
+            console.print(f"  {mark} {test['name']}: {test['text']}", highlight=False)
 
 
 def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
@@ -402,7 +412,7 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
 
 def _print_robot(console: Console, result: dict[str, Any]) -> None:
     """The stability condition, its dominant terms and the advice (robot logs, issue 9)."""
-    from balancer_id.diagnostics.advice import advice_lines
+    from balancer_id.identify.advice import advice_lines
 
     cond = result["coupling"].get("condition")
     if cond:

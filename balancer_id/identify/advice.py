@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from balancer_id.identify.coupling import Coupling, coupling_of
-from balancer_id.identify.result import FitResult
 from balancer_id.model.spec import Model
 from balancer_id.simulation.engine import TrialInput, simulate_many
 from balancer_id.simulation.inputs import Thrust
@@ -508,24 +507,3 @@ def advise_fit(
     fac = viscosity_factor(model, values, moves[0]) if moves else 1.0
     advice = advise(values, target, bounds, viscosity_factor=fac)
     return check_by_simulation(advice, model, values, moves)
-
-
-def attach_advice(fit: FitResult) -> Advice | None:
-    """Advise a fit of a robot-balancer pair once and keep the advice on it.
-
-    Parameters
-    ----------
-    fit : FitResult
-        A fit; only one with robot coupling figures gets advice.
-
-    Returns
-    -------
-    Advice or None
-        The advice (also ``fit.advice``), or None without coupling.
-    """
-    if fit.coupling is None:
-        return None
-    if fit.advice is None:
-        moves = [t.input for t in fit.match.data.trials]
-        fit.advice = advise_fit(fit.match.model, fit.values, moves)
-    return fit.advice
