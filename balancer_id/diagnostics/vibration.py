@@ -53,6 +53,18 @@ class Spectrum:
             return float("nan")
         return float(np.sqrt(np.trapezoid(self.psd[sel], self.freq[sel])))
 
+    def total_rms(self) -> float:
+        """RMS value of the whole signal (trend removed) from the same spectrum, so that a
+        band's RMS (:meth:`band_rms`) never exceeds it.
+
+        Returns
+        -------
+        float
+        """
+        if self.freq.size < 2:
+            return float("nan")
+        return float(np.sqrt(np.trapezoid(self.psd, self.freq)))
+
 
 @dataclass
 class MoveVibration:
@@ -190,16 +202,6 @@ def spectrum(time: np.ndarray, x: np.ndarray) -> Spectrum:
     return Spectrum(f, p)
 
 
-def _rms(x: np.ndarray) -> float:
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    if x.size < 3:
-        return float("nan")
-    t = np.arange(x.size)
-    resid = x - np.polyval(np.polyfit(t, x, 1), t)
-    return float(np.sqrt(np.mean(resid**2)))
-
-
 def _peak(sp: Spectrum) -> float:
     sel = (sp.freq >= PEAK_RANGE_HZ[0]) & (sp.freq <= PEAK_RANGE_HZ[1])
     if not sel.any():
@@ -259,8 +261,8 @@ def compare_vibration(
                 source=f"{tr.source} [{tr.recording}]",
                 accel_band_rms=sa.band_rms(lo, hi),
                 force_band_rms=sf.band_rms(lo, hi) if sf is not None else float("nan"),
-                accel_rms=_rms(accel),
-                force_rms=_rms(force) if sf is not None else float("nan"),
+                accel_rms=sa.total_rms(),
+                force_rms=sf.total_rms() if sf is not None else float("nan"),
                 peak_hz=_peak(sa),
                 time=time,
                 accel=accel,

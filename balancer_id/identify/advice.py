@@ -16,7 +16,7 @@ stiffness). Such a setting is reported as not reachable.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,6 +85,9 @@ class Setting:
     predicted: ModeFigures | None
     simulated: ModeFigures | None = None
     note: str = ""
+    #: False when the simulated mode contradicts the prediction (see
+    #: :func:`check_by_simulation`); None before the check.
+    confirmed: bool | None = None
 
     @property
     def change(self) -> float | None:
@@ -103,6 +106,7 @@ class Setting:
             "change_percent": None if self.change is None else 100.0 * self.change,
             "predicted": None if self.predicted is None else self.predicted.to_dict(),
             "simulated": None if self.simulated is None else self.simulated.to_dict(),
+            "confirmed": self.confirmed,
             "note": self.note,
         }
 
@@ -136,8 +140,13 @@ class Advice:
 
     @property
     def smallest(self) -> Setting | None:
-        """The reachable setting with the smallest relative change (None if none)."""
-        ok = [s for s in self.settings if s.advised is not None and s.current > 0]
+        """The reachable setting with the smallest relative change whose prediction its
+        simulation does not contradict (None if none)."""
+        ok = [
+            s
+            for s in self.settings
+            if s.advised is not None and s.current > 0 and s.confirmed is not False
+        ]
         if not ok:
             return None
         return min(ok, key=lambda s: abs(np.log(s.advised / s.current)))  # type: ignore[operator]
@@ -204,6 +213,8 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
             text += (
                 f"; simulated: {sim['oscillation_hz']:.3g} Hz, damping {sim['damping_ratio']:.3g}"
             )
+        if s.get("confirmed") is False:
+            text += f"  (not confirmed: {s['note']})"
         if s["parameter"] == advice.get("smallest_change"):
             text += "  <- smallest change"
         out.append(text)
@@ -212,8 +223,12 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
     return out
 
 
+#: A viscosity factor as a function of the candidate value of the setting searched.
+FactorOf = Callable[[float], float]
+
+
 def _coupling(values: Mapping[str, float], factor: float) -> Coupling:
-    return coupling_of({**values, "D0": factor * float(values.get("D0", 0.0))})
+    return coupling_of(values, viscosity_factor=factor)
 
 
 def _figures(values: Mapping[str, float], factor: float = 1.0) -> ModeFigures:
@@ -231,7 +246,7 @@ def advise_setting(
     parameter: str,
     target: float = TARGET_DAMPING,
     bounds: tuple[float, float] | None = None,
-    viscosity_factor: float = 1.0,
+    viscosity_factor: float | FactorOf = 1.0,
 ) -> Setting:
     """The value of one parameter nearest to today's that reaches the target damping.
 
@@ -249,9 +264,10 @@ def advise_setting(
         Damping ratio to reach.
     bounds : tuple of float, optional
         The values the setting may take; None allows the whole searched range.
-    viscosity_factor : float
+    viscosity_factor : float or callable
         The effective viscosity during the settling as a share of ``D0`` (1 for a
-        constant viscosity; see :func:`viscosity_factor`).
+        constant viscosity; see :func:`viscosity_factor`), or a function of the
+        candidate value giving it (a setting changes the settling, and so the share).
 
     Returns
     -------
@@ -261,14 +277,22 @@ def advise_setting(
     base = {k: float(v) for k, v in values.items()}
     base.setdefault("D0", 0.0)
     current = float(base[parameter])
-    fac = viscosity_factor
-    if _ok(base, target, fac):
-        return Setting(parameter, current, current, _figures(base, fac), note="already reached")
+    share = viscosity_factor
+    factor_of: FactorOf = share if callable(share) else (lambda _x: float(share))
+
+    def _ok_at(x: float) -> bool:
+        return _ok({**base, parameter: x}, target, factor_of(x))
+
+    def _figures_at(x: float) -> ModeFigures:
+        return _figures({**base, parameter: x}, factor_of(x))
+
+    if _ok_at(current):
+        return Setting(parameter, current, current, _figures_at(current), note="already reached")
     ref = current if current > 0 else 1.0
     grid = ref * np.logspace(-SEARCH_DECADES, SEARCH_DECADES, 801)
     if bounds is not None:
         grid = grid[(grid >= bounds[0]) & (grid <= bounds[1])]
-    ok = np.array([_ok({**base, parameter: float(x)}, target, fac) for x in grid], dtype=bool)
+    ok = np.array([_ok_at(float(x)) for x in grid], dtype=bool)
     if not ok.any():
         return Setting(
             parameter,
@@ -289,18 +313,18 @@ def advise_setting(
         bad = float(grid[j])
         for _ in range(60):
             mid = float(np.sqrt(good * bad))
-            if _ok({**base, parameter: mid}, target, fac):
+            if _ok_at(mid):
                 good = mid
             else:
                 bad = mid
-    return Setting(parameter, current, good, _figures({**base, parameter: good}, fac))
+    return Setting(parameter, current, good, _figures_at(good))
 
 
 def advise(
     values: Mapping[str, float],
     target: float = TARGET_DAMPING,
     bounds: Mapping[str, tuple[float, float]] | None = None,
-    viscosity_factor: float = 1.0,
+    viscosity_factor: float | Mapping[str, FactorOf] = 1.0,
 ) -> Advice:
     """Settings of ``D0``, ``c_r`` and ``k_r`` (each alone) that reach the target damping.
 
@@ -312,9 +336,11 @@ def advise(
         Damping ratio to reach (0.3 by default).
     bounds : mapping of str to tuple, optional
         Allowed range of each setting.
-    viscosity_factor : float
+    viscosity_factor : float or mapping of str to callable
         The effective viscosity during the settling as a share of ``D0`` (see
-        :func:`viscosity_factor`); 1 predicts at ``D0`` itself.
+        :func:`viscosity_factor`); 1 predicts at ``D0`` itself. Per setting, a function
+        of its candidate value (:func:`factor_along`): the share is re-evaluated at each
+        candidate, since a setting changes the settling it is measured on.
 
     Returns
     -------
@@ -323,12 +349,22 @@ def advise(
     """
     base = dict(values)
     base.setdefault("D0", 0.0)
-    fac = float(viscosity_factor)
-    settings = [advise_setting(base, p, target, (bounds or {}).get(p), fac) for p in SETTINGS]
-    return Advice(target, _figures(base, fac), settings, fac)
+    if isinstance(viscosity_factor, Mapping):
+        per = dict(viscosity_factor)
+        today = float(per["D0"](float(base["D0"]))) if "D0" in per else 1.0
+    else:
+        today = float(viscosity_factor)
+        per = {}
+    settings = [
+        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today))
+        for p in SETTINGS
+    ]
+    return Advice(target, _figures(base, today), settings, today)
 
 
-def mode_from_response(time: np.ndarray, accel: np.ndarray) -> ModeFigures | None:
+def mode_from_response(
+    time: np.ndarray, accel: np.ndarray, expected_hz: float | None = None
+) -> ModeFigures | None:
     """Frequency and damping ratio of the oscillation in a free response.
 
     A third-order linear prediction ``a[n] = sum c_i a[n-i]`` (least squares, on the
@@ -341,14 +377,20 @@ def mode_from_response(time: np.ndarray, accel: np.ndarray) -> ModeFigures | Non
         Equally spaced times (s) of the free response (no input).
     accel : numpy.ndarray
         The acceleration (m/s^2).
+    expected_hz : float, optional
+        The frequency looked for: the decimation keeps at least 10 samples per period.
 
     Returns
     -------
     ModeFigures or None
-        None when the response holds no oscillation.
+        None when the response holds no oscillation, or only one near the decimated
+        Nyquist frequency (an artefact of the decimation, not a mode).
     """
     dt0 = float(np.median(np.diff(time)))
-    step = max(round(0.05 / dt0), 1)
+    dt_wanted = 0.05
+    if expected_hz is not None and expected_hz > 0:
+        dt_wanted = min(dt_wanted, 0.1 / expected_hz)
+    step = max(round(dt_wanted / dt0), 1)
     y = np.asarray(accel, dtype=float)[::step]
     dt = dt0 * step
     order = 3
@@ -358,7 +400,8 @@ def mode_from_response(time: np.ndarray, accel: np.ndarray) -> ModeFigures | Non
     c, *_ = np.linalg.lstsq(X, y[order:], rcond=None)
     roots = np.roots(np.concatenate([[1.0], -c]))
     s = np.log(roots.astype(complex)) / dt
-    pair = [p for p in s if p.imag > 1e-6]
+    nyquist = 0.5 / dt
+    pair = [p for p in s if 1e-6 < p.imag / (2 * np.pi) < 0.8 * nyquist]
     if not pair:
         return None
     p = max(pair, key=lambda q: q.real / abs(q))
@@ -385,7 +428,10 @@ def _simulate_move(model: Model, values: Mapping[str, float], move: TrialInput):
 
 
 def simulate_mode(
-    model: Model, values: Mapping[str, float], move: TrialInput
+    model: Model,
+    values: Mapping[str, float],
+    move: TrialInput,
+    expected_hz: float | None = None,
 ) -> ModeFigures | None:
     """Simulate the move and measure the coupled mode in the settling after it.
 
@@ -398,6 +444,8 @@ def simulate_mode(
     move : TrialInput
         The move (times, thrust, reference); the simulation is extended by
         :data:`CHECK_AFTER_S` after the reference stops.
+    expected_hz : float, optional
+        The predicted frequency: the response is sampled fast enough for it.
 
     Returns
     -------
@@ -409,7 +457,7 @@ def simulate_mode(
         return None
     grid, sim, t_end = run
     after = grid > t_end
-    return mode_from_response(grid[after], sim.accel[after])
+    return mode_from_response(grid[after], sim.accel[after], expected_hz)
 
 
 def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput) -> float:
@@ -448,6 +496,54 @@ def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput
     return float(np.sum(np.exp(-A * np.abs(sim.operating_force[after])) * w) / np.sum(w))
 
 
+#: Candidate values at which the viscosity share is simulated per setting (interpolated
+#: in between, in log of the value).
+FACTOR_GRID_POINTS = 13
+
+
+def factor_along(
+    model: Model,
+    values: Mapping[str, float],
+    move: TrialInput,
+    parameter: str,
+    span: tuple[float, float],
+) -> FactorOf:
+    """The settling's viscosity share as a function of one setting's value.
+
+    Simulated at :data:`FACTOR_GRID_POINTS` log-spaced values over ``span`` and
+    interpolated in log of the value (constant beyond the ends).
+
+    Parameters
+    ----------
+    model : Model
+        The identified model.
+    values : mapping of str to float
+        Its parameters.
+    move : TrialInput
+        The move simulated.
+    parameter : str
+        The setting varied.
+    span : tuple of float
+        The range searched (positive).
+
+    Returns
+    -------
+    callable
+        ``value -> share`` in (0, 1].
+    """
+    lo, hi = (max(float(x), 1e-12) for x in span)
+    grid = np.logspace(np.log10(lo), np.log10(max(hi, lo * 1.0001)), FACTOR_GRID_POINTS)
+    shares = np.array(
+        [viscosity_factor(model, {**values, parameter: float(x)}, move) for x in grid]
+    )
+    logs = np.log(grid)
+
+    def share(x: float) -> float:
+        return float(np.interp(np.log(max(float(x), 1e-300)), logs, shares))
+
+    return share
+
+
 def check_by_simulation(
     advice: Advice, model: Model, values: Mapping[str, float], moves: Sequence[TrialInput]
 ) -> Advice:
@@ -474,8 +570,43 @@ def check_by_simulation(
     for s in advice.settings:
         if s.advised is None:
             continue
-        s.simulated = simulate_mode(model, {**values, s.parameter: s.advised}, moves[0])
+        s.simulated = simulate_mode(
+            model,
+            {**values, s.parameter: s.advised},
+            moves[0],
+            expected_hz=s.predicted.oscillation_hz if s.predicted else None,
+        )
+        s.confirmed, why = _agrees(s.predicted, s.simulated, advice.target)
+        if not s.confirmed:
+            s.note = why
     return advice
+
+
+#: A simulated frequency this far from the predicted one (relative) contradicts it.
+FREQUENCY_TOLERANCE = 0.35
+#: A simulated damping ratio this far below the target contradicts the prediction.
+DAMPING_TOLERANCE = 0.1
+
+
+def _agrees(
+    predicted: ModeFigures | None, simulated: ModeFigures | None, target: float
+) -> tuple[bool, str]:
+    """Whether the simulated mode confirms the predicted one, and why not."""
+    if predicted is None or simulated is None:
+        # no oscillation left in the simulated settling: damped at least as predicted
+        return True, ""
+    f_p, f_s = predicted.oscillation_hz, simulated.oscillation_hz
+    if f_p > 0 and abs(f_s - f_p) > FREQUENCY_TOLERANCE * f_p:
+        return False, (
+            f"the simulation shows a {f_s:.3g} Hz mode, the prediction {f_p:.3g} Hz: the "
+            "linear prediction does not hold for this setting"
+        )
+    if simulated.damping_ratio < target - DAMPING_TOLERANCE:
+        return False, (
+            f"the simulated damping ratio is {simulated.damping_ratio:.3g}, short of "
+            f"{target:g}: the linear prediction does not hold for this setting"
+        )
+    return True, ""
 
 
 def advise_fit(
@@ -504,6 +635,18 @@ def advise_fit(
         effective viscosity (:func:`viscosity_factor`) and checked by simulation.
     """
     bounds = {p.name: (p.min, p.max) for p in model.params if p.name in SETTINGS}
-    fac = viscosity_factor(model, values, moves[0]) if moves else 1.0
-    advice = advise(values, target, bounds, viscosity_factor=fac)
+    shares: dict[str, FactorOf] = {}
+    if moves and "A" in model.param_names and float(values.get("A", 0.0)) > 0:
+        for name in SETTINGS:
+            now = float(values.get(name, 0.0))
+            ref = now if now > 0 else 1.0
+            lo, hi = ref * 10**-SEARCH_DECADES, ref * 10**SEARCH_DECADES
+            if name in bounds:
+                lo, hi = max(lo, bounds[name][0]), min(hi, bounds[name][1])
+            if hi > lo > 0:
+                shares[name] = factor_along(model, values, moves[0], name, (lo, hi))
+        if "D0" not in shares:
+            today = viscosity_factor(model, values, moves[0])
+            shares["D0"] = lambda _x: today
+    advice = advise(values, target, bounds, viscosity_factor=shares or 1.0)
     return check_by_simulation(advice, model, values, moves)

@@ -13,7 +13,7 @@ does not.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,6 +38,8 @@ class Coupling:
     terms : dict
         The terms of the stability condition: ``T_a*D``, ``m_a``, ``D``, ``c_r``,
         ``k_r``, and its two sides ``lhs = (T_a D + m_a)(D + c_r)``, ``rhs = T_a m_a k_r``.
+    viscosity_factor : float
+        The share of ``D0`` the loop was linearized at (1: at ``D0`` itself).
     """
 
     oscillation_hz: float
@@ -45,6 +47,7 @@ class Coupling:
     stability_margin: float
     poles: tuple[complex, ...]
     terms: dict[str, float] = field(default_factory=dict)
+    viscosity_factor: float = 1.0
 
     @property
     def stable(self) -> bool:
@@ -62,6 +65,18 @@ class Coupling:
         if not self.stable:
             return "unstable"
         return "lightly damped" if self.lightly_damped else "well damped"
+
+    @property
+    def damping_source(self) -> str:
+        """Where the damping ratio comes from (the one damping ratio every output shows)."""
+        text = "the identified model's closed-loop poles (least damped pair)"
+        if self.viscosity_factor < 0.999:
+            text += (
+                f", linearized at the settling's effective viscosity "
+                f"({100 * self.viscosity_factor:.0f} % of D0: the servo force lowers the "
+                "variable viscosity)"
+            )
+        return text
 
     @property
     def dominant(self) -> str:
@@ -88,7 +103,8 @@ class Coupling:
             "stability_margin": self.stability_margin,
             "stable": self.stable,
             "verdict": self.verdict,
-            "damping_source": "the identified model's closed-loop poles (least damped pair)",
+            "damping_source": self.damping_source,
+            "viscosity_factor": self.viscosity_factor,
             "poles": [[p.real, p.imag] for p in self.poles],
         }
         if self.terms:
@@ -144,7 +160,7 @@ def coupling(m_a: float, T_a: float, D: float, k_r: float, c_r: float) -> Coupli
     return Coupling(freq, zeta, margin, tuple(complex(p) for p in poles), terms)
 
 
-def coupling_of(values: Mapping[str, float]) -> Coupling:
+def coupling_of(values: Mapping[str, float], viscosity_factor: float = 1.0) -> Coupling:
     """The coupling figures of a parameter set (a fit's values).
 
     Uses ``T_a`` (or the mean of ``T_up`` and ``T_down`` with ``asymmetric_lag``) and the
@@ -155,6 +171,9 @@ def coupling_of(values: Mapping[str, float]) -> Coupling:
     values : mapping of str to float
         Parameter values by MODEL.md name; must hold ``m_a``, ``k_r``, ``c_r`` and the
         drive lag (``T_a``, or ``T_up`` and ``T_down``).
+    viscosity_factor : float
+        The settling's effective viscosity as a share of ``D0`` (``variable_viscosity``:
+        the servo force lowers it); the loop is linearized at ``viscosity_factor * D0``.
 
     Returns
     -------
@@ -171,10 +190,11 @@ def coupling_of(values: Mapping[str, float]) -> Coupling:
         lag = 0.5 * (float(values["T_up"]) + float(values["T_down"]))
     else:  # every model has a drive lag; a hand-made mapping may not
         raise ValueError("the coupling needs the drive lag: T_a, or T_up and T_down")
-    return coupling(
+    found = coupling(
         float(values["m_a"]),
         lag,
-        float(values.get("D0", 0.0)),
+        float(viscosity_factor) * float(values.get("D0", 0.0)),
         float(values["k_r"]),
         float(values["c_r"]),
     )
+    return replace(found, viscosity_factor=float(viscosity_factor))

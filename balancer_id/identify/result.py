@@ -14,6 +14,7 @@ from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from balancer_id.identify.advice import viscosity_factor
 from balancer_id.identify.classic import ClassicResult, paper_method
 from balancer_id.identify.coupling import Coupling, coupling_of
 from balancer_id.identify.display import Displayable
@@ -22,6 +23,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
+from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
 if TYPE_CHECKING:
@@ -283,7 +285,9 @@ class FitResult(Displayable):
         return json_ready(out)
 
 
-def robot_coupling(model: Model, values: Mapping[str, float]) -> Coupling | None:
+def robot_coupling(
+    model: Model, values: Mapping[str, float], moves: Sequence[TrialInput] = ()
+) -> Coupling | None:
     """Robot-balancer loop figures of a fitted model that needs a reference move.
 
     Parameters
@@ -292,6 +296,10 @@ def robot_coupling(model: Model, values: Mapping[str, float]) -> Coupling | None
         The fitted model.
     values : mapping of str to float
         Its fitted values.
+    moves : sequence of TrialInput
+        The fitted moves: with a variable viscosity the loop is linearized at the
+        settling's effective viscosity after the first (the same damping ratio the
+        advice starts from).
 
     Returns
     -------
@@ -301,7 +309,8 @@ def robot_coupling(model: Model, values: Mapping[str, float]) -> Coupling | None
     """
     if not model.needs_reference_move:
         return None
-    return coupling_of(dict(values))
+    share = viscosity_factor(model, values, moves[0]) if moves else 1.0
+    return coupling_of(dict(values), viscosity_factor=share)
 
 
 def fit_match(
@@ -348,7 +357,9 @@ def fit_match(
         trial_set=trials if trials is not None else TrialSet(),
         fixed=dict(fixed or {}),
         effects_files=[str(f) for f in effects_files],
-        coupling=robot_coupling(match.model, match.values()),
+        coupling=robot_coupling(
+            match.model, match.values(), [t.input for t in match.data.trials]
+        ),
         include_per_trial=per_trial,
         warnings=list(warnings),
     )
