@@ -62,9 +62,15 @@ def test_plot_returns_a_figure_of_measured_simulated_and_residual(fitted):
 
     fig = fitted.plot()
     assert isinstance(fig, Figure)
-    top, bottom = fig.axes
-    assert len(top.lines) >= 2 * len(fitted.match.data.trials)
-    assert bottom.get_ylabel().startswith("residual")
+    trials = fitted.match.data.trials
+    assert len(fig.axes) == 2 * len(trials)  # small multiples: a panel and its residual
+    tops, bottoms = fig.axes[0::2], fig.axes[1::2]
+    for ax, td in zip(tops, trials, strict=True):
+        assert len(ax.lines) == 2  # measured and simulated
+        assert f"{td.thrust_N:+.3g} N" in ax.get_title()  # each trial named by its thrust
+    assert bottoms[0].get_ylabel().startswith("residual")
+    png = fig._repr_png_()  # a notebook shows it without %matplotlib inline
+    assert png[:4] == b"\x89PNG"
 
 
 def test_diagnosis_compare_and_improve_have_short_reprs_and_summaries(fitted, small_log):

@@ -86,53 +86,46 @@ def test_every_pdf_table_fits_its_page_width(diagnosed, tmp_path, monkeypatch):
     from balancer_id.report.sections import write_full_report
 
     result, diagnosis, improved = diagnosed
-    too_wide: list[tuple[str, float]] = []
-    original = pdf._PdfFlow._draw_table
+    laid_out: list[tuple[float, float]] = []
+    original = pdf._table
 
-    def measured(self, *args):
-        original(self, *args)
-        ax = self.fig.axes[-1]
-        self.fig.canvas.draw()  # the table places its cells and texts when drawn
-        renderer = self.fig.canvas.get_renderer()
-        right = self.fig.bbox.x1 - 0.3 * self.fig.dpi  # inside the right margin
-        for cell in ax.tables[0].get_celld().values():
-            box = cell.get_window_extent(renderer)
-            text = cell.get_text().get_window_extent(renderer)
-            # the cell on the page, its text inside the cell (no overlap, nothing cut)
-            if box.x1 > right or text.x1 > box.x1 + 1 or text.x0 < box.x0 - 1:
-                too_wide.append((cell.get_text().get_text()[:40], box.x1 / self.fig.dpi))
+    def measured(block, styles, width):
+        flowables = original(block, styles, width)
+        table = flowables[0]
+        used, _ = table.wrap(width, 1e6)  # reportlab lays the table out in the text width
+        laid_out.append((used, width))
+        return flowables
 
-    monkeypatch.setattr(pdf._PdfFlow, "_draw_table", measured)
+    monkeypatch.setattr(pdf, "_table", measured)
     write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
-    assert not too_wide, too_wide
+    assert laid_out
+    assert all(used <= width + 0.5 for used, width in laid_out), laid_out
+    assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
 
 
-def test_every_pdf_text_line_stays_on_the_page(diagnosed, tmp_path, monkeypatch):
+def test_every_pdf_code_line_stays_on_the_page(diagnosed, tmp_path, monkeypatch):
     # the suggested commands are long code lines: wrapped shell-style, never cut off
+    from reportlab.pdfbase.pdfmetrics import stringWidth
+
     from balancer_id.report import pdf
     from balancer_id.report.sections import write_full_report
 
     result, diagnosis, improved = diagnosed
-    off_page: list[str] = []
-    commands: list[str] = []
-    original = pdf._PdfFlow.flush
+    seen: list[tuple[list[str], float, float]] = []
+    original = pdf.code_lines
 
-    def checked(self):
-        if self.fig is not None:
-            self.fig.canvas.draw()
-            renderer = self.fig.canvas.get_renderer()
-            right = self.fig.bbox.x1 - 0.3 * self.fig.dpi
-            for text in self.fig.texts:
-                if text.get_window_extent(renderer).x1 > right:
-                    off_page.append(text.get_text()[:60])
-                if text.get_fontfamily()[0] == "monospace":
-                    commands.append(text.get_text())
-        original(self)
+    def recorded(text, width_pt, font_size):
+        lines = original(text, width_pt, font_size)
+        seen.append((lines, width_pt, font_size))
+        return lines
 
-    monkeypatch.setattr(pdf._PdfFlow, "flush", checked)
+    monkeypatch.setattr(pdf, "code_lines", recorded)
     write_full_report(result, diagnosis, tmp_path / "r.pdf", improved)
-    assert not off_page, off_page
-    joined = " ".join(commands).replace(" \\     ", " ")
+    assert seen
+    for lines, width, size in seen:
+        for line in lines:
+            assert stringWidth(line, "Courier", size) <= width or " " not in line.strip()
+    joined = " ".join(" ".join(lines) for lines, _, _ in seen).replace(" \\     ", " ")
     assert diagnosis.suggestions[0].command in joined  # whole again when unwrapped
 
 

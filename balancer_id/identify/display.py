@@ -113,8 +113,18 @@ def match_frame(match: ShownFit) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
+#: Trials drawn by :func:`match_plot` (one panel each); a longer session shows the first.
+MAX_PLOTTED_TRIALS = 12
+#: Panels per row of :func:`match_plot`.
+PANELS_PER_ROW = 6
+
+
 def match_plot(match: ShownFit, title: str = "") -> Figure:
-    """Measured and simulated acceleration of each trial, and the residual below.
+    """Measured and simulated acceleration of each trial, with its residual below.
+
+    One column of two panels per trial (small multiples), each titled by the trial's
+    thrust and direction; at most :data:`MAX_PLOTTED_TRIALS` trials (the first), in rows
+    of :data:`PANELS_PER_ROW`.
 
     Parameters
     ----------
@@ -126,29 +136,40 @@ def match_plot(match: ShownFit, title: str = "") -> Figure:
     Returns
     -------
     matplotlib.figure.Figure
-        Two axes: the accelerations (trials one after the other, time from each trial's
-        step) and the residual.
+        Shown as an image when returned in a notebook (no ``%matplotlib inline`` needed).
     """
-    from matplotlib.figure import Figure
+    from balancer_id.identify.figure import NotebookFigure
 
-    fig = Figure(figsize=(8, 5), layout="constrained")
-    ax, ax_r = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
-    for k, (td, sl) in enumerate(zip(match.data.trials, match.data.slices(), strict=True)):
+    pairs = list(zip(match.data.trials, match.data.slices(), strict=True))
+    shown = pairs[:MAX_PLOTTED_TRIALS]
+    cols = max(1, min(PANELS_PER_ROW, len(shown)))
+    rows = max(1, -(-len(shown) // cols))
+    fig = NotebookFigure(figsize=(2.3 * cols + 1.0, 3.2 * rows + 0.6), layout="constrained")
+    grid = fig.add_gridspec(2 * rows, cols, height_ratios=[2, 1] * rows)
+    for k, (td, sl) in enumerate(shown):
+        r, c = divmod(k, cols)
+        ax = fig.add_subplot(grid[2 * r, c])
+        ax_r = fig.add_subplot(grid[2 * r + 1, c], sharex=ax)
         t = np.asarray(td.time, dtype=float)[: sl.stop - sl.start] - td.t_step
-        color = f"C{k % 10}"
-        ax.plot(t, match.y[sl], color=color, lw=0.8, alpha=0.6)
-        ax.plot(t, match.y_model[sl], color=color, lw=1.4, ls="--")
-        ax_r.plot(t, match.y[sl] - match.y_model[sl], color=color, lw=0.8)
-    ax.plot([], [], color="k", lw=0.8, alpha=0.6, label="measured")
-    ax.plot([], [], color="k", lw=1.4, ls="--", label="simulated")
-    ax.legend(loc="best", fontsize="small")
-    ax.set_ylabel("acceleration (m/s²)")
-    ax_r.axhline(0.0, color="0.5", lw=0.6)
-    ax_r.set_ylabel("residual (m/s²)")
-    ax_r.set_xlabel("time from the step (s)")
-    fig.suptitle(
-        title or f"{match.model.spec}: fit {match.metrics.get('nrmse_fit_percent', 0):.1f} %"
-    )
+        ax.plot(t, match.y[sl], color="C0", lw=0.8, alpha=0.7, label="measured")
+        ax.plot(t, match.y_model[sl], color="C1", lw=1.4, ls="--", label="simulated")
+        ax.set_title(f"trial {td.index}: {td.thrust_N:+.3g} N {td.direction}", fontsize="small")
+        ax_r.axhline(0.0, color="0.5", lw=0.6)
+        ax_r.plot(t, match.y[sl] - match.y_model[sl], color="C2", lw=0.8)
+        ax.tick_params(labelbottom=False, labelsize="x-small")
+        ax_r.tick_params(labelsize="x-small")
+        if c == 0:
+            ax.set_ylabel("acceleration (m/s²)", fontsize="small")
+            ax_r.set_ylabel("residual", fontsize="small")
+        if r == rows - 1:
+            ax_r.set_xlabel("time from the step (s)", fontsize="small")
+        if k == 0:
+            ax.legend(loc="best", fontsize="x-small")
+    more = len(pairs) - len(shown)
+    heading = title or f"{match.model.spec}: fit {match.metrics.get('nrmse_fit_percent', 0):.1f} %"
+    if more > 0:
+        heading += f" (first {len(shown)} of {len(pairs)} trials)"
+    fig.suptitle(heading)
     return fig
 
 

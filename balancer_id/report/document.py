@@ -39,7 +39,7 @@ from balancer_id.report.blocks import (
 )
 from balancer_id.report.fit_sections import fit_sections, reproduce_section
 from balancer_id.report.html import _render_html
-from balancer_id.report.pdf import _render_pdf
+from balancer_id.report.pdf import render_pdf
 
 if TYPE_CHECKING:
 
@@ -219,7 +219,7 @@ def write_report(
         text = _render_html(title, subtitle, all_sections, meta)
         data = text.encode("utf-8")
         return atomic_write(path, lambda fh: fh.write(data))
-    return atomic_write(path, lambda fh: _render_pdf(fh, title, subtitle, all_sections, meta))
+    return atomic_write(path, lambda fh: render_pdf(fh, title, subtitle, all_sections, meta))
 
 
 def _software() -> dict[str, str]:
