@@ -90,8 +90,8 @@ def test_diagnosis_compare_and_improve_have_short_reprs_and_summaries(fitted, sm
     [
         (0.123456, 0.00567, "0.1235 ± 0.0057"),
         (15.1734, 0.035, "15.173 ± 0.035"),
-        (6.0, 7253.0, "6 ± 7.3e+03"),
-        (1.5, None, "1.5"),
+        (6.0, 7253.0, "6.0 ± 7.3e+03"),
+        (1.5, None, "1.500"),
     ],
 )
 def test_numbers_are_rounded_to_their_uncertainty(value, stderr, expected):

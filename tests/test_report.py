@@ -21,7 +21,7 @@ from balancer_id.report.document import (
     Section,
     Table,
     format_estimate,
-    format_value,
+    format_number,
     write_fit_report,
     write_report,
 )
@@ -155,7 +155,7 @@ def test_html_per_trial_tables(html_report: str, result: FitResult) -> None:
         assert row[0] == str(td.index)
         assert row[3] == f"{td.thrust_N:+.3f}"
         assert row[4] == td.direction
-        assert row[7] == format_value(rmse)
+        assert row[7] == format_number(rmse)
     refits = [t for t in checker.tables if t[0][:3] == ["trial", "thrust (N)", "direction"]]
     assert any(len(t) == 1 + len(result.per_trial) for t in refits)
     for section in ("The paper&#x27;s method", "Correlations", "Files and software", "Model:"):

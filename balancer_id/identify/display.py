@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from balancer_id.numbers import format_with_uncertainty
+
 if TYPE_CHECKING:
     import pandas as pd
     from matplotlib.figure import Figure
@@ -44,33 +46,6 @@ class ShownFit(Protocol):
         ...
 
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
-
-
-def format_with_uncertainty(value: float, stderr: float | None) -> str:
-    """A value rounded to its uncertainty: ``0.1234 ± 0.0056``, ``6 ± 7e+03``.
-
-    Parameters
-    ----------
-    value : float
-        The estimate.
-    stderr : float or None
-        Its standard error; None or not finite prints the value alone (4 digits).
-
-    Returns
-    -------
-    str
-        Two significant digits of the error, the value to the same decimal place.
-    """
-    if stderr is None or not math.isfinite(stderr) or stderr <= 0:
-        return f"{value:.4g}"
-    exp = math.floor(math.log10(stderr)) - 1  # two significant digits of the error
-    if abs(value) > 0 and abs(value) < stderr:
-        # the error swamps the value: say so in scientific notation, no fake digits
-        return f"{value:.2g} ± {stderr:.2g}"
-    decimals = max(0, -exp)
-    if decimals > 8 or abs(value) >= 1e6:
-        return f"{value:.3g} ± {stderr:.2g}"
-    return f"{value:.{decimals}f} ± {stderr:.{decimals}f}"
 
 
 def match_frame(match: ShownFit) -> pd.DataFrame:

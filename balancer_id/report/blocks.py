@@ -1,4 +1,4 @@
-"""The document model of a report and the number formatting its tables share.
+"""The document model of a report (numbers are formatted by :mod:`balancer_id.numbers`).
 
 A report is a title and a list of :class:`Section`; a section holds blocks that every
 renderer draws (:class:`Paragraph`, :class:`Subheading`, :class:`Preformatted`,
@@ -10,13 +10,7 @@ from __future__ import annotations
 import html
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
-
-if TYPE_CHECKING:
-
-    pass
+from typing import Any
 
 
 # --------------------------------------------------------------------------------------
@@ -106,92 +100,6 @@ class Section:
 # --------------------------------------------------------------------------------------
 # number formatting shared by the tables
 # --------------------------------------------------------------------------------------
-def format_value(x: object, digits: int = 4) -> str:
-    """A number as the report's tables show it.
-
-    Parameters
-    ----------
-    x : float or None
-        The number (anything ``float`` accepts; other objects are shown as text).
-    digits : int
-        Significant digits; trailing zeros are kept (``0.03000``).
-
-    Returns
-    -------
-    str
-        The text, ``-`` for missing or non-finite values.
-    """
-    if x is None:
-        return "-"
-    try:
-        xf = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return str(x)
-    if not np.isfinite(xf):
-        return "-"
-    text = f"{xf:#.{digits}g}"  # keeps trailing zeros: 0.03000, not 0.03
-    mantissa, e, exponent = text.partition("e")
-    return mantissa.rstrip(".") + e + exponent
-
-
-def _decimals(stderr: float | None) -> int | None:
-    """Decimals that show two significant digits of ``stderr``."""
-    if stderr is None or not np.isfinite(stderr) or stderr <= 0:
-        return None
-    return int(np.clip(1 - np.floor(np.log10(stderr)), 0, 8))
-
-
-def format_estimate(value: float, stderr: float | None) -> tuple[str, str]:
-    """An estimate and its standard error, both to two significant digits of the error.
-
-    ``15.0806, 0.1234`` gives ``("15.08", "0.12")``. Without a usable error the value
-    has four significant digits and the error is ``-``.
-
-    Parameters
-    ----------
-    value : float
-        The estimate.
-    stderr : float or None
-        Its standard error.
-
-    Returns
-    -------
-    tuple of str
-        ``(value, stderr)`` as shown in the report's tables.
-    """
-    dec = _decimals(stderr)
-    if dec is not None and np.isfinite(value) and stderr > abs(value):  # type: ignore[operator]
-        # the error swamps the value: no digits the data do not hold ("6 ± 7253")
-        return format_value(value, 2), format_value(stderr, 2)
-    if dec is None or not np.isfinite(value) or not 1e-3 <= abs(value) < 1e6:
-        return format_value(value), format_value(stderr, 2)
-    return f"{value:.{dec}f}", f"{stderr:.{dec}f}"
-
-
-def format_interval(value: float, stderr: float | None) -> str:
-    """The approximate 95 % interval ``value ± 1.96 stderr``.
-
-    Parameters
-    ----------
-    value : float
-        The estimate.
-    stderr : float or None
-        Its standard error.
-
-    Returns
-    -------
-    str
-        ``lo .. hi`` with the decimals of :func:`format_estimate`, ``-`` without an error.
-    """
-    dec = _decimals(stderr)
-    if stderr is None or not np.isfinite(stderr):
-        return "-"
-    lo, hi = value - 1.96 * stderr, value + 1.96 * stderr
-    if dec is None or not 1e-3 <= max(abs(lo), abs(hi)) < 1e6:
-        return f"{lo:.4g} .. {hi:.4g}"
-    return f"{lo:.{dec}f} .. {hi:.{dec}f}"
-
-
 def _e(text: object) -> str:
     """Escape text for HTML."""
     return html.escape(str(text), quote=True)

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write
+from balancer_id.numbers import format_estimate, format_interval, format_number
 from balancer_id.report.blocks import (
     Block,
     Cell,
@@ -33,9 +34,6 @@ from balancer_id.report.blocks import (
     Section,
     Subheading,
     Table,
-    format_estimate,
-    format_interval,
-    format_value,
 )
 from balancer_id.report.fit_sections import fit_sections, reproduce_section
 from balancer_id.report.html import _render_html
@@ -61,7 +59,7 @@ __all__ = [
     "fit_sections",
     "format_estimate",
     "format_interval",
-    "format_value",
+    "format_number",
     "write_fit_report",
     "write_report",
 ]

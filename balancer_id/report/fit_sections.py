@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from balancer_id.numbers import format_estimate, format_interval, format_number
 from balancer_id.report.blocks import (
     Block,
     Cell,
@@ -24,9 +25,6 @@ from balancer_id.report.blocks import (
     Table,
     _anchor,
     _e,
-    format_estimate,
-    format_interval,
-    format_value,
 )
 from balancer_id.report.plots import (
     model_curves,
@@ -121,7 +119,7 @@ def _interval_text(p) -> str:
     """The 95 % interval of an estimate, saying which kind when it is the profile one."""
     if p.ci95_method == "profile" and p.ci95 is not None:
         lo, hi = p.ci95
-        return f"{format_value(lo, 3)} .. {format_value(hi, 3)} (profile)"
+        return f"{format_number(lo, 3)} .. {format_number(hi, 3)} (profile)"
     return format_interval(p.value, p.stderr)
 
 
@@ -135,8 +133,8 @@ def _summary_section(result: FitResult) -> Section:
         value, se = format_estimate(p.value, p.stderr)
         err = f" ± {se}" if p.vary and se != "-" else (" (held)" if not p.vary else "")
         if p.vary and p.ci95_method == "profile" and p.ci95 is not None:
-            value = format_value(p.value, 3)  # the profile interval, not a Wald ± beside it
-            err = f" ({format_value(p.ci95[0], 3)} .. {format_value(p.ci95[1], 3)})"
+            value = format_number(p.value, 3)  # the profile interval, not a Wald ± beside it
+            err = f" ({format_number(p.ci95[0], 3)} .. {format_number(p.ci95[1], 3)})"
         cards.append(
             f'<div class="card"><div class="k">{_e(name)}</div>'
             f'<div class="v">{_e(value)}<span class="pm">{_e(err)}</span></div>'
@@ -144,11 +142,11 @@ def _summary_section(result: FitResult) -> Section:
         )
     cards.append(
         f'<div class="card alt"><div class="k">RMSE</div>'
-        f'<div class="v">{_e(format_value(m["rmse"], 3))}</div><div class="u">m/s²</div></div>'
+        f'<div class="v">{_e(format_number(m["rmse"], 3))}</div><div class="u">m/s²</div></div>'
     )
     cards.append(
         f'<div class="card alt"><div class="k">fit</div>'
-        f'<div class="v">{_e(format_value(m["nrmse_fit_percent"], 3))}</div>'
+        f'<div class="v">{_e(format_number(m["nrmse_fit_percent"], 3))}</div>'
         f'<div class="u">% (NRMSE)</div></div>'
     )
     n_warn = len(result.warnings) + len(match.warnings)
@@ -162,8 +160,8 @@ def _summary_section(result: FitResult) -> Section:
         ["RMSE (m/s²)", "fit (%)", "AIC", "BIC", "samples", "free parameters", "optimizer"],
         [
             [
-                format_value(m["rmse"]),
-                format_value(m["nrmse_fit_percent"], 4),
+                format_number(m["rmse"]),
+                format_number(m["nrmse_fit_percent"], 4),
                 f"{m['aic']:.1f}",
                 f"{m['bic']:.1f}",
                 str(int(m["n_samples"])),
@@ -178,9 +176,9 @@ def _summary_section(result: FitResult) -> Section:
     intro = Paragraph(
         f"Model '{result.model}' fitted to {len(match.data.trials)} step trials "
         f"({int(m['n_samples'])} samples); the optimizer {status}. RMSE "
-        f"{format_value(m['rmse'], 3)} m/s², fit {format_value(m['nrmse_fit_percent'], 3)} %. "
-        f"The paper's method gives m_a = {format_value(c.m_a)} kg and "
-        f"T_a = {format_value(c.T_a, 3)} s." + ("" if n_warn else " No warnings.")
+        f"{format_number(m['rmse'], 3)} m/s², fit {format_number(m['nrmse_fit_percent'], 3)} %. "
+        f"The paper's method gives m_a = {format_number(c.m_a)} kg and "
+        f"T_a = {format_number(c.T_a, 3)} s." + ("" if n_warn else " No warnings.")
     )
     return Section(
         "Summary",
@@ -245,23 +243,23 @@ def _model_section(result: FitResult) -> Section:
 def _paper_section(result: FitResult) -> Section:
     c = result.classic
     v = result.values
-    m_se = format_value(c.m_a_stderr, 2)
+    m_se = format_number(c.m_a_stderr, 2)
     summary = Table(
         ["figure", "paper's method", "simulation matching", "unit"],
         [
             [
                 "m_a, line through the origin",
-                f"{format_value(c.m_a)} ± {m_se}",
-                format_value(v.get("m_a")),
+                f"{format_number(c.m_a)} ± {m_se}",
+                format_number(v.get("m_a")),
                 "kg",
             ],
-            ["free line: slope", format_value(c.free_slope), "", "kg"],
-            ["free line: intercept", format_value(c.intercept_N, 3), "", "N"],
-            ["scatter about the line (RMS)", format_value(c.scatter_N, 3), "", "N"],
+            ["free line: slope", format_number(c.free_slope), "", "kg"],
+            ["free line: intercept", format_number(c.intercept_N, 3), "", "N"],
+            ["scatter about the line (RMS)", format_number(c.scatter_N, 3), "", "N"],
             [
                 "T_a, median over trials",
-                format_value(c.T_a, 3),
-                format_value(
+                format_number(c.T_a, 3),
+                format_number(
                     result.spec_model.drive_lag(v) if result.spec_model.drive_lag_names else None
                 ),
                 "s",
@@ -276,9 +274,9 @@ def _paper_section(result: FitResult) -> Section:
                 str(t.index),
                 f"{t.thrust_N:+.3f}",
                 t.direction,
-                format_value(t.a_zc),
-                format_value(t.T_a, 3),
-                format_value(t.settling_time, 3),
+                format_number(t.a_zc),
+                format_number(t.T_a, 3),
+                format_number(t.settling_time, 3),
             ]
             for t in c.trials
         ],
@@ -288,7 +286,7 @@ def _paper_section(result: FitResult) -> Section:
     by_level = Table(
         ["|f_in| (N)", "direction", "mean T_a (s)", "trials"],
         [
-            [f"{r['thrust_N']:g}", str(r["direction"]), format_value(r["T_a"], 3), str(r["n"])]
+            [f"{r['thrust_N']:g}", str(r["direction"]), format_number(r["T_a"], 3), str(r["n"])]
             for r in c.T_a_table()
         ],
         "T_a per thrust level and direction (the paper's Fig. 8 as a table).",
@@ -343,7 +341,7 @@ def _trials_section(result: FitResult) -> Section:
     rows: list[list[str | Cell]] = []
     for k, (td, ym) in enumerate(zip(trials, curves, strict=True)):
         fit_pc = _trial_fit_percent(np.asarray(td.accel, float), np.asarray(ym, float))
-        r = format_value(rmse[k])
+        r = format_number(rmse[k])
         rows.append(
             [
                 str(td.index),
@@ -354,7 +352,7 @@ def _trials_section(result: FitResult) -> Section:
                 str(len(td.time)),
                 f"{td.time[-1] - td.t_step:.2f}",
                 Cell(r, "warn") if k == worst and len(trials) > 1 else r,
-                format_value(fit_pc, 3),
+                format_number(fit_pc, 3),
             ]
         )
     table = Table(
@@ -395,7 +393,7 @@ def _per_trial_section(result: FitResult) -> Section:
         for n in names:
             value, se = format_estimate(p.values.get(n, float("nan")), p.stderr.get(n))
             cells.append(f"{value} ± {se}" if se != "-" else f"{value} (held)")
-        cells.append(format_value(p.rmse))
+        cells.append(format_number(p.rmse))
         rows.append(cells)
     units = {n: p.unit for n, p in result.match.parameters.items()}
     table = Table(
@@ -469,8 +467,8 @@ def _coupling_section(result: FitResult) -> Section:
         ["oscillation (Hz)", "damping ratio", "stability margin", "verdict", "poles (1/s)"],
         [
             [
-                format_value(cp.oscillation_hz, 3),
-                format_value(cp.damping_ratio, 3),
+                format_number(cp.oscillation_hz, 3),
+                format_number(cp.damping_ratio, 3),
                 f"{cp.stability_margin:+.3g}",
                 Cell(
                     "UNSTABLE: oscillates"

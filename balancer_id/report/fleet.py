@@ -22,7 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from balancer_id.report.blocks import Cell, Paragraph, Plot, Section, Table, format_value
+from balancer_id.numbers import format_number
+from balancer_id.report.blocks import (
+    Cell,
+    Paragraph,
+    Plot,
+    Section,
+    Table,
+)
 
 #: A batch's row (:class:`balancer_id.batch.BatchRow`; the batch layer sits above this one).
 BatchRow = Any
@@ -215,9 +222,9 @@ def _summary_table(
             [
                 n,
                 str(v.size),
-                format_value(float(med)),
-                f"{format_value(float(q1))} .. {format_value(float(q3))}",
-                f"{format_value(float(v.min()))} .. {format_value(float(v.max()))}",
+                format_number(float(med)),
+                f"{format_number(float(q1))} .. {format_number(float(q3))}",
+                f"{format_number(float(v.min()))} .. {format_number(float(v.max()))}",
                 Cell(str(n_out), "warn" if n_out else ""),
             ]
         )
@@ -245,7 +252,7 @@ def _log_table(
         cells: list[str | Cell] = [row.file, "ok"]
         for n in names:
             x = values[n][j]
-            text = format_value(float(x)) if np.isfinite(x) else "-"
+            text = format_number(float(x)) if np.isfinite(x) else "-"
             cells.append(Cell(text + " (outlier)", "warn") if flagged[n][j] else text)
         body.append(cells)
     return Table(["log", "status", *names], body, caption="Values flagged as outliers are marked.")

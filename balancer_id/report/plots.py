@@ -20,6 +20,7 @@ import numpy as np
 
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write
+from balancer_id.numbers import format_number
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -139,11 +140,7 @@ def model_curves(match: MatchResult, label: str | None = None) -> ModelCurves:
 
 def _sig(x: float, digits: int) -> str:
     """``x`` to ``digits`` significant digits, trailing zeros kept (0.0300)."""
-    if not np.isfinite(x):
-        return "-"
-    mantissa, e, exponent = f"{x:#.{digits}g}".partition("e")
-    return mantissa.rstrip(".") + e + exponent
-
+    return format_number(x, digits)
 
 def _rmse(y: np.ndarray, y_model: np.ndarray) -> float:
     r = np.asarray(y, float) - np.asarray(y_model, float)

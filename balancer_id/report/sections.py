@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from balancer_id.numbers import format_number
 from balancer_id.report.blocks import (
     Cell,
     Paragraph,
@@ -13,7 +14,6 @@ from balancer_id.report.blocks import (
     Preformatted,
     Section,
     Table,
-    format_value,
 )
 
 if TYPE_CHECKING:
@@ -69,9 +69,9 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
             [
                 [
                     Cell(d["verdict"], style),
-                    format_value(m["rmse"]),
-                    format_value(m["noise_floor"]),
-                    format_value(m["excess_rmse"]),
+                    format_number(m["rmse"]),
+                    format_number(m["noise_floor"]),
+                    format_number(m["excess_rmse"]),
                 ]
             ],
         ),
@@ -103,7 +103,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
                     r["label"],
                     str(r["n"]),
                     f"{r['mean']:+.4f}",
-                    format_value(r["rms"]),
+                    format_number(r["rms"]),
                     Cell(
                         f"{r['rms_over_noise']:.2f}",
                         "warn" if r["rms_over_noise"] > 1.2 else "",
@@ -170,8 +170,8 @@ def finding_section(diagnosis: Diagnosis) -> Section:
                 [
                     Cell(diagnosis.verdict, style),
                     diagnosis.fit.model,
-                    format_value(m["nrmse_fit_percent"], 3),
-                    format_value(m["rmse"], 3),
+                    format_number(m["nrmse_fit_percent"], 3),
+                    format_number(m["rmse"], 3),
                 ]
             ],
         ),
@@ -227,8 +227,8 @@ def improve_section(result: ImproveResult) -> Section:
             str(k),
             s["model"],
             s["added"] or "-",
-            format_value(s["rmse"]),
-            format_value(s["cv_rmse"]),
+            format_number(s["rmse"]),
+            format_number(s["cv_rmse"]),
             f"{s['bic']:.1f}",
         ]
         for k, s in enumerate(d["steps"])

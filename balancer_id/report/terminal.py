@@ -7,6 +7,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from balancer_id.numbers import format_number
+
 
 def _stderr(console: Console) -> Console:
     """The console messages and warnings go to: stderr, at the same width and colours."""
@@ -31,12 +33,7 @@ def print_command(console: Console, command: str, indent: str = "    ") -> None:
 
 
 def _fmt(x: Any, digits: int = 4) -> str:
-    if x is None:
-        return "-"
-    if isinstance(x, float):
-        return f"{x:.{digits}g}"
-    return str(x)
-
+    return format_number(x, digits) if isinstance(x, float) else ("-" if x is None else str(x))
 
 def print_inspection(console: Console, info: dict[str, Any]) -> None:
     """Print what ``inspect`` read and the trials it found.
