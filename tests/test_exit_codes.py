@@ -177,3 +177,11 @@ def test_without_a_terminal_no_name_is_cut():
     assert res.returncode == 0, res.stderr
     assert "…" not in res.stdout  # rich cut names to fit 80 columns when stdout is a pipe
     assert "variable_viscosity+dead_time+karnopp" in res.stdout
+
+
+def test_one_data_row_is_called_one_row_not_blank_cells(cli, tmp_path):
+    log = tmp_path / "one.csv"
+    log.write_text("Time (s),Force (N),Acceleration (m/s²)\n0,1,9.8\n", encoding="utf-8")
+    code, _, err = cli("inspect", log)
+    assert code == 3
+    assert "only 1 data row(s)" in err and "blank" not in err

@@ -30,6 +30,10 @@ NOTES_ONLY = frozenset({"read.column_guess"})
 SIGNAL_BOUND = 1e6
 
 
+
+#: Fewer data rows than this hold no run (no rate, no rest, no step).
+MIN_ROWS_OF_A_RUN = 3
+
 def read_log(
     path: str | os.PathLike[str],
     *,
@@ -97,6 +101,14 @@ def read_log(
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
             sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
+        )
+    if not recordings and table.n_rows < MIN_ROWS_OF_A_RUN:
+        raise LogReadError(
+            sniffed.path,
+            f"only {table.n_rows} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
+            "samples of a run",
+            line=sniffed.header_line + 1,
+            hint="record longer, or check that the export includes every sample",
         )
     if not recordings:
         raise LogReadError(
