@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import os
 import re
+from datetime import UTC, datetime
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from balancer_id.batch import BatchRow, request_key, run_batch
 from balancer_id.batch.worker import recording_time
 from balancer_id.cli.app import app
 from balancer_id.model import parse_model
+from balancer_id.read import read_log
 from balancer_id.report.blocks import Table
 from balancer_id.report.fleet import fleet_sections, robust_outliers, write_fleet_report
 from balancer_id.simulation.synth import write_synthetic_log
@@ -34,17 +37,29 @@ def test_robust_outliers_flag_the_planted_value_only() -> None:
     assert robust_outliers(with_nan)[17] and not robust_outliers(with_nan)[-1]
 
 
+def _as_fit(path: Path) -> SimpleNamespace:
+    """What recording_time reads of a fit: the log as the reader read it."""
+    log = read_log(path)
+    return SimpleNamespace(trial_set=SimpleNamespace(logs=[SimpleNamespace(log=log)]))
+
+
 def test_recording_time_from_the_export_else_the_file(tmp_path: Path) -> None:
+    # a SPARKvue export with ';' between cells and decimal commas: the reader's clock
     stamped = tmp_path / "stamped.csv"
     stamped.write_text(
-        "Date and Time,Time (s),Force (N)\n2024-03-05 08:15:02,0.0,1.0\n,0.005,1.0\n",
+        "Date and Time;Time (s);Force (N);Acceleration (m/s²)\n"
+        "2024-03-05 08:15:02;0,0;1,0;9,8\n;0,005;1,0;9,8\n;0,010;1,0;9,8\n",
         encoding="utf-8",
     )
-    assert recording_time(str(stamped)) == {"time": "2024-03-05T08:15:02", "source": "export"}
+    os.utime(stamped, (1_700_000_000, 1_700_000_000))  # a copy's time, not the recording's
+    got = recording_time(_as_fit(stamped), str(stamped))
+    assert got["source"] == "export"
+    local = datetime(2024, 3, 5, 8, 15, 2).astimezone(UTC)  # a wall clock in local time
+    assert got["time"] == local.isoformat(timespec="seconds")
     plain = tmp_path / "plain.csv"
-    plain.write_text("Time (s),Force (N)\n0.0,1.0\n", encoding="utf-8")
+    plain.write_text("Time (s),Force (N)\n0.0,1.0\n0.005,1.0\n0.01,1.0\n", encoding="utf-8")
     os.utime(plain, (1_700_000_000, 1_700_000_000))
-    got = recording_time(str(plain))
+    got = recording_time(_as_fit(plain), str(plain))
     assert got["source"] == "file time"
     assert got["time"] == "2023-11-14T22:13:20+00:00"
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import re
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -160,7 +159,7 @@ def _identify(
                     "summary": found.summary,
                     "suggestions": [s.to_dict() for s in found.suggestions[:3]],
                 }
-        data["recorded"] = recording_time(path)
+        data["recorded"] = recording_time(result, path)
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]
         data["warnings"] = list(dict.fromkeys([*data.get("warnings", []), *notes]))
         return {"status": "ok", "result": data, "seconds": time.perf_counter() - start}
@@ -194,24 +193,18 @@ def _unexpected(exc: BaseException, effects_files: Sequence[str]) -> tuple[str, 
     return f"internal error: {what}", INTERNAL_EXIT_CODE
 
 
-_DATETIME_HEADER = re.compile(
-    r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I
-)
-#: The same at the start of any cell of a row joined with ``\x1f`` (a cheap pre-check).
-_ANY_DATETIME_HEADER = re.compile(
-    r"(?:^|\x1f)\s*(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I
-)
+def recording_time(result: Any, path: str) -> dict[str, str | None]:
+    """When a log was recorded: the reader's clock for it, else the file's time.
 
-
-def recording_time(path: str) -> dict[str, str | None]:
-    """When a log was recorded: the export's first date-time cell, else the file's time.
-
-    Exports that carry a wall-clock column (Capstone's "Date and Time", a generic
-    ``datetime`` column) give the recording's start; other logs fall back to the file's
-    modification time, which a copy may have changed. ``source`` says which.
+    The reader takes a run's start from the export itself (a date-and-time column, an
+    epoch clock in the time column) whatever its layout and delimiter
+    (:attr:`~balancer_id.read.recording.Recording.started_at`); other logs fall back to
+    the file's modification time, which a copy may have changed. ``source`` says which.
 
     Parameters
     ----------
+    result : FitResult
+        The log's fit (its trial set holds the log as read).
     path : str
         The log.
 
@@ -220,50 +213,20 @@ def recording_time(path: str) -> dict[str, str | None]:
     dict
         ``{"time": ISO 8601 or None, "source": "export" | "file time" | None}``.
     """
-    import csv
     from datetime import UTC, datetime
 
-    try:
-        with open(path, newline="", encoding="utf-8", errors="replace") as handle:
-            head = [row for _, row in zip(range(40), csv.reader(handle), strict=False)]
-    except OSError:
-        head = []
-    except csv.Error:
-        head = []
-    for k, row in enumerate(head):
-        if not _ANY_DATETIME_HEADER.search("\x1f".join(row)):  # one search a row, not a cell
-            continue
-        cols = [j for j, cell in enumerate(row) if _DATETIME_HEADER.match(cell.strip())]
-        if not cols:
-            continue
-        for later in head[k + 1 :]:
-            for j in cols:
-                stamp = _parse_stamp(later[j] if j < len(later) else "")
-                if stamp is not None:
-                    return {"time": stamp, "source": "export"}
-        break
+    starts = [
+        rec.started_at
+        for loaded in getattr(result.trial_set, "logs", [])
+        for rec in loaded.log.recordings
+        if rec.started_at is not None
+    ]
+    if starts:
+        stamp = datetime.fromtimestamp(min(starts), tz=UTC).isoformat(timespec="seconds")
+        return {"time": stamp, "source": "export"}
     try:
         mtime = os.stat(path).st_mtime
     except OSError:
         return {"time": None, "source": None}
     stamp = datetime.fromtimestamp(mtime, tz=UTC).isoformat(timespec="seconds")
     return {"time": stamp, "source": "file time"}
-
-
-def _parse_stamp(text: str) -> str | None:
-    """An ISO 8601 string of a date-time cell, or None when it is not one."""
-    from datetime import datetime
-
-    text = text.strip()
-    if not text:
-        return None
-    try:
-        return datetime.fromisoformat(text.replace("/", "-")).isoformat(timespec="seconds")
-    except ValueError:
-        pass
-    for fmt in ("%m-%d-%Y %H:%M:%S", "%d.%m.%Y %H:%M:%S", "%m-%d-%Y %I:%M:%S %p"):
-        try:
-            return datetime.strptime(text.replace("/", "-"), fmt).isoformat(timespec="seconds")
-        except ValueError:
-            continue
-    return None
