@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.classic import paper_method
@@ -95,6 +96,53 @@ def trial_data(trials: TrialSet) -> list[TrialData]:
     return data
 
 
+def from_parameters(
+    params: Any, model: Model
+) -> tuple[dict[str, float], dict[str, float], dict[str, tuple[float, float]]]:
+    """``lmfit.Parameters`` as held values, start values and narrower bounds.
+
+    Parameters
+    ----------
+    params : lmfit.Parameters
+        Any mapping of name to an object with ``value``, ``vary``, ``min`` and ``max``.
+    model : Model
+        The model they are for.
+
+    Returns
+    -------
+    (held, start, bounds)
+
+    Raises
+    ------
+    UsageError
+        A name that is not one of the model's parameters, or a value that is not finite.
+    """
+    import math
+
+    held: dict[str, float] = {}
+    starts: dict[str, float] = {}
+    spans: dict[str, tuple[float, float]] = {}
+    for name, p in params.items():
+        if name not in model.param_names:
+            raise UsageError(
+                f"params: {name} is not a parameter of '{model.spec}' "
+                f"(its parameters: {', '.join(model.param_names)})"
+            )
+        value = float(p.value)
+        if not math.isfinite(value):
+            raise UsageError(f"params: {name} = {value}: give a finite value")
+        if not p.vary:
+            held[name] = value
+            continue
+        starts[name] = value
+        own = model.param(name)
+        lo = max(float(p.min), own.min) if math.isfinite(float(p.min)) else own.min
+        hi = min(float(p.max), own.max) if math.isfinite(float(p.max)) else own.max
+        if (lo, hi) != (own.min, own.max):
+            spans[name] = (lo, hi)
+    return held, starts, spans
+
+
 def fit(
     trials: Sources,
     *,
@@ -111,6 +159,7 @@ def fit(
     profile: bool = True,
     start: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
+    params: Any = None,
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -147,6 +196,11 @@ def fit(
         Start values (``--start``), instead of the paper's method's and the defaults.
     bounds : mapping of str to (float, float), optional
         Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``).
+    params : lmfit.Parameters, optional
+        "Parameters in, Parameters out": each parameter's ``value`` is a start (``vary``)
+        or a held value (``vary=False``), and its ``min``/``max`` bound the fit where
+        they are narrower than the model's own. ``fixed``, ``start`` and ``bounds`` win
+        over it. The result's :attr:`~FitResult.params` gives Parameters back.
 
     Returns
     -------
@@ -158,6 +212,11 @@ def fit(
         No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
+    if params is not None:
+        held, starts, spans = from_parameters(params, mdl)
+        fixed = {**held, **(fixed or {})}
+        start = {**starts, **(start or {})}
+        bounds = {**spans, **(bounds or {})}
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     if mdl.needs_reference_move and given is None:  # before any log is read
         raise UsageError(

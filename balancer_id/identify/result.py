@@ -160,6 +160,30 @@ class FitResult(Displayable):
         return {k: v for k, v in self.fixed.items() if k in names}
 
     @property
+    def params(self) -> Any:
+        """The fit as ``lmfit.Parameters``: value, stderr, bounds, vary and correlations.
+
+        "Parameters in, Parameters out": :func:`~balancer_id.identify.api.fit` takes
+        them back (``params=``) as starts, held values and bounds.
+
+        Returns
+        -------
+        lmfit.Parameters
+        """
+        import lmfit
+
+        out = lmfit.Parameters()
+        model = self.match.model
+        for name, est in self.match.parameters.items():
+            spec = model.param(name)
+            out.add(name, value=est.value, min=spec.min, max=spec.max, vary=est.vary)
+            out[name].stderr = est.stderr
+        for name, row in (self.match.correlations or {}).items():
+            if name in out:
+                out[name].correl = {k: v for k, v in row.items() if k != name}
+        return out
+
+    @property
     def advice(self) -> Advice | None:
         """Settings that damp the robot-balancer mode (paper section IV), checked by
         simulation; None for a model without a robot (no ``servo``).
