@@ -39,12 +39,7 @@ def _prepare_model(
             f"--fix {', '.join(unknown)}: not a parameter of '{mdl.spec}' "
             f"(its parameters: {', '.join(mdl.param_names)})"
         )
-    if mdl.needs_reference_move and not with_trajectory:
-        names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
-        raise UsageError(
-            f"a model with '{names}' needs the robot's reference move: give --trajectory "
-            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
-        )
+    mdl.require_reference_move(True if with_trajectory else None)
     if warm:
         warm_kernel(mdl)
     return mdl

@@ -489,9 +489,7 @@ def simulate(
     if seed < 0:
         raise UsageError(f"--seed {seed}: give a seed >= 0")
     traj = trajectory(trajectory_text)
-    if mdl.needs_reference_move and traj is None:
-        names = "+".join(e.name for e in mdl.effects if e.needs_reference_move())
-        raise UsageError(f"a model with '{names}' needs --trajectory")
+    mdl.require_reference_move(traj)
     if force_sign not in (1, -1):
         raise UsageError("--force-sign must be +1 or -1")
     if not 0.0 <= noise_correlation < 1.0:

@@ -218,12 +218,7 @@ def fit(
         start = {**starts, **(start or {})}
         bounds = {**spans, **(bounds or {})}
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
-    if mdl.needs_reference_move and given is None:  # before any log is read
-        raise UsageError(
-            f"a model with '{'+'.join(e.name for e in mdl.effects if e.needs_reference_move())}'"
-            " needs the robot's reference move: give --trajectory "
-            "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
-        )
+    mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
     data = trial_data(ts)
     if not data:

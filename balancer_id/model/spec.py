@@ -61,6 +61,28 @@ class Model:
         """Whether an effect of the model needs the robot's reference move (``servo``)."""
         return any(e.needs_reference_move() for e in self.effects)
 
+    def require_reference_move(self, given: object) -> None:
+        """Refuse a model that needs the robot's reference move when none is given.
+
+        Parameters
+        ----------
+        given : object
+            The reference move (None: not given).
+
+        Raises
+        ------
+        UsageError
+            One message, whichever command or function finds it (exit 2).
+        """
+        if self.needs_reference_move and given is None:
+            from balancer_id.errors import UsageError
+
+            names = "+".join(e.name for e in self.effects if e.needs_reference_move())
+            raise UsageError(
+                f"a model with '{names}' needs the robot's reference move: give --trajectory "
+                "'trapezoid:distance=...,speed=...,accel=...' or a CSV of time,position"
+            )
+
     @property
     def drive_lag_names(self) -> tuple[str, ...]:
         """Parameters declared as the drive's lag (``T_a``, or ``T_up`` and ``T_down``)."""
