@@ -67,10 +67,10 @@ def _lagged(t: np.ndarray, u: np.ndarray, lag: float) -> np.ndarray:
     """``u`` through ``T df/dt = u - f`` from ``f = u[0]`` (the median sample interval)."""
     if lag <= 0 or u.size < 2:
         return u.copy()
-    from scipy.signal import lfilter
+    from balancer_id.simulation.filters import first_order_lag
 
     alpha = float(np.exp(-np.median(np.diff(t)) / lag))
-    return u[0] + lfilter([0.0, 1.0 - alpha], [1.0, -alpha], u - u[0])
+    return u[0] + first_order_lag(u - u[0], alpha)
 
 
 def response_start(trials: Sequence[TrialData]) -> ResponseStart:
