@@ -784,30 +784,20 @@ def report(
 
     Example: balancer-id report sample_logs/paper_balancer.csv --out report.html
     """
-    from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
-    from balancer_id.report.document import check_report_path
-    from balancer_id.report.sections import write_full_report
+    from balancer_id.workflows import report as run_report
 
-    check_outputs({"--out": out}, inputs_of(logs, effects_file, trajectory_text), overwrite)
-    check_report_path(out, logs)
-    result = _fit(
-        logs,
-        options,
-        model=model,
-        fix=fix,
-        effects_file=effects_file,
-        trajectory_text=trajectory_text,
-        per_trial=True,
-    )
-    with stage("diagnosing"):
-        diagnosis = run_diagnose(result)
-    from balancer_id.diagnostics.improve import improve as run_improve
-
-    with stage("improving: adding the suggested effects while they help"):
-        improved = run_improve(result, diagnosis=diagnosis)
-    with stage(f"writing {out}"):
-        write_full_report(result, diagnosis, out, improved)
-    typer.echo(f"wrote {out}", err=True)
+    with stage(f"reporting on {len(logs)} log(s)"):
+        done = run_report(
+            logs,
+            out,
+            model=model,
+            fixed=assignments(fix, "--fix"),
+            options=options,
+            effects_files=effects_file or (),
+            trajectory=trajectory_text,
+            overwrite=overwrite,
+        )
+    typer.echo(f"wrote {done.path}", err=True)
 
 
 @app.command()
