@@ -9,7 +9,7 @@ whatever order they are called (no subpackage carries the name of one of them)::
     improve(fit) -> ImproveResult                  add effects while they help
     compare(trials, models) -> [ModelComparison]
     validate(fit_or_params, new_logs) -> Validation  does a saved model hold on new logs?
-    report(logs, "report.html") -> FullReport      fit, diagnose, improve, write
+    full_report(logs, "report.html") -> FullReport  fit, diagnose, improve, write
     simulate(model, values, thrust, ...)           the balancer's response
     read_log(path) -> Log
 
@@ -53,7 +53,7 @@ _LAZY = {
     "improve": "balancer_id.diagnostics.api",
     "compare": "balancer_id.diagnostics.api",
     "validate": "balancer_id.diagnostics.validate",
-    "report": "balancer_id.workflows",
+    "full_report": "balancer_id.workflows",
 }
 
 

@@ -1,4 +1,4 @@
-"""Workflows held by the library: ``bid.report`` is what ``balancer-id report`` runs."""
+"""Workflows held by the library: ``bid.full_report`` is what ``balancer-id report`` runs."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ LOG = SAMPLE_LOGS / "paper_balancer.csv"
 
 def test_report_is_one_library_call(tmp_path):
     out = tmp_path / "report.html"
-    done = bid.report(LOG, out, model="variable_viscosity")
+    done = bid.full_report(LOG, out, model="variable_viscosity")
     assert done.path == out and out.is_file()
     text = out.read_text(encoding="utf-8")
     assert done.diagnosis.verdict in text  # what it computed is what it wrote
@@ -25,5 +25,5 @@ def test_report_never_writes_over_an_input(tmp_path):
     log = tmp_path / "log.csv"
     log.write_bytes(LOG.read_bytes())
     with pytest.raises(UsageError, match="one of the inputs"):
-        bid.report(log, log, overwrite=True)
+        bid.full_report(log, log, overwrite=True)
     assert log.read_bytes() == LOG.read_bytes()

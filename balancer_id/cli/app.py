@@ -784,7 +784,7 @@ def report(
 
     Example: balancer-id report sample_logs/paper_balancer.csv --out report.html
     """
-    from balancer_id.workflows import report as run_report
+    from balancer_id.workflows import full_report as run_report
 
     with stage(f"reporting on {len(logs)} log(s)"):
         done = run_report(

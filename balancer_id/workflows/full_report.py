@@ -3,7 +3,7 @@
 ``balancer-id report`` is this function; a notebook or a script calls it the same way::
 
     import balancer_id as bid
-    bid.report("sample_logs/paper_balancer.csv", "report.html")
+    bid.full_report("sample_logs/paper_balancer.csv", "report.html")
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from balancer_id.report.sections import write_full_report
 from balancer_id.status import tell
 from balancer_id.trials import ReadOptions, TrialSet, as_trial_set
 
-__all__ = ["FullReport", "report"]
+__all__ = ["FullReport", "full_report"]
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class FullReport:
     improved: ImproveResult
 
 
-def report(
+def full_report(
     logs: TrialSet | str | Path | Sequence[str | Path],
     out: str | Path,
     *,
