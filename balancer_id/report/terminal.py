@@ -67,14 +67,8 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 else ("sign is a guess: fix it with --vertical or --force-sign")
             )
             console.print(f"    vertical (up): {run['vertical']} ({known})")
-    for w in info.get("warnings", []):
+    for w in info.get("warnings", []):  # the trials' warnings are there, named
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
-    for t in info["trials"]:
-        for note in t.get("notes", []):
-            if note.startswith("warning:"):
-                _stderr(console).print(
-                    f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}"
-                )
     table = Table(title=trials_title(info["trials"]))
     cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
     for col in (*cols, "ends by"):

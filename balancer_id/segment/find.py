@@ -36,6 +36,7 @@ def find_trials(
     vertical: str = "auto",
     g: float = G_DEFAULT,
     min_step_N: float = 0.0,
+    thrusts_signed: bool | None = None,
 ) -> list[Trial]:
     """Find every step trial in every run of a log.
 
@@ -51,9 +52,10 @@ def find_trials(
     log : Log
         What a reader returned.
     thrusts : sequence of float, optional
-        One thrust (N) per trial found, in order over all runs. Their magnitudes
-        replace the measured force steps (and are required without a force channel);
-        the sign is the motion's, a negative value is checked against it.
+        One thrust (N) per trial found, in order over all runs: each trial's new level.
+        They replace the measured force steps (and are required without a force
+        channel). Signed thrusts keep their signs (a sign the motion disagrees with is a
+        ``segment.thrust_sign`` warning naming the trial); magnitudes take the motion's.
     force_sign : {+1, -1}, optional
         Fixes the direction from the force step: up when ``force step * force_sign > 0``.
     vertical : {"auto", "x", "y", "z", "-z", ...}, optional
@@ -63,6 +65,9 @@ def find_trials(
         Gravity (m/s^2) removed from with-g acceleration.
     min_step_N : float, optional
         Smallest force step reported (N).
+    thrusts_signed : bool or None, optional
+        Whether ``thrusts`` carry signs to keep (``--thrust +5,+5``); None: signed when
+        any value is negative; False: magnitudes.
 
     Returns
     -------
@@ -130,11 +135,14 @@ def find_trials(
             log.warnings.append(text)
     first = np.cumsum([0] + [len(r.steps) for r in runs])
     run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
+    signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
     for run, gv in zip(runs, run_given, strict=True):
-        orient(run, gv, force_sign)
+        orient(run, gv, force_sign, signed=signed)
     trials: list[Trial] = []
     for run, i0, gv in zip(runs, first, run_given, strict=False):
-        trials.extend(build_trials(run, int(i0), gv, force_sign, settings, str(log.path)))
+        trials.extend(
+            build_trials(run, int(i0), gv, force_sign, settings, str(log.path), signed=signed)
+        )
     return trials
 
 
