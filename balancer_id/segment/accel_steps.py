@@ -63,6 +63,10 @@ BACK_AT_REST_FRACTION = 0.1
 #: measured around the change (:func:`level_noise`).
 REST_K_SIGMA = 3.0
 
+#: A motion not yet caught goes on over a drop-out up to this long (s): after it, a stretch
+#: of the motion's opposite sign is its catch, never a new trial (issue 17.6).
+MAX_CARRY_GAP_S = 1.0
+
 #: A catch takes back the velocity gained since the onset to within this factor either
 #: way (the integrals of the acceleration over the resting level; drift and tilt blur them).
 CATCH_IMPULSE_FRACTION = 0.25
@@ -113,28 +117,51 @@ def detect_accel_steps(
     det = Detection([], float(np.max(np.abs(mean - rest))) if n else 0.0, thr, "m/s^2")
     edges = np.concatenate([[0], breaks, [n]]).astype(int)
     half = n_samples(CHANGE_HALF_S, rate, 3)
+    # a motion not yet caught, carried over a short drop-out (issue 17.6): its sign, the
+    # onset of the trial it belongs to (-1: begun at a drop-out), and whether it is cut
+    carried, owner = 0, -1
+
+    def goes_on(hi: int, sign: int) -> bool:
+        """Whether the motion at the end of the stretch ending at ``hi`` goes on past the
+        drop-out there: a short gap, and the acceleration off rest with the same sign
+        after it (a motion cut by a drop-out, not a short stretch)."""
+        if hi >= n or time[hi] - time[hi - 1] > MAX_CARRY_GAP_S:
+            return False
+        after = mean[hi : min(n, hi + w)] - rest[hi : min(n, hi + w)]
+        return after.size > 0 and float(np.median(after)) * sign > thr
+
     for lo, hi in itertools.pairwise(edges):
         if hi - lo < 2 * w:
             continue
         dev = mean[lo:hi] - rest[lo:hi]
         stretches = _active(dev, thr, n_samples(settings.merge_s, rate))
-        awaiting = 0  # sign of a trial not yet caught
+        short_gap = lo > 0 and time[lo] - time[lo - 1] <= MAX_CARRY_GAP_S
+        awaiting = carried if short_gap else 0  # sign of a trial not yet caught
+        cut = bool(awaiting)  # its motion began before this stretch: its impulse is cut
+        moving_at_start = bool(awaiting)
         first = len(det.steps)
         catches: list[tuple[int, int]] = []  # (the catch, the onset of the motion it stops)
         for st in stretches:
             start, stop = lo + st.start, lo + st.stop
             length = (stop - start) / rate
+            if start - lo < w and not awaiting and lo > 0:
+                # moving when the drop-out ended: a motion under way, not a departure
+                awaiting, owner, cut, moving_at_start = st.sign, -1, True, True
+                det.reject("under way after a drop-out")
+                continue
+            since = max(owner, lo) - lo if owner >= 0 else 0
             if (
                 awaiting
                 and st.sign == -awaiting
                 and length < settings.max_catch_s
-                and _stops(dev, det.steps[-1].onset - lo, st.start, st.stop)
+                and _stops(dev, since, st.start, st.stop, cut=cut or st.stop >= hi - lo - w)
             ):
                 awaiting = 0
-                catches.append((start, det.steps[-1].onset))
+                catches.append((start, owner))
                 det.reject("a catch")
                 continue
-            if start - lo < w or length < settings.min_trial_s:
+            cut_short = st.stop >= hi - lo - w and goes_on(hi, st.sign)
+            if start - lo < w or (length < settings.min_trial_s and not cut_short):
                 det.reject("too short or too close to a gap or the run's edge")
                 continue  # a short stretch of an uncaught trial's sign is its motion
             # the mean leaves rest up to ~1 s after a slow, small rise begins
@@ -147,18 +174,21 @@ def detect_accel_steps(
             dep = clipped_mean(post, clip) - clipped_mean(pre, clip)
             z = abs(dep) / (sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
             det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
-            awaiting = 0 if st.reverses else st.sign
+            awaiting, owner, cut = (0 if st.reverses else st.sign), int(k), False
             if st.reverses:  # caught inside its own stretch? the catch ends the motion
                 back = st.start + int(np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0])
                 short = (st.stop - back) / rate < settings.max_catch_s
-                if short and _stops(dev, k - lo, back, st.stop):
+                ends_cut = st.stop >= hi - lo - w  # the drop-out cuts the catch
+                if short and _stops(dev, k - lo, back, st.stop, cut=ends_cut):
                     catches.append((lo + back, int(k)))
         if hi - lo > 4 * half and rate >= MIN_TREND_RATE_HZ:
             kept = _changes_while_moving(
                 time, a, rest, lo, hi, det.steps[first:], catches, half, thr, sigma, clip, rate,
-                settings,
+                settings, moving_at_start=moving_at_start,
+                earlier={st.onset for st in det.steps[:first]},
             )  # fmt: skip
             det.steps[first:] = kept
+        carried = awaiting
     return det
 
 
@@ -222,6 +252,9 @@ def _changes_while_moving(
     clip: float,
     rate: float,
     settings: StepSettings,
+    *,
+    moving_at_start: bool = False,
+    earlier: set[int] | frozenset[int] = frozenset(),
 ) -> list[Step]:
     """The onsets of one gap-free stretch, with the thrust changes made while moving.
 
@@ -292,17 +325,19 @@ def _changes_while_moving(
     stopped = dict(catches)  # catch -> the onset of the motion it stops
     events = sorted(
         [(st.onset, 0, st) for st in steps]
-        + [(c, 1, None) for c, _ in catches if abrupt(c)]
+        # (near a drop-out the step cannot be measured: a catch there is taken as it is)
+        + [(c, 1, None) for c, _ in catches if abrupt(c) or hi - c <= 2 * half]
         + [(p, 2, None) for p in peaks]
     )
     out: list[Step] = []
-    moving = False
+    moving = moving_at_start  # a motion carried over a drop-out
     caught = -(10**12)  # start of the last catch
     after, span = n_samples(0.5, rate), n_samples(settings.response_s, rate)
     w_pre = odd(n_samples(settings.accel_window_s, rate, 3))
     for k, kind, st in events:
         if kind == 1:
-            if not any(d.onset == stopped[k] for d in out):
+            owner = stopped[k]
+            if owner >= 0 and owner not in earlier and not any(d.onset == owner for d in out):
                 continue  # the catch of a departure not kept (a sway) stops no motion
             moving, caught = False, k
         elif kind == 0:
@@ -318,10 +353,15 @@ def _changes_while_moving(
                 continue  # the change that started this motion, or its side lobe
             if caught - half <= k <= caught + catch_s + half:
                 continue  # the catch itself
+            if any(0 <= c - k <= half for c, _ in catches):
+                continue  # a catch ahead, inside the window that measured the change
             if not moving and (out or any(abs(k - d.onset) <= 2 * half for d in steps)):
                 continue  # at rest, departures are found from the resting level
             start = out[-1].onset if moving and out else k  # the motion's first onset
-            pre = a[max(lo, start - 2 * half) : max(lo, start - half // 2)]
+            if moving and not out and earlier:  # carried over a drop-out: its onset is back
+                start = max(earlier)
+            first = lo if start >= lo else 0  # (the rest before a carried motion is back too)
+            pre = a[max(first, start - 2 * half) : max(first, start - half // 2)]
             still = clipped_mean(pre, clip) if pre.size >= half // 2 else rest[k]
             dep = float(step[k - lo])
             noise, mean_noise = local_noise(k)
@@ -401,14 +441,18 @@ def _resting_level(mean: np.ndarray, thr: float, rate: float) -> np.ndarray:
     return out[np.where(last >= 0, last, have[0])]
 
 
-def _stops(dev: np.ndarray, onset: int, start: int, stop: int) -> bool:
+def _stops(dev: np.ndarray, onset: int, start: int, stop: int, *, cut: bool = False) -> bool:
     """Whether the opposite stretch ``[start, stop)`` can be the catch of the motion that
     began at ``onset``: a catch stops the load, so its impulse (the integral of the
     acceleration over the resting level) takes back the velocity gained since the onset,
     to within a factor :data:`CATCH_IMPULSE_FRACTION` either way. A ride's sway or a
     hand's tremor in steady travel leaves the resting level too, but stops nothing; a
-    thrust reversed while moving takes back far more.
+    thrust reversed while moving takes back far more. When the motion began before a
+    drop-out, or the catch is cut by one (``cut``), the impulses are unknown: an
+    opposite stretch (what the caller checks) is taken as the catch.
     """
+    if cut:
+        return True
     gained = float(np.sum(dev[max(onset, 0) : start]))
     taken = float(np.sum(dev[start:stop]))
     share = abs(taken) / max(abs(gained), 1e-300)

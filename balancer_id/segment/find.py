@@ -15,7 +15,7 @@ from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
 from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
-from balancer_id.segment.robust import fill_nan, rate_of
+from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
 from balancer_id.segment.steps import (
     Detection,
     Step,
@@ -146,6 +146,39 @@ def find_trials(
     return trials
 
 
+def find_onsets(
+    log: Log, *, vertical: str = "auto", g: float = G_DEFAULT, min_step_N: float = 0.0
+) -> dict[str, list[float]]:
+    """The onsets the detector keeps in every run, without building trials.
+
+    What ``inspect`` lists when a log without a force channel comes without thrusts;
+    for tests and benchmarks that count onsets (a phantom onset, one in steady travel).
+
+    Parameters
+    ----------
+    log : Log
+        What a reader returned.
+    vertical : str, optional
+        Vertical axis (see :func:`find_trials`).
+    g : float, optional
+        Gravity (m/s^2).
+    min_step_N : float, optional
+        Smallest force step reported (N).
+
+    Returns
+    -------
+    dict of str to list of float
+        Run name -> onset times (s), in order.
+    """
+    check_vertical(vertical)
+    settings = StepSettings(min_step_N=float(min_step_N))
+    out = {}
+    for rec in log.recordings:
+        run = _detect(rec, vertical, g, settings)
+        out[rec.name] = [float(rec.time[st.onset]) for st in run.steps]
+    return out
+
+
 def _check_arguments(
     thrusts: Sequence[float] | None, force_sign: int | None, vertical: str, min_step_N: float
 ) -> list[float] | None:
@@ -218,6 +251,12 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             for i in range(1, len(steps))
             if (settled := windows[i - 1].settled) is not None and steps[i].onset < settled
         ]
+        if force is not None and not caught:
+            released = _released_after_gaps(force, steps, windows, rate, settings)
+            if released:
+                det.reject("the thrust released after a drop-out (a catch)")
+                steps = steps[: released[0]] + steps[released[0] + 1 :]
+                continue
         if not caught:
             if accel is None and force is not None:
                 steps, windows, dropped = end_at_releases(rec.time, force, steps, windows, settings)
@@ -226,6 +265,35 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             return Run(rec, motion, breaks, steps, windows, _why(det, what))
         det.reject("inside a catch")
         steps = steps[: caught[0]] + steps[caught[0] + 1 :]
+
+
+def _released_after_gaps(
+    force: np.ndarray, steps: list[Step], windows: list[Window], rate: float, settings: StepSettings
+) -> list[int]:
+    """Steps that release the thrust of a trial a drop-out cut short (issue 17.6).
+
+    A trial's window ends at a gap; the load may still move past it. A force step after
+    the gap that brings the force back to its rest before the trial (the weight taken
+    off as the load is caught) is that trial's catch, as
+    :func:`~balancer_id.segment.window.end_at_releases` finds without acceleration, and
+    no trial of its own.
+    """
+    win = n_samples(settings.level_window_s, rate)
+    ga = n_samples(settings.guard_after_s, rate)
+    gb = n_samples(settings.guard_before_s, rate)
+    out = []
+    for i in range(1, len(steps)):
+        j = i - 1
+        if windows[j].end_reason != "gap" or not np.isfinite(steps[j].size):
+            continue
+        while j and windows[j - 1].end_reason == "next step":
+            j -= 1  # first step of the chain the gap cut
+        k, k0 = steps[i].onset, steps[j].onset
+        rest = level(force[windows[j].start : max(windows[j].start + 1, k0 - gb)])
+        after = level(force[k + ga : k + ga + win])
+        if abs(after - rest) < 0.25 * abs(steps[i - 1].size):
+            out.append(i)
+    return out
 
 
 def _moved(st: Step, mounting: int | None, settings: StepSettings) -> bool:
@@ -265,9 +333,7 @@ MAX_RUN_WARNINGS = 5
 
 def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:
     """Add the note that ``run`` gave no trial, and why, to the log (once)."""
-    note = Note(
-        "segment.run_without_trial", f"{run}: no step trial found ({why})", subject=run
-    )
+    note = Note("segment.run_without_trial", f"{run}: no step trial found ({why})", subject=run)
     if note not in log.notes:
         log.notes.append(note)
         if not quiet:
