@@ -58,7 +58,7 @@ LOCAL_K_SIGMA = 4.0
 #: After a change while moving, an acceleration back within this fraction of the change
 #: from the resting level is a stop or steady travel (an elevator reaching its speed, a
 #: winding-speed limit), not a new thrust level.
-BACK_AT_REST_FRACTION = 0.1
+BACK_AT_REST_FRACTION = 0.2
 #: ... or within this many noise standard deviations of a one-``CHANGE_HALF_S`` mean
 #: measured around the change (:func:`level_noise`).
 REST_K_SIGMA = 3.0
@@ -144,9 +144,17 @@ def detect_accel_steps(
         for st in stretches:
             start, stop = lo + st.start, lo + st.stop
             length = (stop - start) / rate
-            if start - lo < w and not awaiting and lo > 0:
+            if start - lo < w and lo > 0 and (not awaiting or st.sign == awaiting):
                 # moving when the drop-out ended: a motion under way, not a departure
-                awaiting, owner, cut, moving_at_start = st.sign, -1, True, True
+                if not awaiting:
+                    awaiting, owner, cut, moving_at_start = st.sign, -1, True, True
+                if st.reverses:  # ... and caught inside the stretch
+                    back = st.start + int(
+                        np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0]
+                    )
+                    if (st.stop - back) / rate < settings.max_catch_s:
+                        catches.append((lo + back, owner))
+                        awaiting = 0
                 det.reject("under way after a drop-out")
                 continue
             since = max(owner, lo) - lo if owner >= 0 else 0
@@ -313,11 +321,7 @@ def _changes_while_moving(
         seg = a[k + after : min(hi, k + span, *ends[:1])]
         if seg.size < 3:
             return False
-        # the level is measured after k: the noise there counts too (a cruise's sway)
-        there = level_noise(
-            a[k + half : min(hi, k + half + LOCAL_NOISE_HALVES * half)], half, sigma
-        )
-        tol = max(thr, BACK_AT_REST_FRACTION * abs(change), REST_K_SIGMA * max(per_mean, there[1]))
+        tol = max(thr, BACK_AT_REST_FRACTION * abs(change), REST_K_SIGMA * per_mean)
         reached = clipped_mean(seg, clip)
         return min(abs(reached - x) for x in levels) > tol
 
@@ -367,7 +371,9 @@ def _changes_while_moving(
             noise, mean_noise = local_noise(k)
             if abs(dep) <= LOCAL_K_SIGMA * noise * gain:
                 continue  # does not stand out of the noise around it (steady travel)
-            if not new_level(k, dep, mean_noise, (still, rest[k])):
+            # a motion carried over a drop-out may also have stopped at the resting level
+            levels = (still, rest[k]) if start < lo else (still,)
+            if not new_level(k, dep, mean_noise, levels):
                 continue  # the motion stopped or travels steadily: no new thrust level
             onset = rise_onset(time, a, lo, hi, k, half)
             if onset - lo < 3 or hi - onset < 3:
