@@ -27,6 +27,7 @@ if TYPE_CHECKING:
 #: Values of ``vertical``.
 VERTICAL_AXES = ("auto", "x", "y", "z")
 
+
 @dataclass(frozen=True)
 class ReadOptions:
     """How logs are read and segmented (the CLI's common options); checked when made.
@@ -248,8 +249,7 @@ def trajectory_text(trajectory: Any) -> str | None:
     if not all(hasattr(t, k) for k in ("distance", "speed", "accel")):
         return None
     return (
-        f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},"
-        f"start={t.start!r}"
+        f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},start={t.start!r}"
     )
 
 
@@ -573,7 +573,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
                 "t_last": float(rec.time[-1]) if rec.n_samples else None,
                 "channels": channels,
                 "saturated": dict(rec.saturated),
-                **_vertical_of(rec.name, trials),
+                **_vertical_of(log, rec.name, trials),
                 **_no_trial_reason(log, rec.name, trials),
             }
         )
@@ -586,9 +586,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "gaps": gaps,
         "runs": runs,
         "warnings": [*log.warnings, *(str(w) for w in trial_warnings)],
-        "notes": notes_json(
-            [*log.notes, *(as_note(w, "segment.other") for w in trial_warnings)]
-        ),
+        "notes": notes_json([*log.notes, *(as_note(w, "segment.other") for w in trial_warnings)]),
         "trials": [t.to_dict() for t in trials],
     }
 
@@ -630,9 +628,13 @@ def _no_trial_reason(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, o
     return {}
 
 
-def _vertical_of(run: str, trials: Sequence[Trial]) -> dict[str, object]:
-    """The up axis of a run and whether its sign is known, from its trials."""
+def _vertical_of(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, object]:
+    """The up axis of a run, whether its sign and the axis itself are known: from the
+    segmentation (with or without trials), else from its trials."""
+    found = dict(log.verticals.get(run, {}))
     for t in trials:
         if t.recording == run and t.vertical:
-            return {"vertical": t.vertical, "vertical_sign_known": t.vertical_sign_known}
-    return {}
+            found.setdefault("vertical", t.vertical)
+            found["vertical_sign_known"] = t.vertical_sign_known
+            break
+    return found

@@ -66,6 +66,10 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 if run.get("vertical_sign_known", True)
                 else ("sign is a guess: fix it with --vertical or --force-sign")
             )
+            if not run.get("vertical_axis_known", True):  # the axis itself is assumed
+                known = "the axis is a guess, and its sign: give it with --vertical"
+                if run.get("vertical_sign_known", True):
+                    known = "the axis is a guess (its sign fixed): give it with --vertical"
             console.print(f"    vertical (up): {run['vertical']} ({known})")
     for w in info.get("warnings", []):  # the trials' warnings are there, named
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")

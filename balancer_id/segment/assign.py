@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -130,7 +131,7 @@ def orient(
             Step(st.onset, st.size, -st.response, st.response_z, st.source) for st in run.steps
         ]
     else:
-        run.motion = VerticalMotion(m.accel, m.up, m.rest, f"{m.method}; sign agrees with {source}")
+        run.motion = dataclasses.replace(m, method=f"{m.method}; sign agrees with {source}")
 
 
 def _direction(
@@ -260,7 +261,7 @@ def build_trials(
                 thrust_change_N=float(change),
                 continues=bool(chained[j]),
                 thrust_given=given is not None,
-                vertical=vertical_name(run.motion, rec.accel_axes),
+                vertical=vertical_name(run.motion, rec.accel_axes, at=st.onset),
                 vertical_sign_known=run.motion is None or run.motion.sign_known,
                 typed_notes=typed,
             )
@@ -312,7 +313,9 @@ def _given_level(
     return change, level_new
 
 
-def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
+def vertical_name(
+    motion: VerticalMotion | None, axes: tuple[str, ...], at: int | None = None
+) -> str:
     """Name the vertical (up) direction in the sensor frame: ``"+z"`` or ``"-x, 12 deg off"``.
 
     Parameters
@@ -321,6 +324,9 @@ def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
         The run's vertical motion (None: no acceleration channel).
     axes : tuple of str
         Names of the acceleration columns.
+    at : int, optional
+        A sample: the up direction of the orientation the sensor was in there (a sensor
+        turned during the run); default the run's main one.
 
     Returns
     -------
@@ -330,7 +336,7 @@ def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
     """
     if motion is None or motion.up.size == 0:
         return ""
-    up = np.asarray(motion.up, float)
+    up = np.asarray(motion.up if at is None else motion.up_at(at), float)
     names = axes if len(axes) == up.size else ("x", "y", "z")[: up.size]
     j = int(np.argmax(np.abs(up)))
     norm = float(np.linalg.norm(up)) or 1.0

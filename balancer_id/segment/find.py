@@ -9,10 +9,10 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError, NoTrialError, UsageError
-from balancer_id.notes import Note
+from balancer_id.notes import Note, has_code
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
-from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
+from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient, vertical_name
 from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
@@ -87,6 +87,7 @@ def find_trials(
     given = _check_arguments(thrusts, force_sign, vertical, min_step_N)
     settings = StepSettings(min_step_N=float(min_step_N))
     runs = [_detect(rec, vertical, g, settings) for rec in log.recordings]
+    _note_verticals(log, runs)
     total = sum(len(r.steps) for r in runs)
     if total == 0 and given is None:
         moves = [
@@ -138,6 +139,7 @@ def find_trials(
     signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
     for run, gv in zip(runs, run_given, strict=True):
         orient(run, gv, force_sign, signed=signed)
+    _note_verticals(log, runs)  # the signs the force or the thrusts fixed
     trials: list[Trial] = []
     for run, i0, gv in zip(runs, first, run_given, strict=False):
         trials.extend(
@@ -210,6 +212,9 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     """
     motion = vertical_motion(rec, vertical=vertical, g=g)
     breaks = gap_breaks(rec, settings.bridge_gap_s)
+    if motion is not None and motion.turns:  # a turned sensor: no window crosses a turn
+        edges = [i for turn in motion.turns for i in turn if 0 < i < rec.n_samples]
+        breaks = np.unique(np.concatenate([breaks, np.asarray(edges, dtype=int)]))
     usable = rec.force is not None and np.isfinite(rec.force).sum() >= 2
     force = fill_nan(rec.force) if usable and rec.force is not None else None
     accel = motion.accel if motion is not None else None
@@ -329,6 +334,32 @@ def _windows(
 
 #: More runs without a trial than this are summed up in one warning (each keeps its note).
 MAX_RUN_WARNINGS = 5
+
+
+def _note_verticals(log: Log, runs: list[Run]) -> None:
+    """Record each run's up direction on the log (``inspect`` shows it with or without
+    trials) and note an up axis that is a guess (``read.vertical_guess``, once)."""
+    for r in runs:
+        m = r.motion
+        if m is None:
+            continue
+        name = vertical_name(m, r.rec.accel_axes)
+        log.verticals[r.rec.name] = {
+            "vertical": name,
+            "vertical_sign_known": bool(m.sign_known),
+            "vertical_axis_known": bool(m.axis_known),
+        }
+        if m.axis_known or has_code(log.notes, "read.vertical_guess", r.rec.name):
+            continue
+        log.notes.append(
+            Note(
+                "read.vertical_guess",
+                f"{r.rec.name}: the up axis {name} is a guess ({m.method}); give it with "
+                "--vertical x|y|z|-z|... if it is another",
+                subject=r.rec.name,
+                severity="info",
+            )
+        )
 
 
 def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:
