@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import NoTrialError, UsageError
-from balancer_id.notes import Note, notes_json
+from balancer_id.notes import Note, as_note, notes_json
 from balancer_id.read.recording import Log
 from balancer_id.segment.trial import Trial
 
@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 #: Values of ``vertical``.
 VERTICAL_AXES = ("auto", "x", "y", "z")
+
 
 @dataclass(frozen=True)
 class ReadOptions:
@@ -37,6 +38,10 @@ class ReadOptions:
         Column map for generic CSVs (``time=..., force=..., ax=...``).
     thrusts : list of float or None
         Thrust of each trial (N), when the force channel is missing or unreliable.
+    thrusts_signed : bool or None
+        Whether the thrusts carry signs to keep (``--thrust +5,-2``: a value written with
+        ``+`` or ``-`` makes the list signed); False: magnitudes, the sign of each comes
+        from the motion; None (the default): signed when any value is negative.
     force_sign : int or None
         Sign of the force channel (+1/-1); None: direction from the motion.
     vertical : str
@@ -63,6 +68,7 @@ class ReadOptions:
     g: float = G_DEFAULT
     accel_unit: str = "auto"
     windows: tuple[tuple[float, float], ...] = ()
+    thrusts_signed: bool | None = None
 
     def __post_init__(self) -> None:
         from balancer_id.read.generic import MAP_KEYS
@@ -90,6 +96,8 @@ class ReadOptions:
             if not all(math.isfinite(f) for f in thrusts):
                 raise UsageError("--thrust: give each trial's thrust in N as a finite number")
             object.__setattr__(self, "thrusts", thrusts)
+            if self.thrusts_signed is None:
+                object.__setattr__(self, "thrusts_signed", any(f < 0 for f in thrusts))
         if self.columns is not None:
             cmap = {str(k).strip().lower(): str(v).strip() for k, v in self.columns.items()}
             unknown = sorted(set(cmap) - set(MAP_KEYS))
@@ -143,11 +151,15 @@ class ReadOptions:
             A malformed list or an option out of range.
         """
         thrusts = None
+        signed = None
         if thrust is not None:
+            items = [x.strip() for x in thrust.split(",") if x.strip()]
             try:
-                thrusts = [float(x) for x in thrust.split(",") if x.strip()]
+                thrusts = [float(x) for x in items]
             except ValueError:
                 raise UsageError(f"--thrust '{thrust}': give numbers separated by commas") from None
+            # a sign written on any value (+5 or -5) is kept: the list is signed
+            signed = any(x[0] in "+-" for x in items)
         cmap = None
         if columns:
             cmap = {}
@@ -175,6 +187,7 @@ class ReadOptions:
             g=g,
             accel_unit=accel_unit,
             windows=tuple(windows),
+            thrusts_signed=signed,
         )
 
     def to_dict(self) -> dict[str, object]:
@@ -182,6 +195,7 @@ class ReadOptions:
         return {
             "columns": dict(self.columns) if self.columns is not None else None,
             "thrusts": list(self.thrusts) if self.thrusts is not None else None,
+            "thrusts_signed": self.thrusts_signed,
             "force_sign": self.force_sign,
             "vertical": self.vertical,
             "g": self.g,
@@ -199,7 +213,8 @@ class ReadOptions:
         """
         args: list[str] = []
         if self.thrusts is not None:
-            args += ["--thrust", ",".join(repr(f) for f in self.thrusts)]
+            spell = "{:+}" if self.thrusts_signed else "{}"
+            args += ["--thrust", ",".join(spell.format(f) for f in self.thrusts)]
         if self.force_sign is not None:
             args += ["--force-sign", str(self.force_sign)]
         if self.vertical != "auto":
@@ -234,8 +249,7 @@ def trajectory_text(trajectory: Any) -> str | None:
     if not all(hasattr(t, k) for k in ("distance", "speed", "accel")):
         return None
     return (
-        f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},"
-        f"start={t.start!r}"
+        f"trapezoid:distance={t.distance!r},speed={t.speed!r},accel={t.accel!r},start={t.start!r}"
     )
 
 
@@ -284,6 +298,11 @@ class TrialSet:
 
     def __len__(self) -> int:
         return len(self.trials) + len(self.loose)
+
+    def trial_notes(self) -> list[Note]:
+        """The warnings of the segmented trials, each named by its trial (see
+        :func:`trial_notes`), for the top-level ``warnings`` of a fit."""
+        return trial_notes(self.trials)
 
     def option_args(self) -> list[str]:
         """The command-line options that reproduce how this set was read.
@@ -367,6 +386,7 @@ def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None
     return find_trials(
         log,
         thrusts=options.thrusts,
+        thrusts_signed=options.thrusts_signed,
         force_sign=options.force_sign,
         vertical=options.vertical,
         g=options.g,
@@ -571,12 +591,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
     runs = []
     gaps = []
     # a trial's warnings reach the top level, named by the trial
-    trial_warnings = [
-        f"trial {t.index}: {n.removeprefix('warning:').strip()}"
-        for t in trials
-        for n in t.notes
-        if str(n).startswith("warning:")
-    ]
+    trial_warnings: list[Note | str] = list(trial_notes(trials))
     if log.recordings and all(rec.accel is None for rec in log.recordings):
         trial_warnings.insert(
             0,
@@ -600,7 +615,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
                 "t_last": float(rec.time[-1]) if rec.n_samples else None,
                 "channels": channels,
                 "saturated": dict(rec.saturated),
-                **_vertical_of(rec.name, trials),
+                **_vertical_of(log, rec.name, trials),
                 **_no_trial_reason(log, rec.name, trials),
             }
         )
@@ -612,10 +627,37 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "n_samples": log.n_samples,
         "gaps": gaps,
         "runs": runs,
-        "warnings": [*log.warnings, *trial_warnings],
-        "notes": notes_json([*log.notes, *(Note("segment.other", w) for w in trial_warnings)]),
+        "warnings": [*log.warnings, *(str(w) for w in trial_warnings)],
+        "notes": notes_json([*log.notes, *(as_note(w, "segment.other") for w in trial_warnings)]),
         "trials": [t.to_dict() for t in trials],
     }
+
+
+def trial_notes(trials: Sequence[Trial]) -> list[Note]:
+    """The warnings of the trials (their notes starting with ``warning:``), each named by
+    its trial, for a result's top-level ``warnings`` and ``notes``.
+
+    Parameters
+    ----------
+    trials : sequence of Trial
+        Segmented trials.
+
+    Returns
+    -------
+    list of Note
+        ``"trial N: ..."``, with the trial's code (``segment.thrust_sign``) or
+        ``segment.other``, subject ``"trial N"``.
+    """
+    out = []
+    for t in trials:
+        subject = f"trial {t.index}"
+        typed = {n.text: n.code for n in getattr(t, "typed_notes", ())}
+        for text in map(str, t.notes):
+            if text.startswith("warning:"):
+                code = typed.get(text, "segment.other")
+                said = text.removeprefix("warning:").strip()
+                out.append(Note(code, f"{subject}: {said}", subject))
+    return out
 
 
 def _no_trial_reason(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, object]:
@@ -628,9 +670,13 @@ def _no_trial_reason(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, o
     return {}
 
 
-def _vertical_of(run: str, trials: Sequence[Trial]) -> dict[str, object]:
-    """The up axis of a run and whether its sign is known, from its trials."""
+def _vertical_of(log: Log, run: str, trials: Sequence[Trial]) -> dict[str, object]:
+    """The up axis of a run, whether its sign and the axis itself are known: from the
+    segmentation (with or without trials), else from its trials."""
+    found = dict(log.verticals.get(run, {}))
     for t in trials:
         if t.recording == run and t.vertical:
-            return {"vertical": t.vertical, "vertical_sign_known": t.vertical_sign_known}
-    return {}
+            found.setdefault("vertical", t.vertical)
+            found["vertical_sign_known"] = t.vertical_sign_known
+            break
+    return found

@@ -126,6 +126,7 @@ def _request_variants():
         "g": 9.81,
         "accel_unit": "g",
         "windows": ((2.0, 5.0),),
+        "thrusts_signed": True,
     }
     fields = {f.name for f in dataclasses.fields(FitRequest)} - {"options"}
     assert fields == set(changed), "a new request field needs a variant here"

@@ -140,6 +140,21 @@ def test_with_g_header_over_data_without_gravity_is_warned(tmp_path: Path) -> No
     assert "the values hold no gravity" in note.text
 
 
+def test_without_g_header_over_data_with_gravity_is_warned(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    up = np.array([0.2, -0.1, 0.97]) / np.linalg.norm([0.2, -0.1, 0.97])
+    data = 9.81 * up + rng.normal(0, 0.05, (200, 3))
+    lines = [f"{0.01 * i:.2f},{x:.4f},{y:.4f},{z:.4f}" for i, (x, y, z) in enumerate(data)]
+    head = (
+        '"Time (s)","Linear Acceleration x (m/s^2)","Linear Acceleration y (m/s^2)",'
+        '"Linear Acceleration z (m/s^2)"\n'
+    )
+    log = read_log(_write(tmp_path, "withg.csv", head + "\n".join(lines) + "\n"))
+    assert log.recordings[0].accel_includes_gravity
+    (note,) = [n for n in log.notes if n.code == "read.gravity_header"]
+    assert "the values hold gravity" in note.text
+
+
 def test_zip_named_csv_is_named_a_zip(tmp_path: Path) -> None:
     path = tmp_path / "Raw Data.csv"
     with zipfile.ZipFile(path, "w") as archive:

@@ -108,7 +108,8 @@ class FitResult(Displayable):
     @property
     def all_notes(self) -> list[Note | str]:
         """The fit's notes, those that make it untrusted first (then in order)."""
-        notes = [*self.warnings, *self.match.warnings]
+        # the trials' warnings (a given thrust sign the motion disagrees with) come along
+        notes = [*self.warnings, *self.match.warnings, *self.trial_set.trial_notes()]
         first = [n for n in notes if isinstance(n, Note) and n.severity == "error"]
         return [*first, *(n for n in notes if n not in first)]
 

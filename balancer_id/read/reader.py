@@ -14,6 +14,7 @@ from balancer_id.read.assemble import build_recordings
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
 from balancer_id.read.layouts import detect_layout
+from balancer_id.read.orientation import orientations, turned_note_text
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
 from balancer_id.read.sniff import Sniffed, sniff
@@ -119,6 +120,10 @@ def read_log(
         )
     found = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
     found += [as_note(w, "read.other") for w in warnings]
+    for rec in recordings:  # a sensor turned during the run (issue 19.3)
+        parts = orientations(rec, g)
+        if len(parts) > 1:
+            found.append(Note("read.turned_sensor", turned_note_text(rec, parts), rec.name))
     return Log(
         path=sniffed.path,
         format=fmt,

@@ -112,6 +112,10 @@ class Log:
         ``read.time_unit``, ``read.gravity_header``, ``read.column_guess``, a subject and
         the text); code decides on ``note.code``. Remarks without a code of their own
         carry ``read.other``.
+    verticals : dict of str to dict
+        Run name -> how its vertical was found, once the log was segmented:
+        ``{"vertical": "+z, 12 deg off", "vertical_sign_known": bool,
+        "vertical_axis_known": bool}`` (``inspect`` shows it with or without trials).
     """
 
     path: Path
@@ -119,6 +123,7 @@ class Log:
     recordings: list[Recording]
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)
+    verticals: dict[str, dict[str, object]] = field(default_factory=dict)
 
     @property
     def n_samples(self) -> int:

@@ -63,15 +63,13 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 if run.get("vertical_sign_known", True)
                 else ("sign is a guess: fix it with --vertical or --force-sign")
             )
+            if not run.get("vertical_axis_known", True):  # the axis itself is assumed
+                known = "the axis is a guess, and its sign: give it with --vertical"
+                if run.get("vertical_sign_known", True):
+                    known = "the axis is a guess (its sign fixed): give it with --vertical"
             console.print(f"    vertical (up): {run['vertical']} ({known})")
-    for w in info.get("warnings", []):
+    for w in info.get("warnings", []):  # the trials' warnings are there, named
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
-    for t in info["trials"]:
-        for note in t.get("notes", []):
-            if note.startswith("warning:"):
-                _stderr(console).print(
-                    f"  [yellow]warning:[/yellow] trial {t['index']}: {note[9:]}"
-                )
     table = Table(title=trials_title(info["trials"]))
     cols = ("#", "run", "t_step (s)", "window (s)", "thrust (N)", "change (N)", "direction")
     for col in (*cols, "ends by"):

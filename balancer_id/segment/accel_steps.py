@@ -47,6 +47,30 @@ MIN_TREND_RATE_HZ = 50.0
 #: Highest rate (Hz) of the onset search; faster logs are searched on block means first.
 SEARCH_HZ = 200
 
+#: An onset while moving must stand out of the noise measured near it
+#: (:func:`level_noise`, over this many :data:`CHANGE_HALF_S` on either side, the quieter
+#: side counting), not only of the log's resting noise: a ride's or a hand's sway in
+#: travel is no thrust change.
+LOCAL_NOISE_HALVES = 8
+#: ... by this many standard deviations of that noise.
+LOCAL_K_SIGMA = 4.0
+
+#: After a change while moving, an acceleration back within this fraction of the change
+#: from the resting level is a stop or steady travel (an elevator reaching its speed, a
+#: winding-speed limit), not a new thrust level.
+BACK_AT_REST_FRACTION = 0.2
+#: ... or within this many noise standard deviations of a one-``CHANGE_HALF_S`` mean
+#: measured around the change (:func:`level_noise`).
+REST_K_SIGMA = 3.0
+
+#: A motion not yet caught goes on over a drop-out up to this long (s): after it, a stretch
+#: of the motion's opposite sign is its catch, never a new trial (issue 17.6).
+MAX_CARRY_GAP_S = 1.0
+
+#: A catch takes back the velocity gained since the onset to within this factor either
+#: way (the integrals of the acceleration over the resting level; drift and tilt blur them).
+CATCH_IMPULSE_FRACTION = 0.25
+
 
 @dataclass(frozen=True)
 class _Stretch:
@@ -93,22 +117,59 @@ def detect_accel_steps(
     det = Detection([], float(np.max(np.abs(mean - rest))) if n else 0.0, thr, "m/s^2")
     edges = np.concatenate([[0], breaks, [n]]).astype(int)
     half = n_samples(CHANGE_HALF_S, rate, 3)
+    # a motion not yet caught, carried over a short drop-out (issue 17.6): its sign, the
+    # onset of the trial it belongs to (-1: begun at a drop-out), and whether it is cut
+    carried, owner = 0, -1
+
+    def goes_on(hi: int, sign: int) -> bool:
+        """Whether the motion at the end of the stretch ending at ``hi`` goes on past the
+        drop-out there: a short gap, and the acceleration off rest with the same sign
+        after it (a motion cut by a drop-out, not a short stretch)."""
+        if hi >= n or time[hi] - time[hi - 1] > MAX_CARRY_GAP_S:
+            return False
+        after = mean[hi : min(n, hi + w)] - rest[hi : min(n, hi + w)]
+        return after.size > 0 and float(np.median(after)) * sign > thr
+
     for lo, hi in itertools.pairwise(edges):
         if hi - lo < 2 * w:
             continue
-        stretches = _active(mean[lo:hi] - rest[lo:hi], thr, n_samples(settings.merge_s, rate))
-        awaiting = 0  # sign of a trial not yet caught
+        dev = mean[lo:hi] - rest[lo:hi]
+        stretches = _active(dev, thr, n_samples(settings.merge_s, rate))
+        short_gap = lo > 0 and time[lo] - time[lo - 1] <= MAX_CARRY_GAP_S
+        awaiting = carried if short_gap else 0  # sign of a trial not yet caught
+        cut = bool(awaiting)  # its motion began before this stretch: its impulse is cut
+        moving_at_start = bool(awaiting)
         first = len(det.steps)
-        catches: list[int] = []
+        catches: list[tuple[int, int]] = []  # (the catch, the onset of the motion it stops)
         for st in stretches:
             start, stop = lo + st.start, lo + st.stop
             length = (stop - start) / rate
-            if awaiting and st.sign == -awaiting and length < settings.max_catch_s:
+            if start - lo < w and lo > 0 and (not awaiting or st.sign == awaiting):
+                # moving when the drop-out ended: a motion under way, not a departure
+                if not awaiting:
+                    awaiting, owner, cut, moving_at_start = st.sign, -1, True, True
+                if st.reverses:  # ... and caught inside the stretch
+                    back = st.start + int(
+                        np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0]
+                    )
+                    if (st.stop - back) / rate < settings.max_catch_s:
+                        catches.append((lo + back, owner))
+                        awaiting = 0
+                det.reject("under way after a drop-out")
+                continue
+            since = max(owner, lo) - lo if owner >= 0 else 0
+            if (
+                awaiting
+                and st.sign == -awaiting
+                and length < settings.max_catch_s
+                and _stops(dev, since, st.start, st.stop, cut=cut or st.stop >= hi - lo - w)
+            ):
                 awaiting = 0
-                catches.append(start)
+                catches.append((start, owner))
                 det.reject("a catch")
                 continue
-            if start - lo < w or length < settings.min_trial_s:
+            cut_short = st.stop >= hi - lo - w and goes_on(hi, st.sign)
+            if start - lo < w or (length < settings.min_trial_s and not cut_short):
                 det.reject("too short or too close to a gap or the run's edge")
                 continue  # a short stretch of an uncaught trial's sign is its motion
             # the mean leaves rest up to ~1 s after a slow, small rise begins
@@ -121,13 +182,21 @@ def detect_accel_steps(
             dep = clipped_mean(post, clip) - clipped_mean(pre, clip)
             z = abs(dep) / (sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
             det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
-            awaiting = 0 if st.reverses else st.sign
+            awaiting, owner, cut = (0 if st.reverses else st.sign), int(k), False
+            if st.reverses:  # caught inside its own stretch? the catch ends the motion
+                back = st.start + int(np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0])
+                short = (st.stop - back) / rate < settings.max_catch_s
+                ends_cut = st.stop >= hi - lo - w  # the drop-out cuts the catch
+                if short and _stops(dev, k - lo, back, st.stop, cut=ends_cut):
+                    catches.append((lo + back, int(k)))
         if hi - lo > 4 * half and rate >= MIN_TREND_RATE_HZ:
             kept = _changes_while_moving(
                 time, a, rest, lo, hi, det.steps[first:], catches, half, thr, sigma, clip, rate,
-                settings,
+                settings, moving_at_start=moving_at_start,
+                earlier={st.onset for st in det.steps[:first]},
             )  # fmt: skip
             det.steps[first:] = kept
+        carried = awaiting
     return det
 
 
@@ -184,13 +253,16 @@ def _changes_while_moving(
     lo: int,
     hi: int,
     steps: list[Step],
-    catches: list[int],
+    catches: list[tuple[int, int]],
     half: int,
     thr: float,
     sigma: float,
     clip: float,
     rate: float,
     settings: StepSettings,
+    *,
+    moving_at_start: bool = False,
+    earlier: set[int] | frozenset[int] = frozenset(),
 ) -> list[Step]:
     """The onsets of one gap-free stretch, with the thrust changes made while moving.
 
@@ -203,6 +275,16 @@ def _changes_while_moving(
     """
     step, gain = step_trend(a[lo:hi], half)
     level = max(settings.min_accel_step, settings.accel_k_sigma * sigma * gain)
+
+    def local_noise(k: int) -> tuple[float, float]:
+        """The noise near ``k`` (issue 19.4), as a white-equivalent sample noise and the
+        noise of a ``half``-long mean: travel (a ride's sway, a hand's tremor) can be
+        noisier, and slower, than the rest the log's ``sigma`` was measured on."""
+        side = LOCAL_NOISE_HALVES * half
+        before = level_noise(a[max(lo, k - half - side) : max(lo, k - half)], half, sigma)
+        after = level_noise(a[min(hi, k + half) : min(hi, k + half + side)], half, sigma)
+        return min(before, after)  # another motion's edge on one side is no noise
+
     mag = np.nan_to_num(np.abs(step))
     peaks: list[int] = []
     order = np.argsort(-mag)
@@ -215,28 +297,58 @@ def _changes_while_moving(
         peaks.append(lo + int(j))
         taken[max(0, j - 2 * half) : j + 2 * half] = True
     peaks.sort()
+
     # a catch is abrupt: a "catch" the step does not confirm is the level following the decay
     def abrupt(k: int) -> bool:
         return bool(np.any(mag[max(0, k - lo - half) : k - lo + half] > level))
 
+    def stands_out(st: Step) -> bool:
+        """A departure while moving must stand out of the noise of the means around it
+        (a ride's sway leaves the resting level too), not only of the resting noise,
+        and reach a level away from rest (a return to rest is steady travel)."""
+        _, per_mean = local_noise(st.onset)  # noise of a `half`-long mean
+        pre_n, post_n = max(w_pre, 1), max(span, 1)
+        se = per_mean * np.sqrt(half / pre_n + half / post_n)
+        if abs(st.response) <= LOCAL_K_SIGMA * se:
+            return False
+        return new_level(st.onset, st.response, per_mean, (rest[st.onset],))
+
+    def new_level(k: int, change: float, per_mean: float, levels: tuple[float, ...]) -> bool:
+        """Whether the acceleration after ``k`` (up to the next catch) sits away from every
+        level of ``levels`` (rest, the level before the motion): else the motion stopped
+        or travels steadily, and no thrust level is new."""
+        ends = [c for c, _ in catches if c > k + after]
+        seg = a[k + after : min(hi, k + span, *ends[:1])]
+        if seg.size < 3:
+            return False
+        tol = max(thr, BACK_AT_REST_FRACTION * abs(change), REST_K_SIGMA * per_mean)
+        reached = clipped_mean(seg, clip)
+        return min(abs(reached - x) for x in levels) > tol
+
     catch_s = n_samples(settings.max_catch_s, rate)
+    stopped = dict(catches)  # catch -> the onset of the motion it stops
     events = sorted(
         [(st.onset, 0, st) for st in steps]
-        + [(c, 1, None) for c in catches if abrupt(c)]
+        # (near a drop-out the step cannot be measured: a catch there is taken as it is)
+        + [(c, 1, None) for c, _ in catches if abrupt(c) or hi - c <= 2 * half]
         + [(p, 2, None) for p in peaks]
     )
     out: list[Step] = []
-    moving = False
+    moving = moving_at_start  # a motion carried over a drop-out
     caught = -(10**12)  # start of the last catch
     after, span = n_samples(0.5, rate), n_samples(settings.response_s, rate)
+    w_pre = odd(n_samples(settings.accel_window_s, rate, 3))
     for k, kind, st in events:
         if kind == 1:
+            owner = stopped[k]
+            if owner >= 0 and owner not in earlier and not any(d.onset == owner for d in out):
+                continue  # the catch of a departure not kept (a sway) stops no motion
             moving, caught = False, k
         elif kind == 0:
             # a departure from rest starts a motion; one while moving must be abrupt (else
             # it is the resting level following the slow decay) and not already found
             near = bool(out) and abs(k - out[-1].onset) <= 2 * half
-            if st is not None and (not moving or (abrupt(k) and not near)):
+            if st is not None and (not moving or (abrupt(k) and not near and stands_out(st))):
                 out.append(st)
                 moving = True
         else:
@@ -245,21 +357,69 @@ def _changes_while_moving(
                 continue  # the change that started this motion, or its side lobe
             if caught - half <= k <= caught + catch_s + half:
                 continue  # the catch itself
+            if any(0 <= c - k <= half for c, _ in catches):
+                continue  # a catch ahead, inside the window that measured the change
             if not moving and (out or any(abs(k - d.onset) <= 2 * half for d in steps)):
                 continue  # at rest, departures are found from the resting level
             start = out[-1].onset if moving and out else k  # the motion's first onset
-            pre = a[max(lo, start - 2 * half) : max(lo, start - half // 2)]
+            if moving and not out and earlier:  # carried over a drop-out: its onset is back
+                start = max(earlier)
+            first = lo if start >= lo else 0  # (the rest before a carried motion is back too)
+            pre = a[max(first, start - 2 * half) : max(first, start - half // 2)]
             still = clipped_mean(pre, clip) if pre.size >= half // 2 else rest[k]
-            seg = a[k + after : min(hi, k + span)]
-            if seg.size < 3 or abs(clipped_mean(seg, clip) - still) <= thr:
-                continue  # the motion stopped: back at the resting level, no new level
+            dep = float(step[k - lo])
+            noise, mean_noise = local_noise(k)
+            if abs(dep) <= LOCAL_K_SIGMA * noise * gain:
+                continue  # does not stand out of the noise around it (steady travel)
+            # a motion carried over a drop-out may also have stopped at the resting level
+            levels = (still, rest[k]) if start < lo else (still,)
+            if not new_level(k, dep, mean_noise, levels):
+                continue  # the motion stopped or travels steadily: no new thrust level
             onset = rise_onset(time, a, lo, hi, k, half)
             if onset - lo < 3 or hi - onset < 3:
                 continue
-            dep = float(step[k - lo])
-            out.append(Step(int(onset), float("nan"), dep, abs(dep) / (sigma * gain), "accel"))
+            out.append(Step(int(onset), float("nan"), dep, abs(dep) / (noise * gain), "accel"))
             moving = True
     return sorted(out, key=lambda st: st.onset)
+
+
+def level_noise(x: np.ndarray, block: int, sigma: float) -> tuple[float, float]:
+    """The noise of ``x`` as it moves a mean over ``block`` samples, coloured noise included.
+
+    The means of ``x`` over every ``block``-long window are differenced with those of the
+    window that follows (a steady level cancels, a trend leaves a constant that is taken
+    out; a single change moves the differences over ``2 block`` samples only) and the
+    robust spread of the differences (1.4826 x their median absolute deviation) is the
+    noise of a difference of two means, ``sqrt(2)`` times that of one. White noise of
+    standard deviation ``s`` gives ``s / sqrt(block)`` per mean; slow sway (a ride, a
+    hand) gives more.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Samples without NaN.
+    block : int
+        Length of the mean (samples).
+    sigma : float
+        The log's resting noise per sample: the floor of the white-equivalent noise.
+
+    Returns
+    -------
+    white : float
+        The per-sample noise a white signal would need to move means as much (at least
+        ``sigma``).
+    mean : float
+        The noise of one ``block``-long mean (at least ``sigma / sqrt(block)``).
+    """
+    block = max(int(block), 1)
+    floor = sigma / np.sqrt(block)
+    if x.size < 3 * block:
+        return sigma, floor
+    c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=float))])
+    means = (c[block:] - c[:-block]) / block
+    d = means[block:] - means[:-block]
+    one = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
+    return max(sigma, one * np.sqrt(block)), max(floor, one)
 
 
 def _resting_level(mean: np.ndarray, thr: float, rate: float) -> np.ndarray:
@@ -285,6 +445,24 @@ def _resting_level(mean: np.ndarray, thr: float, rate: float) -> np.ndarray:
         return base
     last = np.maximum.accumulate(np.where(np.isfinite(out), np.arange(mean.size), -1))
     return out[np.where(last >= 0, last, have[0])]
+
+
+def _stops(dev: np.ndarray, onset: int, start: int, stop: int, *, cut: bool = False) -> bool:
+    """Whether the opposite stretch ``[start, stop)`` can be the catch of the motion that
+    began at ``onset``: a catch stops the load, so its impulse (the integral of the
+    acceleration over the resting level) takes back the velocity gained since the onset,
+    to within a factor :data:`CATCH_IMPULSE_FRACTION` either way. A ride's sway or a
+    hand's tremor in steady travel leaves the resting level too, but stops nothing; a
+    thrust reversed while moving takes back far more. When the motion began before a
+    drop-out, or the catch is cut by one (``cut``), the impulses are unknown: an
+    opposite stretch (what the caller checks) is taken as the catch.
+    """
+    if cut:
+        return True
+    gained = float(np.sum(dev[max(onset, 0) : start]))
+    taken = float(np.sum(dev[start:stop]))
+    share = abs(taken) / max(abs(gained), 1e-300)
+    return gained * taken < 0 and CATCH_IMPULSE_FRACTION <= share <= 1 / CATCH_IMPULSE_FRACTION
 
 
 def _active(dev: np.ndarray, thr: float, merge: int) -> list[_Stretch]:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from balancer_id.notes import Note
 from balancer_id.read.recording import Recording
 from balancer_id.segment.gravity import VerticalMotion
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
@@ -83,11 +85,13 @@ def mounting_sign(
     return None
 
 
-def orient(run: Run, given: list[float] | None, force_sign: int | None) -> None:
+def orient(
+    run: Run, given: list[float] | None, force_sign: int | None, *, signed: bool | None = None
+) -> None:
     """Fix the sign of an automatic linear-acceleration vertical (in place).
 
     The vertical is flipped when most steps move against ``force_sign`` (or, without
-    it, against the signs of the given thrusts when any is negative).
+    it, against the signs of the given thrusts when they are signed).
 
     Parameters
     ----------
@@ -97,8 +101,12 @@ def orient(run: Run, given: list[float] | None, force_sign: int | None) -> None:
         The run's given thrusts.
     force_sign : int or None
         The user's force sign.
+    signed : bool or None, optional
+        Whether the given thrusts carry signs (None: when any is negative).
     """
     m = run.motion
+    if signed is None:
+        signed = given is not None and any(v < 0 for v in given)
     if m is None or m.sign_known:
         return
     expected: list[float] = []
@@ -106,7 +114,7 @@ def orient(run: Run, given: list[float] | None, force_sign: int | None) -> None:
     if force_sign is not None and all(np.isfinite(st.size) for st in run.steps):
         expected = [float(np.sign(st.size * force_sign)) for st in run.steps]
         source = "force_sign"
-    elif given is not None and any(v < 0 for v in given):
+    elif given is not None and signed:
         expected = [float(np.sign(v)) for v in given]
         source = "the signed thrusts"
     pairs = [
@@ -123,11 +131,15 @@ def orient(run: Run, given: list[float] | None, force_sign: int | None) -> None:
             Step(st.onset, st.size, -st.response, st.response_z, st.source) for st in run.steps
         ]
     else:
-        run.motion = VerticalMotion(m.accel, m.up, m.rest, f"{m.method}; sign agrees with {source}")
+        run.motion = dataclasses.replace(m, method=f"{m.method}; sign agrees with {source}")
 
 
 def _direction(
-    st: Step, force_sign: int | None, mounting: int | None, k_sigma: float, notes: list[str]
+    st: Step,
+    force_sign: int | None,
+    mounting: int | None,
+    k_sigma: float,
+    notes: list[str],
 ) -> int:
     """+1 (up) or -1 (down) for one step, noting how it was decided when not by motion.
 
@@ -158,6 +170,8 @@ def build_trials(
     force_sign: int | None,
     settings: StepSettings,
     source: str,
+    *,
+    signed: bool | None = None,
 ) -> list[Trial]:
     """Cut the trials of one run.
 
@@ -175,11 +189,16 @@ def build_trials(
         Detector constants.
     source : str
         The file, for ``Trial.source``.
+    signed : bool or None, optional
+        Whether ``given`` carries signs to keep (``--thrust +5,+5``); None: when any
+        value is negative; False: magnitudes, signed by the motion.
 
     Returns
     -------
     list of Trial
     """
+    if signed is None:
+        signed = given is not None and any(v < 0 for v in given)
     rec = run.rec
     chained = [
         i > 0 and run.windows[i - 1].end_reason == "next step" for i in range(len(run.steps))
@@ -193,12 +212,15 @@ def build_trials(
     ref_chain = np.nan  # force reading at the rest before the chain's first onset
     for j, (st, win) in enumerate(zip(run.steps, run.windows, strict=True)):
         notes = list(run.notes)
+        typed: list[Note] = []
         sign = _direction(st, force_sign, mounting, settings.response_k_sigma, notes)
         change = abs(st.size) * sign
         if not chained[j]:
             level_now = 0.0
         if given is not None:
-            change, level_new = _given_level(given, j, sign, level_now, chained[j], notes)
+            change, level_new = _given_level(
+                given, j, sign, level_now, chained[j], notes, signed=signed, typed=typed
+            )
         else:
             level_new = level_now + change
         if accel is None:
@@ -239,8 +261,9 @@ def build_trials(
                 thrust_change_N=float(change),
                 continues=bool(chained[j]),
                 thrust_given=given is not None,
-                vertical=vertical_name(run.motion, rec.accel_axes),
+                vertical=vertical_name(run.motion, rec.accel_axes, at=st.onset),
                 vertical_sign_known=run.motion is None or run.motion.sign_known,
+                typed_notes=typed,
             )
         )
         level_now = level_new
@@ -248,18 +271,26 @@ def build_trials(
 
 
 def _given_level(
-    given: list[float], j: int, sign: int, level_now: float, chained: bool, notes: list[str]
+    given: list[float],
+    j: int,
+    sign: int,
+    level_now: float,
+    chained: bool,
+    notes: list[str],
+    *,
+    signed: bool,
+    typed: list[Note],
 ) -> tuple[float, float]:
     """The change and the new level of trial ``j`` from the user's thrusts.
 
-    A given thrust is the trial's new level (N). When any given value is negative the
-    user gave signs: they are kept, and a sign the motion disagrees with is noted (a
-    warning, never replaced). With magnitudes only, the sign is the one that makes the
-    change agree with the motion (the previous level's sign when both would).
+    A given thrust is the trial's new level (N). When the user gave signs (``signed``)
+    they are kept, and a sign the motion disagrees with is noted (a
+    ``segment.thrust_sign`` warning, never replaced). With magnitudes only, the sign is
+    the one that makes the change agree with the motion (the previous level's sign when
+    both would). ``typed`` receives the typed warning.
     """
     value = float(given[j])
     notes.append(f"thrust {value:g} N given by the user")
-    signed = any(v < 0 for v in given)
     if signed:
         level_new = value
     else:
@@ -272,15 +303,19 @@ def _given_level(
     change = level_new - level_now
     if signed and np.sign(change) != sign:
         word = "up" if sign > 0 else "down"
-        notes.append(
-            f"warning: the given thrust {value:g} N changes the thrust "
+        text = (
+            f"warning: the given thrust {value:+g} N changes the thrust "
             f"{'up' if change > 0 else 'down'} but the motion after the onset is {word}; "
             "the given sign is kept (check --thrust or the vertical axis)"
         )
+        notes.append(text)
+        typed.append(Note("segment.thrust_sign", text))
     return change, level_new
 
 
-def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
+def vertical_name(
+    motion: VerticalMotion | None, axes: tuple[str, ...], at: int | None = None
+) -> str:
     """Name the vertical (up) direction in the sensor frame: ``"+z"`` or ``"-x, 12 deg off"``.
 
     Parameters
@@ -289,6 +324,9 @@ def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
         The run's vertical motion (None: no acceleration channel).
     axes : tuple of str
         Names of the acceleration columns.
+    at : int, optional
+        A sample: the up direction of the orientation the sensor was in there (a sensor
+        turned during the run); default the run's main one.
 
     Returns
     -------
@@ -298,7 +336,7 @@ def vertical_name(motion: VerticalMotion | None, axes: tuple[str, ...]) -> str:
     """
     if motion is None or motion.up.size == 0:
         return ""
-    up = np.asarray(motion.up, float)
+    up = np.asarray(motion.up if at is None else motion.up_at(at), float)
     names = axes if len(axes) == up.size else ("x", "y", "z")[: up.size]
     j = int(np.argmax(np.abs(up)))
     norm = float(np.linalg.norm(up)) or 1.0

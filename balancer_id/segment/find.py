@@ -9,13 +9,13 @@ import numpy as np
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError, NoTrialError, UsageError
-from balancer_id.notes import Note
+from balancer_id.notes import Note, has_code
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
-from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient
+from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient, vertical_name
 from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
-from balancer_id.segment.robust import fill_nan, rate_of
+from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
 from balancer_id.segment.steps import (
     Detection,
     Step,
@@ -36,6 +36,7 @@ def find_trials(
     vertical: str = "auto",
     g: float = G_DEFAULT,
     min_step_N: float = 0.0,
+    thrusts_signed: bool | None = None,
 ) -> list[Trial]:
     """Find every step trial in every run of a log.
 
@@ -51,9 +52,10 @@ def find_trials(
     log : Log
         What a reader returned.
     thrusts : sequence of float, optional
-        One thrust (N) per trial found, in order over all runs. Their magnitudes
-        replace the measured force steps (and are required without a force channel);
-        the sign is the motion's, a negative value is checked against it.
+        One thrust (N) per trial found, in order over all runs: each trial's new level.
+        They replace the measured force steps (and are required without a force
+        channel). Signed thrusts keep their signs (a sign the motion disagrees with is a
+        ``segment.thrust_sign`` warning naming the trial); magnitudes take the motion's.
     force_sign : {+1, -1}, optional
         Fixes the direction from the force step: up when ``force step * force_sign > 0``.
     vertical : {"auto", "x", "y", "z", "-z", ...}, optional
@@ -63,6 +65,9 @@ def find_trials(
         Gravity (m/s^2) removed from with-g acceleration.
     min_step_N : float, optional
         Smallest force step reported (N).
+    thrusts_signed : bool or None, optional
+        Whether ``thrusts`` carry signs to keep (``--thrust +5,+5``); None: signed when
+        any value is negative; False: magnitudes.
 
     Returns
     -------
@@ -82,6 +87,7 @@ def find_trials(
     given = _check_arguments(thrusts, force_sign, vertical, min_step_N)
     settings = StepSettings(min_step_N=float(min_step_N))
     runs = [_detect(rec, vertical, g, settings) for rec in log.recordings]
+    _note_verticals(log, runs)
     total = sum(len(r.steps) for r in runs)
     if total == 0 and given is None:
         moves = [
@@ -130,12 +136,49 @@ def find_trials(
             log.warnings.append(text)
     first = np.cumsum([0] + [len(r.steps) for r in runs])
     run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
+    signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
     for run, gv in zip(runs, run_given, strict=True):
-        orient(run, gv, force_sign)
+        orient(run, gv, force_sign, signed=signed)
+    _note_verticals(log, runs)  # the signs the force or the thrusts fixed
     trials: list[Trial] = []
     for run, i0, gv in zip(runs, first, run_given, strict=False):
-        trials.extend(build_trials(run, int(i0), gv, force_sign, settings, str(log.path)))
+        trials.extend(
+            build_trials(run, int(i0), gv, force_sign, settings, str(log.path), signed=signed)
+        )
     return trials
+
+
+def find_onsets(
+    log: Log, *, vertical: str = "auto", g: float = G_DEFAULT, min_step_N: float = 0.0
+) -> dict[str, list[float]]:
+    """The onsets the detector keeps in every run, without building trials.
+
+    What ``inspect`` lists when a log without a force channel comes without thrusts;
+    for tests and benchmarks that count onsets (a phantom onset, one in steady travel).
+
+    Parameters
+    ----------
+    log : Log
+        What a reader returned.
+    vertical : str, optional
+        Vertical axis (see :func:`find_trials`).
+    g : float, optional
+        Gravity (m/s^2).
+    min_step_N : float, optional
+        Smallest force step reported (N).
+
+    Returns
+    -------
+    dict of str to list of float
+        Run name -> onset times (s), in order.
+    """
+    check_vertical(vertical)
+    settings = StepSettings(min_step_N=float(min_step_N))
+    out = {}
+    for rec in log.recordings:
+        run = _detect(rec, vertical, g, settings)
+        out[rec.name] = [float(rec.time[st.onset]) for st in run.steps]
+    return out
 
 
 def _check_arguments(
@@ -169,6 +212,9 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     """
     motion = vertical_motion(rec, vertical=vertical, g=g)
     breaks = gap_breaks(rec, settings.bridge_gap_s)
+    if motion is not None and motion.turns:  # a turned sensor: no window crosses a turn
+        edges = [i for turn in motion.turns for i in turn if 0 < i < rec.n_samples]
+        breaks = np.unique(np.concatenate([breaks, np.asarray(edges, dtype=int)]))
     usable = rec.force is not None and np.isfinite(rec.force).sum() >= 2
     force = fill_nan(rec.force) if usable and rec.force is not None else None
     accel = motion.accel if motion is not None else None
@@ -210,6 +256,12 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             for i in range(1, len(steps))
             if (settled := windows[i - 1].settled) is not None and steps[i].onset < settled
         ]
+        if force is not None and not caught:
+            released = _released_after_gaps(force, steps, windows, rate, settings)
+            if released:
+                det.reject("the thrust released after a drop-out (a catch)")
+                steps = steps[: released[0]] + steps[released[0] + 1 :]
+                continue
         if not caught:
             if accel is None and force is not None:
                 steps, windows, dropped = end_at_releases(rec.time, force, steps, windows, settings)
@@ -218,6 +270,35 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             return Run(rec, motion, breaks, steps, windows, _why(det, what))
         det.reject("inside a catch")
         steps = steps[: caught[0]] + steps[caught[0] + 1 :]
+
+
+def _released_after_gaps(
+    force: np.ndarray, steps: list[Step], windows: list[Window], rate: float, settings: StepSettings
+) -> list[int]:
+    """Steps that release the thrust of a trial a drop-out cut short (issue 17.6).
+
+    A trial's window ends at a gap; the load may still move past it. A force step after
+    the gap that brings the force back to its rest before the trial (the weight taken
+    off as the load is caught) is that trial's catch, as
+    :func:`~balancer_id.segment.window.end_at_releases` finds without acceleration, and
+    no trial of its own.
+    """
+    win = n_samples(settings.level_window_s, rate)
+    ga = n_samples(settings.guard_after_s, rate)
+    gb = n_samples(settings.guard_before_s, rate)
+    out = []
+    for i in range(1, len(steps)):
+        j = i - 1
+        if windows[j].end_reason != "gap" or not np.isfinite(steps[j].size):
+            continue
+        while j and windows[j - 1].end_reason == "next step":
+            j -= 1  # first step of the chain the gap cut
+        k, k0 = steps[i].onset, steps[j].onset
+        rest = level(force[windows[j].start : max(windows[j].start + 1, k0 - gb)])
+        after = level(force[k + ga : k + ga + win])
+        if abs(after - rest) < 0.25 * abs(steps[i - 1].size):
+            out.append(i)
+    return out
 
 
 def _moved(st: Step, mounting: int | None, settings: StepSettings) -> bool:
@@ -255,11 +336,35 @@ def _windows(
 MAX_RUN_WARNINGS = 5
 
 
+def _note_verticals(log: Log, runs: list[Run]) -> None:
+    """Record each run's up direction on the log (``inspect`` shows it with or without
+    trials) and note an up axis that is a guess (``read.vertical_guess``, once)."""
+    for r in runs:
+        m = r.motion
+        if m is None:
+            continue
+        name = vertical_name(m, r.rec.accel_axes)
+        log.verticals[r.rec.name] = {
+            "vertical": name,
+            "vertical_sign_known": bool(m.sign_known),
+            "vertical_axis_known": bool(m.axis_known),
+        }
+        if m.axis_known or has_code(log.notes, "read.vertical_guess", r.rec.name):
+            continue
+        log.notes.append(
+            Note(
+                "read.vertical_guess",
+                f"{r.rec.name}: the up axis {name} is a guess ({m.method}); give it with "
+                "--vertical x|y|z|-z|... if it is another",
+                subject=r.rec.name,
+                severity="info",
+            )
+        )
+
+
 def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:
     """Add the note that ``run`` gave no trial, and why, to the log (once)."""
-    note = Note(
-        "segment.run_without_trial", f"{run}: no step trial found ({why})", subject=run
-    )
+    note = Note("segment.run_without_trial", f"{run}: no step trial found ({why})", subject=run)
     if note not in log.notes:
         log.notes.append(note)
         if not quiet:

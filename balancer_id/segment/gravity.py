@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,6 +10,7 @@ from scipy import ndimage
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import UsageError
+from balancer_id.read.orientation import TURN_DEG, Orientation, axis_name, orientations
 from balancer_id.read.recording import Recording
 from balancer_id.segment.robust import fill_nan, local_std, n_samples, rate_of, smooth
 
@@ -37,6 +39,17 @@ class VerticalMotion:
     sign_known : bool
         False when the sign of ``up`` is a convention (linear acceleration, automatic
         axis); the force step or signed thrusts may flip it later.
+    axis_known : bool
+        False when the up axis itself is a guess: the principal direction of a linear
+        acceleration, or the one axis of a sensor without gravity (assumed vertical).
+    part_ups : numpy.ndarray or None
+        A sensor turned during the run (issue 19.3): "up" of each orientation, shape
+        ``(parts, axes)``; ``up`` is then the one rested in longest.
+    part_of : numpy.ndarray or None
+        The orientation of every sample (an index into ``part_ups``).
+    turns : tuple of (int, int)
+        Stretches ``[start, stop)`` where the sensor was turning: their vertical is
+        interpolated from either side and no trial may start or run through them.
     """
 
     accel: np.ndarray
@@ -44,6 +57,26 @@ class VerticalMotion:
     rest: np.ndarray
     method: str
     sign_known: bool = True
+    axis_known: bool = True
+    part_ups: np.ndarray | None = None
+    part_of: np.ndarray | None = None
+    turns: tuple[tuple[int, int], ...] = ()
+
+    def up_at(self, i: int) -> np.ndarray:
+        """ "Up" at sample ``i`` (the orientation the sensor was in there).
+
+        Parameters
+        ----------
+        i : int
+            A sample index.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        if self.part_ups is None or self.part_of is None or not 0 <= i < self.part_of.size:
+            return self.up
+        return self.part_ups[int(self.part_of[i])]
 
     def flipped(self, why: str) -> VerticalMotion:
         """Return the same motion with the up direction reversed, noting ``why``.
@@ -59,7 +92,17 @@ class VerticalMotion:
         VerticalMotion
             ``accel`` and ``up`` negated, the same rest mask, and ``sign_known`` True.
         """
-        return VerticalMotion(-self.accel, -self.up, self.rest, f"{self.method}; {why}", True)
+        return VerticalMotion(
+            -self.accel,
+            -self.up,
+            self.rest,
+            f"{self.method}; {why}",
+            True,
+            self.axis_known,
+            None if self.part_ups is None else -self.part_ups,
+            self.part_of,
+            self.turns,
+        )
 
 
 def vertical_motion(
@@ -123,8 +166,21 @@ def vertical_motion(
             return VerticalMotion(-m.accel, -m.up, m.rest, f"{m.method}; up is -{axis}", True)
         return m
     if acc.shape[1] == 1:
-        return _single_axis(acc, 0, w, rec.accel_includes_gravity, f"single axis {axes[0]}")
+        m = _single_axis(acc, 0, w, rec.accel_includes_gravity, f"single axis {axes[0]}")
+        if rec.accel_includes_gravity:
+            return m
+        # one axis without gravity (a motion sensor): nothing says it is vertical nor
+        # which way it counts; both are assumed
+        return dataclasses.replace(
+            m,
+            axis_known=False,
+            sign_known=False,
+            method=f"{m.method}; axis assumed vertical, positive up",
+        )
     if rec.accel_includes_gravity:
+        parts = orientations(rec, g) if acc.shape[1] == 3 else []
+        if len(parts) > 1:
+            return _project_turned(acc, parts, w, g, axes)
         return _project_on_gravity(acc, w, g)
     return _principal_axis(acc, axes, w)
 
@@ -195,6 +251,38 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     return VerticalMotion(proj - g, up, rest, method)
 
 
+def _project_turned(
+    acc: np.ndarray, parts: list[Orientation], w: int, g: float, axes: tuple[str, ...]
+) -> VerticalMotion:
+    """A sensor turned during the run: each sample is projected on the "up" of the
+    orientation nearest its own (smoothed) direction; where that is more than
+    :data:`~balancer_id.read.orientation.TURN_DEG` off every orientation the sensor is
+    turning, and the vertical there is interpolated (no motion is read from a turn)."""
+    ups = np.array([p.up for p in parts])
+    mag = np.linalg.norm(acc, axis=1)
+    unit = acc / np.where(mag > 0, mag, 1.0)[:, None]
+    smooth_unit = ndimage.uniform_filter1d(unit, w, axis=0, mode="nearest")
+    smooth_unit /= np.maximum(np.linalg.norm(smooth_unit, axis=1), 1e-12)[:, None]
+    cos = smooth_unit @ ups.T
+    part_of = np.argmax(cos, axis=1)
+    angle = np.degrees(np.arccos(np.clip(cos[np.arange(acc.shape[0]), part_of], -1.0, 1.0)))
+    turning = ndimage.binary_dilation(angle > TURN_DEG, iterations=w)
+    proj = np.einsum("ij,ij->i", acc, ups[part_of])
+    vertical = proj - g
+    vertical[turning] = np.nan
+    vertical = fill_nan(vertical)
+    labels, _ = ndimage.label(turning)
+    turns = tuple((int(sl[0].start), int(sl[0].stop)) for sl in ndimage.find_objects(labels))
+    quiet = _quiet(mag, w) & ~turning
+    main = int(np.argmax([p.n_rest for p in parts]))
+    names = ", ".join(axis_name(u, axes) for u in ups)
+    method = (
+        f"gravity direction per orientation ({len(parts)}: {names}; the sensor was turned "
+        f"{len(turns)} time(s), the turns left out)"
+    )
+    return VerticalMotion(vertical, ups[main], quiet, method, True, True, ups, part_of, turns)
+
+
 def _principal_axis(acc: np.ndarray, axes: tuple[str, ...], w: int) -> VerticalMotion:
     """Linear acceleration: the principal direction of the sustained motion (SVD).
 
@@ -228,4 +316,4 @@ def _principal_axis(acc: np.ndarray, axes: tuple[str, ...], w: int) -> VerticalM
         f"smoothed samples, {100 * share:.0f}% of the variance), {angle:.1f} deg from "
         f"+{axes[j]}; sign taken along +{axes[j]} until the force step or signed thrusts fix it"
     )
-    return VerticalMotion(x, up, _quiet(x, w), method, sign_known=False)
+    return VerticalMotion(x, up, _quiet(x, w), method, sign_known=False, axis_known=False)

@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from balancer_id.notes import Note
 
 
 @dataclass
@@ -63,6 +67,9 @@ class Trial:
     initial_state : tuple of float or None
         The load's state ``(f, v, z)`` at the window's first sample when it does not start
         at rest (a window given by ``--window``); None: at rest.
+    typed_notes : list of Note
+        The trial's warnings with their codes (e.g. ``segment.thrust_sign``); each text is
+        also in :attr:`notes`.
     """
 
     index: int
@@ -85,6 +92,7 @@ class Trial:
     vertical: str = ""
     vertical_sign_known: bool = True
     initial_state: tuple[float, float, float] | None = None
+    typed_notes: list[Note] = field(default_factory=list)
 
     @property
     def change_N(self) -> float:
