@@ -636,6 +636,8 @@ def _arena_verdict(
         summary = text + ". Best: " + summary
     if best.kind == "sensor":
         notes.append(Note("diagnose.sensor", summary, None, "warning"))
+    if best.kind == "discovered":
+        notes.append(Note("diagnose.discovered", summary, None, "warning"))
     return verdict, summary, notes, ambiguity, best
 
 

@@ -33,6 +33,7 @@ The discovered effect is written by :func:`effect_source` in the README's plug-i
 from __future__ import annotations
 
 import hashlib
+import json
 import keyword
 import math
 import re
@@ -47,7 +48,7 @@ from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
 from balancer_id.errors import BalancerIdError
 from balancer_id.files import atomic_write_text, cache_root
-from balancer_id.identify.data import FitData, TrialData
+from balancer_id.identify.data import FitData
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.model.effect import Effect
 from balancer_id.model.registry import Registry, load_effects_file
@@ -121,9 +122,7 @@ class Term:
         -------
         numpy.ndarray
         """
-        fn = eval(
-            f"lambda f, v, z, h: float({self.concrete()})", {"math": math, "abs": abs}
-        )
+        fn = eval(f"lambda f, v, z, h: float({self.concrete()})", {"math": math, "abs": abs})
         return np.array([fn(*x) for x in zip(f, v, z, h, strict=True)], dtype=float)
 
 
@@ -315,6 +314,8 @@ class Discovery:
     refit: MatchResult = field(repr=False)
     rival: dict[str, object] | None = None
     excess_drop: float = 0.0
+    #: What the refit held: the fit's own held values, the shapes, the other terms at 0.
+    fixed: dict[str, float] = field(default_factory=dict, repr=False)
     states: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
@@ -392,26 +393,38 @@ class Discovery:
             ``force`` hook is the formula, its coefficients Params started at the
             discovered values, with units from the terms.
         """
+        q = json.dumps
         params, args, body, doc = [], [], [], []
         for t in self.terms:
             c, e = t.coefficient, t.expression
-            span = max(1e3 * abs(c), 1e-6)
-            lo, hi = -span, span
+            span = float(f"{max(1e3 * abs(c), 1e-6):.3g}")
             se = f" +- {t.stderr:.2g}" if t.stderr is not None and np.isfinite(t.stderr) else ""
+            fields = [q(t.term.name), _py(float(f"{c:.6g}")), _py(-span), _py(span)]
+            fields += [q(t.term.unit), q("coefficient of " + e)]
+            one = f"        Param({', '.join(fields)}),"
             params.append(
-                f"        Param({t.term.name!r}, {_py(c)}, {_py(lo)}, {_py(hi)}, "
-                f"{t.term.unit!r}, {('coefficient of ' + e)!r}),"
+                one
+                if len(one) <= 100
+                else "        Param(\n"
+                + "".join(f"            {x},\n" for x in fields)
+                + "        ),"
             )
             args.append(t.term.name)
-            body.append(f"{t.term.name} * ({e})")
+            body.append(_product(t.term.name, e))
             doc.append(
-                f"    {t.term.name} = {c:.4g}{se} {t.term.unit}, term {e}, chosen in "
-                f"{t.inclusion:.0%} of the bootstrap resamples of the trials"
+                f"    {t.term.name} = {c:.4g}{se} {t.term.unit} (term {e}),\n"
+                f"    chosen in {t.inclusion:.0%} of the bootstrap resamples of the trials."
             )
-        formula = " + ".join(f"{t.term.name}*({t.expression})" for t in self.terms)
+        formula = " + ".join(body)
+        rival = (
+            f" (the best library explanation, {self.rival['label']}, by "
+            f"{float(self.rival['delta_bic']):.0f})"  # type: ignore[arg-type]
+            if self.rival
+            else ""
+        )
         lines = [
             MARKER,
-            f'"""A force found by balancer-id (improve --discover): F = {formula}."""',
+            f'"""A force found by balancer-id (improve --discover): F = {formula} (N)."""',
             "",
             "import math  # noqa: F401  (the terms may use it)",
             "",
@@ -421,29 +434,34 @@ class Discovery:
             f"class {_class_name(name)}(Effect):",
             f'    """Discovered force ``F = {formula}`` (N).',
             "",
-            f"    Fitted: {self.formula}.",
+            f"    Fitted: {self.formula} (N).",
             *doc,
             f"    Evidence: BIC falls by {self.delta_bic:.0f} against the model without it"
-            + (f" (the best library explanation, {self.rival['label']}, by "
-               f"{float(self.rival['delta_bic']):.0f})" if self.rival else "")  # type: ignore[arg-type]
-            + f"; RMSE {self.rmse:.4g} m/s^2.",
+            f"{rival}; RMSE {self.rmse:.4g} m/s^2.",
             *([f"    {evidence}"] if evidence else []),
             "    Edit the formula or the bounds freely: it is a user effect like any other.",
             '    """',
             "",
-            f"    name = {name!r}",
-            f"    summary = {('discovered force ' + self.formula)!r}",
-            '    source = "balancer-id improve --discover"',
+            f"    name = {q(name)}",
+            f"    summary = {q('discovered force ' + self.formula)}",
+            f"    source = {q('balancer-id improve --discover')}",
             "    parameters = (",
             *params,
             "    )",
             "",
             "    @staticmethod",
             f"    def force(f, v, z, h, {', '.join(args)}):",
-            f"        return {' + '.join(body)}",
+            f"        return {formula}",
             "",
         ]
         return "\n".join(lines)
+
+
+def _product(coef: str, expression: str) -> str:
+    """``coef*expression``, with brackets only around a compound expression."""
+    if expression == "1.0":
+        return coef
+    return f"{coef}*{expression}" if re.fullmatch(r"\w+", expression) else f"{coef}*({expression})"
 
 
 # ---- the regression ---------------------------------------------------------------------
@@ -789,6 +807,7 @@ def discover(
         command=command,
         refit=refit,
         rival={"label": rival.label, "delta_bic": rival.delta_bic} if rival is not None else None,
+        fixed={**fixed, **{q_names[k]: 0.0 for k in range(len(terms)) if k not in support}},
         states=_states(refit, found),
     )
 
@@ -807,9 +826,7 @@ def _linearize(
     names = model.param_names
     pvec = np.array([values.get(n, model.param(n).value) for n in names])
     chosen = {q_names[j] for j in support}
-    free = [
-        i for i, n in enumerate(names) if n not in fixed and (n not in q_names or n in chosen)
-    ]
+    free = [i for i, n in enumerate(names) if n not in fixed and (n not in q_names or n in chosen)]
     cand = [names.index(q_names[j]) for j in range(len(q_names)) if j not in support]
     out, sens = data.packed.run_sens(model, pvec, [*free, *cand])
     if not (np.all(np.isfinite(out[:, 0])) and np.all(np.isfinite(sens))):
@@ -859,6 +876,64 @@ def _states(refit: MatchResult, found: Sequence[DiscoveredTerm]) -> dict[str, np
     }
 
 
+def check_effects_out(
+    path: str | Path, *, inputs: Sequence[str | Path] = (), overwrite: bool = False
+) -> Path:
+    """Refuse, before any work, an ``--effects-out`` that could destroy a file of the user's.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.py`` file to write.
+    inputs : sequence of str or Path
+        Files the command reads (never written).
+    overwrite : bool
+        ``--overwrite``: a file an earlier ``--discover`` wrote may be replaced.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    UsageError
+        Not a ``.py`` name, a missing folder, or one of the inputs.
+    OutputExistsError
+        The file exists and is the user's, or ``overwrite`` is not given.
+    """
+    from balancer_id.errors import UsageError
+    from balancer_id.files import check_output
+
+    path = Path(path)
+    if path.suffix != ".py":
+        raise UsageError(f"--effects-out '{path}': give a Python file name ending in .py")
+    if path.exists():
+        _check_ours(path, overwrite)
+    return check_output(path, inputs=inputs, overwrite=True, option="--effects-out")
+
+
+def _check_ours(path: Path, overwrite: bool) -> None:
+    """Refuse an existing file unless an earlier ``--discover`` wrote it and ``overwrite``."""
+    from balancer_id.errors import OutputExistsError
+
+    first = ""
+    try:
+        with path.open(encoding="utf-8") as fh:
+            first = fh.readline().strip()
+    except (OSError, UnicodeDecodeError):
+        pass
+    if first != MARKER:
+        raise OutputExistsError(
+            f"--effects-out '{path}' exists and was not written by balancer-id: it is never "
+            "replaced; give another name"
+        )
+    if not overwrite:
+        raise OutputExistsError(
+            f"--effects-out '{path}' exists already; add --overwrite to replace it, or "
+            "give another name"
+        )
+
+
 def write_effect(
     discovery: Discovery, path: str | Path, *, evidence: str = "", overwrite: bool = False
 ) -> tuple[Path, str]:
@@ -887,26 +962,9 @@ def write_effect(
     OutputExistsError
         When the file exists and is the user's (or ``overwrite`` is not given).
     """
-    from balancer_id.errors import OutputExistsError
-
     path = Path(path)
     if path.exists():
-        first = ""
-        try:
-            with path.open(encoding="utf-8") as fh:
-                first = fh.readline().strip()
-        except (OSError, UnicodeDecodeError):
-            pass
-        if first != MARKER:
-            raise OutputExistsError(
-                f"--effects-out '{path}' exists and was not written by balancer-id: it is never "
-                "replaced; give another name"
-            )
-        if not overwrite:
-            raise OutputExistsError(
-                f"--effects-out '{path}' exists already; add --overwrite to replace it, or "
-                "give another name"
-            )
+        _check_ours(path, overwrite)
     name = effect_name(path)
     atomic_write_text(path, discovery.effect_source(name, evidence))
     return path, name
@@ -916,23 +974,10 @@ __all__ = [
     "DiscoveredTerm",
     "Discovery",
     "Term",
+    "check_effects_out",
     "default_terms",
     "discover",
     "library_effect",
     "should_try",
     "write_effect",
 ]
-
-
-def trials_of(inp: ArenaInput) -> list[TrialData]:
-    """The trials of an arena input (a convenience for callers).
-
-    Parameters
-    ----------
-    inp : ArenaInput
-
-    Returns
-    -------
-    list of TrialData
-    """
-    return list(inp.trials)
