@@ -431,6 +431,8 @@ def diagnose(
         suggestions = []  # nothing offered without benefit
     elif best is not None and best.kind in ("split", "drift", "sensor") and ambiguity is None:
         suggestions = []  # no effect that would only mimic it
+    elif best is not None and best.kind == "discovered":
+        suggestions = [s for s in suggestions if is_missing(s) and not s.null]
     else:
         keep = set(best.effects) if best is not None and best.kind == "pair" else None
         suggestions = [
@@ -637,6 +639,7 @@ def _arena_verdict(
     if best.kind == "sensor":
         notes.append(Note("diagnose.sensor", summary, None, "warning"))
     if best.kind == "discovered":
+        summary = f"{summary} {_unknown_hint(tests)}"
         notes.append(Note("diagnose.discovered", summary, None, "warning"))
     return verdict, summary, notes, ambiguity, best
 
