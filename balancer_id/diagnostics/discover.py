@@ -59,6 +59,8 @@ from balancer_id.model.spec import Model
 TERM_BIC = 30.0
 #: Terms tried at most along the pursuit path.
 MAX_TERMS = 4
+#: Terms the linear step ranks highest that are refitted whole in each round.
+REFITTED = 3
 #: Bootstrap resamples of the trials for the inclusion probabilities.
 BOOTSTRAP = 40
 #: Stribeck velocities, as shares of the highest speed the trials reach.
@@ -66,6 +68,11 @@ STRIBECK_GRID = (0.02, 0.07, 0.25)
 #: The error above the noise floor (x the noise) that the arena's best may leave before
 #: discovery is tried (the level test's tolerance, adequacy.LEVEL_MIN).
 LEFT_OVER = 0.5
+#: Explanations a missing force can mimic (a parameter that seems to change between runs
+#: when it depends on the speed or the thrust): the search competes with them on BIC.
+MIMICS = ("split", "drift", "pair")
+#: Terms tried only when the residual's spectrum over position has a period.
+PERIODIC = ("a_sin", "a_cos")
 #: Marker of a file written by ``improve --discover`` (only such a file is ever replaced).
 MARKER = "# Written by balancer-id improve --discover."
 
@@ -135,7 +142,8 @@ def default_terms(v_top: float, period: float | None) -> list[Term]:
         The highest speed the trials reach (m/s); the Stribeck velocities are shares of it
         (:data:`STRIBECK_GRID`).
     period : float or None
-        The period over position of the residual (m), or None: no ``sin``/``cos`` terms.
+        The period over position of the residual (m); None sets it to 1 m (the ``sin`` and
+        ``cos`` terms are then not tried: :data:`PERIODIC`).
 
     Returns
     -------
@@ -152,10 +160,10 @@ def default_terms(v_top: float, period: float | None) -> list[Term]:
     for k, share in enumerate(STRIBECK_GRID, 1):
         vs = max(share * v_top, 1e-9)
         terms.append(Term(f"{sign}*math.exp(-abs(v)/v_s{k})", "N", f"f_st{k}", ((f"v_s{k}", vs),)))
-    if period is not None:
-        p = (("p_z", float(period)),)
-        terms.append(Term("math.sin(2*math.pi*z/p_z)", "N", "a_sin", p))
-        terms.append(Term("math.cos(2*math.pi*z/p_z)", "N", "a_cos", p))
+    # always in the library (one compiled kernel); without a period they are not tried
+    p = (("p_z", float(period) if period else 1.0),)
+    terms.append(Term("math.sin(2*math.pi*z/p_z)", "N", "a_sin", p))
+    terms.append(Term("math.cos(2*math.pi*z/p_z)", "N", "a_cos", p))
     terms += [
         Term("h*v", "s/m", "c_hv"),
         Term("z*v", "N s/m^2", "c_zv"),
@@ -564,6 +572,23 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
     return [cols[j] for j in best]
 
 
+def _ranked(r: np.ndarray, p: np.ndarray, q: np.ndarray) -> list[tuple[int, float]]:
+    """Each term column with the BIC fall it alone brings to the linear step, best first."""
+    n = r.size
+    qp = _project(p, q)
+    rp = _project(p, r[:, None])[:, 0]
+    rss0 = max(float(rp @ rp), 1e-300)
+    out = []
+    for c in range(qp.shape[1]):
+        x = qp[:, c]
+        xx = float(x @ x)
+        if xx <= 1e-300:
+            continue
+        rss = max(rss0 - float(x @ rp) ** 2 / xx, 1e-300)
+        out.append((c, n * np.log(rss0 / rss) - np.log(n)))
+    return sorted(out, key=lambda t: -t[1])
+
+
 def held_out_gain(lin: _Linear, support: Sequence[int], folds: int = 3) -> list[float]:
     """For each term of ``support``: held-out error without it over with it (> 1: it helps).
 
@@ -667,12 +692,14 @@ def should_try(best: Explanation | None, noise_floor: float, tests_failed: bool)
     Returns
     -------
     bool
-        True when a test failed and there is no standing explanation, or the best one
-        leaves an error above the noise floor larger than :data:`LEFT_OVER` x the noise.
+        True when a test failed and there is no standing explanation, or the best one is
+        a parameter changing between runs (:data:`MIMICS`: a missing force depending on
+        the speed or the thrust looks like one), or it leaves an error above the noise
+        floor larger than :data:`LEFT_OVER` x the noise.
     """
     if not tests_failed:
         return False
-    if best is None:
+    if best is None or best.kind in MIMICS:
         return True
     left = math.sqrt(max(best.rmse**2 - noise_floor**2, 0.0))
     return noise_floor <= 0 or left > LEFT_OVER * noise_floor
@@ -713,6 +740,23 @@ def discover(
         None when no term pays in BIC and on held-out trials, or when the refit does not
         beat ``rival``.
     """
+    # the refits wander through bad regions (overflow, 0/0) before they settle: the
+    # optimizer handles those steps, so their floating-point warnings are not news
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _search(inp, ctx, rival, command, terms, extra_terms, seed)
+
+
+def _search(
+    inp: ArenaInput,
+    ctx: object,
+    rival: Explanation | None,
+    command: str,
+    terms: Sequence[Term] | None,
+    extra_terms: Sequence[Term],
+    seed: int,
+) -> Discovery | None:
+    """:func:`discover` without the floating-point warnings."""
     match = inp.match
     values = match.values()
     m_a = float(values.get("m_a", 1.0))
@@ -721,7 +765,11 @@ def discover(
         v_top = max((float(np.max(np.abs(tv.v))) for tv in views), default=0.0)
         if v_top <= 0:
             return None
-        terms = default_terms(v_top, position_period(views, m_a))
+        period = position_period(views, m_a)
+        terms = default_terms(v_top, period)
+        skip = set(PERIODIC) if period is None else set()
+    else:
+        skip = set()
     terms = [*terms, *extra_terms]
     lib = library_effect(terms)
     registry = Registry(list(match.model.registry))
@@ -737,35 +785,47 @@ def discover(
     refit: MatchResult | None = None
     d_best = 0.0
     for round_ in range(MAX_TERMS):
-        lin = _linearize(model, match.data, current, fixed, q_names, support, inp.ar)
-        if lin is None:
+        rest = [j for j in range(len(terms)) if j not in support and terms[j].name not in skip]
+        lin = _linearize(model, match.data, current, fixed, q_names, support, rest, inp.ar)
+        if lin is None or not rest:
             break
-        rest = [j for j in range(len(terms)) if j not in support]
         every = list(range(len(lin.r)))
         chosen = [rest[c] for c in select(lin, every, range(len(rest)))]
         if not chosen:
             break
-        new = chosen[0]
-        if held_out_gain(lin, [new])[0] <= 1.0:
-            break
         if round_ == 0:
             inclusion = _bootstrap(lin, rest, len(terms), seed)
-        # the Gauss-Newton step's coefficient starts the nonlinear refit
+        # the linear step ranks the terms; the few best are refitted whole (nonlinear) and
+        # the one that lowers BIC most is taken (v|v| and v^3 look alike to the linear step)
         r, p, q = lin.rows(every)
-        step, *_ = np.linalg.lstsq(np.hstack([p, q[:, [rest.index(new)]]]), r, rcond=None)
-        start = {**current, q_names[new]: float(step[-1])}
-        trial_support = [*support, new]
-        hold = {**fixed, **{q_names[j]: 0.0 for j in range(len(terms)) if j not in trial_support}}
-        try:
-            fitted = match_trials(model, list(inp.trials), start=start, fixed=hold, max_nfev=200)
-        except BalancerIdError:
+        ranked = _ranked(r, p, q)
+        tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > TERM_BIC]
+        tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
+        best_try: tuple[float, int, MatchResult] | None = None
+        for new in tries:
+            c = rest.index(new)
+            step, *_ = np.linalg.lstsq(np.hstack([p, q[:, [c]]]), r, rcond=None)
+            start = {**current, q_names[new]: float(step[-1])}
+            trial_support = [*support, new]
+            hold = {
+                **fixed,
+                **{q_names[k]: 0.0 for k in range(len(terms)) if k not in trial_support},
+            }
+            try:
+                fitted = match_trials(
+                    model, list(inp.trials), start=start, fixed=hold, max_nfev=200
+                )
+            except BalancerIdError:
+                continue
+            parts = [fitted.residual[sl] for sl in fitted.data.slices()]
+            d_bic, _ = arena.score(inp, parts, len(trial_support))
+            if best_try is None or d_bic > best_try[0]:
+                best_try = (d_bic, new, fitted)
+        if best_try is None or best_try[0] - d_best <= TERM_BIC:
             break
-        parts = [fitted.residual[sl] for sl in fitted.data.slices()]
-        d_bic, _ = arena.score(inp, parts, len(trial_support))
-        if d_bic - d_best <= TERM_BIC:
-            break
-        support, refit, d_best = trial_support, fitted, d_bic
-        current = {**current, **fitted.values()}
+        d_best, new, refit = best_try
+        support = [*support, new]
+        current = {**current, **refit.values()}
     if refit is None or not support:
         return None
     # a term taken while an earlier one's refit had not settled may not pay at the end:
@@ -819,15 +879,16 @@ def _linearize(
     fixed: dict[str, float],
     q_names: Sequence[str],
     support: Sequence[int],
+    candidates: Sequence[int],
     ar: tuple[float, float],
 ) -> _Linear | None:
     """The output's sensitivities at ``values``: the model's free parameters and the
-    terms already chosen as parameters, the other terms as candidates; rows whitened."""
+    terms already chosen as parameters, the ``candidates`` as columns; rows whitened."""
     names = model.param_names
     pvec = np.array([values.get(n, model.param(n).value) for n in names])
     chosen = {q_names[j] for j in support}
     free = [i for i, n in enumerate(names) if n not in fixed and (n not in q_names or n in chosen)]
-    cand = [names.index(q_names[j]) for j in range(len(q_names)) if j not in support]
+    cand = [names.index(q_names[j]) for j in candidates]
     out, sens = data.packed.run_sens(model, pvec, [*free, *cand])
     if not (np.all(np.isfinite(out[:, 0])) and np.all(np.isfinite(sens))):
         return None
