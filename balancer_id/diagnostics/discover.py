@@ -61,6 +61,8 @@ TERM_BIC = 30.0
 MAX_TERMS = 4
 #: Terms the linear step ranks highest that are refitted whole in each round.
 REFITTED = 3
+#: ... those whose linear BIC fall is at least this share of the best one's.
+CLOSE = 0.3
 #: Bootstrap resamples of the trials for the inclusion probabilities.
 BOOTSTRAP = 40
 #: Stribeck velocities, as shares of the highest speed the trials reach.
@@ -692,14 +694,17 @@ def should_try(best: Explanation | None, noise_floor: float, tests_failed: bool)
     Returns
     -------
     bool
-        True when a test failed and there is no standing explanation, or the best one is
-        a parameter changing between runs (:data:`MIMICS`: a missing force depending on
-        the speed or the thrust looks like one), or it leaves an error above the noise
-        floor larger than :data:`LEFT_OVER` x the noise.
+        True when the best explanation is a parameter changing between runs
+        (:data:`MIMICS`: a missing force depending on the speed or the thrust looks like
+        one), or when a test failed and there is no standing explanation or the best
+        one leaves an error above the noise floor larger than :data:`LEFT_OVER` x the
+        noise.
     """
+    if best is not None and best.kind in MIMICS:
+        return True
     if not tests_failed:
         return False
-    if best is None or best.kind in MIMICS:
+    if best is None:
         return True
     left = math.sqrt(max(best.rmse**2 - noise_floor**2, 0.0))
     return noise_floor <= 0 or left > LEFT_OVER * noise_floor
@@ -799,7 +804,8 @@ def _search(
         # the one that lowers BIC most is taken (v|v| and v^3 look alike to the linear step)
         r, p, q = lin.rows(every)
         ranked = _ranked(r, p, q)
-        tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > TERM_BIC]
+        top = ranked[0][1] if ranked else 0.0
+        tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > max(TERM_BIC, CLOSE * top)]
         tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
         best_try: tuple[float, int, MatchResult] | None = None
         for new in tries:
