@@ -190,7 +190,7 @@ def run_case(case: Case) -> Outcome:
 
     out = Outcome(case)
     try:
-        trials, truth, noise, base = simulate(case)
+        trials, truth, noise, _ = simulate(case)
         out.truth = truth
         tds = trial_data(trials)
         out.n_trials = len(tds)

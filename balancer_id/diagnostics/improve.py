@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose, is_missing
+from balancer_id.diagnostics.discover import Discovery
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.data import FitData, TrialData
 from balancer_id.identify.display import Displayable
@@ -50,6 +51,8 @@ class ImproveStep:
     fit: FitResult
     cv_rmse: float | None
     evidence: str = ""
+    #: The effect added is a discovered force (``improve --discover``).
+    discovered: bool = False
 
     @property
     def match(self) -> MatchResult:
@@ -69,6 +72,7 @@ class ImproveStep:
             "cv_rmse": self.cv_rmse,
             "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
             "evidence": self.evidence,
+            "discovered": self.discovered,
             "command": self.fit.command(),
         }
 
@@ -84,6 +88,8 @@ class ImproveResult(Displayable):
     discovered: dict[str, object] | None = None
     #: ``--discover``: what happened (a file written, or why none was).
     discovery_note: Note | None = None
+    #: ``--discover``: the discovery that was written and added as a step.
+    discovery: Discovery | None = field(default=None, repr=False)
 
     def _shown_match(self) -> MatchResult:
         return self.steps[-1].match
@@ -318,9 +324,10 @@ def _discover_step(
             fixed=current.held(model),
             effects_files=[*current.effects_files, str(path)],
         )
-        result.steps.append(ImproveStep(new.model, name, new, cv_new, found.formula))
+        result.steps.append(ImproveStep(new.model, name, new, cv_new, found.formula, True))
         result.final = diagnose(new)
     result.discovered = {"file": str(path), "effect": name, "formula": found.formula}
+    result.discovery = found
     result.discovery_note = Note(
         "improve.discovered",
         f"wrote {path}: effect '{name}', {found.formula} (N); load it with --effects-file {path}",
