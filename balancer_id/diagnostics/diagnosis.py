@@ -685,9 +685,16 @@ def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
     if e.kind == "effect":
         return f"adding {e.effects[0]}: {head}. Fit it: {fit.command(_model_for(fit, e))}"
     if e.kind == "discovered":
+        alts = [a for a in d.get("alternatives", []) or []]  # type: ignore[union-attr]
+        also = (
+            " (" + ", ".join(f"{a['expression']}" for a in alts) + " fits about as well: the "
+            "data cannot tell them apart; record faster or longer trials)"
+            if alts
+            else ""
+        )
         return (
             f"no library effect explains the residual; a force found in the states does: "
-            f"{d['formula']} (N) lowers BIC by {e.delta_bic:.0f} and removes "
+            f"{d['formula']} (N){also} lowers BIC by {e.delta_bic:.0f} and removes "
             f"{e.excess_drop:.0%} of the error above the noise floor. Write it as an effect "
             f"and refit: {fit.command(subcommand='improve')} --discover --effects-out "
             "discovered.py"

@@ -63,6 +63,8 @@ MAX_TERMS = 4
 REFITTED = 3
 #: ... those whose linear BIC fall is at least this share of the best one's.
 CLOSE = 0.3
+#: A term refitted whole within this BIC of the chosen one fits about as well.
+CLOSE_BIC = 10.0
 #: Bootstrap resamples of the trials for the inclusion probabilities.
 BOOTSTRAP = 40
 #: Stribeck velocities, as shares of the highest speed the trials reach.
@@ -326,6 +328,9 @@ class Discovery:
     excess_drop: float = 0.0
     #: What the refit held: the fit's own held values, the shapes, the other terms at 0.
     fixed: dict[str, float] = field(default_factory=dict, repr=False)
+    #: Terms that fit about as well as a chosen one (within :data:`CLOSE_BIC`):
+    #: ``{instead_of, expression, coefficient, bic_drop}``; the data cannot tell them apart.
+    alternatives: list[dict[str, object]] = field(default_factory=list)
     states: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
@@ -370,6 +375,7 @@ class Discovery:
             "rmse_after": self.rmse,
             "excess_error_drop": self.excess_drop,
             "beats": self.rival,
+            "alternatives": self.alternatives,
             "command": self.command,
         }
 
@@ -382,7 +388,11 @@ class Discovery:
             self.rmse,
             [],
             [],
-            {"formula": self.formula, "values": self.refit.values()},
+            {
+                "formula": self.formula,
+                "values": self.refit.values(),
+                "alternatives": self.alternatives,
+            },
             excess_drop=self.excess_drop,
         )
 
@@ -786,6 +796,7 @@ def _search(
     fixed = {**arena.held(match), **shapes}
     current = {**values, **dict.fromkeys(q_names, 0.0), **shapes}
     support: list[int] = []
+    alternatives: list[dict[str, object]] = []
     inclusion = np.zeros(len(terms))
     refit: MatchResult | None = None
     d_best = 0.0
@@ -808,6 +819,7 @@ def _search(
         tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > max(TERM_BIC, CLOSE * top)]
         tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
         best_try: tuple[float, int, MatchResult] | None = None
+        tried: list[tuple[float, int, MatchResult]] = []
         for new in tries:
             c = rest.index(new)
             step, *_ = np.linalg.lstsq(np.hstack([p, q[:, [c]]]), r, rcond=None)
@@ -825,11 +837,24 @@ def _search(
                 continue
             parts = [fitted.residual[sl] for sl in fitted.data.slices()]
             d_bic, _ = arena.score(inp, parts, len(trial_support))
+            tried.append((d_bic, new, fitted))
             if best_try is None or d_bic > best_try[0]:
                 best_try = (d_bic, new, fitted)
         if best_try is None or best_try[0] - d_best <= TERM_BIC:
             break
         d_best, new, refit = best_try
+        # terms that fit about as well in this round: said with the discovery
+        for d_alt, j, alt in tried:
+            if j != new and d_alt >= d_best - CLOSE_BIC:
+                c = alt.parameters[q_names[j]].value
+                alternatives.append(
+                    {
+                        "instead_of": terms[new].concrete(),
+                        "expression": terms[j].concrete(),
+                        "coefficient": float(c),
+                        "bic_drop": float(d_alt),
+                    }
+                )
         support = [*support, new]
         current = {**current, **refit.values()}
     if refit is None or not support:
@@ -874,6 +899,7 @@ def _search(
         refit=refit,
         rival={"label": rival.label, "delta_bic": rival.delta_bic} if rival is not None else None,
         fixed={**fixed, **{q_names[k]: 0.0 for k in range(len(terms)) if k not in support}},
+        alternatives=[a for a in alternatives if a["instead_of"] in {t.expression for t in found}],
         states=_states(refit, found),
     )
 
