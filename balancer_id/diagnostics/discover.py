@@ -46,6 +46,7 @@ import numpy as np
 
 from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
+from balancer_id.diagnostics.context import DiagnosisContext, TrialView
 from balancer_id.errors import BalancerIdError
 from balancer_id.files import atomic_write_text, cache_root
 from balancer_id.identify.data import FitData
@@ -542,7 +543,7 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
     list of int
         The chosen term columns, in the order the path took them.
     """
-    from sklearn.linear_model import orthogonal_mp
+    from sklearn.linear_model import orthogonal_mp  # type: ignore[import-untyped]
 
     r, p, q = lin.rows(trials)
     n = r.size
@@ -643,7 +644,7 @@ def held_out_gain(lin: _Linear, support: Sequence[int], folds: int = 3) -> list[
 # ---- the period over position -----------------------------------------------------------
 
 
-def position_period(ctx_trials: Sequence[object], m_a: float) -> float | None:
+def position_period(ctx_trials: Sequence[TrialView], m_a: float) -> float | None:
     """The period over position of the residual force, from its Lomb-Scargle spectrum.
 
     The moving samples' residual force (m_a times the acceleration residual) against the
@@ -666,12 +667,14 @@ def position_period(ctx_trials: Sequence[object], m_a: float) -> float | None:
 
     zs, rs = [], []
     for tv in ctx_trials:
-        moving = (tv.t > 0) & (np.abs(tv.v) > 1e-4)  # type: ignore[attr-defined]
+        moving = (tv.t > 0) & (np.abs(tv.v) > 1e-4)
         if moving.sum() < 20:
             continue
-        r = m_a * tv.residual[moving]  # type: ignore[attr-defined]
-        zs.append(tv.z[moving])  # type: ignore[attr-defined]
-        rs.append(r - np.polyval(np.polyfit(tv.z[moving], r, 2), tv.z[moving]))  # type: ignore[attr-defined]
+        r = m_a * tv.residual[moving]
+        zm = np.asarray(tv.z[moving], dtype=float)
+        trend = np.polynomial.Polynomial.fit(zm, r, 2)(zm) if np.ptp(zm) > 0 else np.mean(r)
+        zs.append(zm)
+        rs.append(r - trend)
     if not zs:
         return None
     z, r = np.concatenate(zs), np.concatenate(rs)
@@ -722,7 +725,7 @@ def should_try(best: Explanation | None, noise_floor: float, tests_failed: bool)
 
 def discover(
     inp: ArenaInput,
-    ctx: object,
+    ctx: DiagnosisContext,
     *,
     rival: Explanation | None = None,
     command: str = "",
@@ -764,7 +767,7 @@ def discover(
 
 def _search(
     inp: ArenaInput,
-    ctx: object,
+    ctx: DiagnosisContext,
     rival: Explanation | None,
     command: str,
     terms: Sequence[Term] | None,
@@ -775,7 +778,7 @@ def _search(
     match = inp.match
     values = match.values()
     m_a = float(values.get("m_a", 1.0))
-    views = list(ctx.trials)  # type: ignore[attr-defined]
+    views = list(ctx.trials)
     if terms is None:
         v_top = max((float(np.max(np.abs(tv.v))) for tv in views), default=0.0)
         if v_top <= 0:
@@ -846,12 +849,12 @@ def _search(
         # terms that fit about as well in this round: said with the discovery
         for d_alt, j, alt in tried:
             if j != new and d_alt >= d_best - CLOSE_BIC:
-                c = alt.parameters[q_names[j]].value
+                coef = alt.parameters[q_names[j]].value
                 alternatives.append(
                     {
                         "instead_of": terms[new].concrete(),
                         "expression": terms[j].concrete(),
-                        "coefficient": float(c),
+                        "coefficient": float(coef),
                         "bic_drop": float(d_alt),
                     }
                 )

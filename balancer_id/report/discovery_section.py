@@ -7,7 +7,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from balancer_id.report.blocks import Paragraph, Plot, Preformatted, Section, Table, format_value
+from balancer_id.report.blocks import (
+    Cell,
+    Paragraph,
+    Plot,
+    Preformatted,
+    Section,
+    Table,
+    format_value,
+)
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.discover import Discovery
@@ -87,7 +95,7 @@ def discovery_section(found: Discovery | None, written: str | None = None) -> Se
     """
     if found is None:
         return None
-    rows = [
+    rows: list[list[str | Cell]] = [
         [
             t.expression,
             format_value(t.coefficient, 4),
