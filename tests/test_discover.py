@@ -149,3 +149,16 @@ def test_a_user_term_joins_the_library():
     ] == pytest.approx(1.0)
     src = discovery.library_source([*discovery.default_terms(0.3, None), t])
     assert "z*abs(v)" in src and "q13 * (z*abs(v))" in src
+
+
+def test_improve_discover_options_are_checked_before_any_work(cli, tmp_path):
+    log = str(Path(__file__).parent.parent / "sample_logs" / "hose_walkthrough.csv")
+    code, _, err = cli("improve", log, "--discover")
+    assert code == 2 and "--discover and --effects-out" in err
+    mine = tmp_path / "mine.py"
+    mine.write_text("# my effect\n")
+    code, _, err = cli("improve", log, "--discover", "--effects-out", mine, "--overwrite")
+    assert code == 2 and "not written by balancer-id" in err and "mine.py" in err
+    assert mine.read_text() == "# my effect\n"
+    code, _, err = cli("improve", log, "--discover", "--effects-out", tmp_path / "x.txt")
+    assert code == 2 and ".py" in err
