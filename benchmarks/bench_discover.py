@@ -183,22 +183,17 @@ def simulate(case: Case):
 def run_case(case: Case) -> Outcome:
     """Simulate, fit and diagnose one case; never raises."""
     from balancer_id.diagnostics.diagnosis import diagnose
+    from balancer_id.identify.api import fit as run_fit
     from balancer_id.identify.api import trial_data
-    from balancer_id.identify.classic import paper_method
-    from balancer_id.identify.matching import match_trials
-    from balancer_id.identify.result import fit_match
-    from balancer_id.model import parse_model
 
     out = Outcome(case)
     try:
         trials, truth, noise, _ = simulate(case)
         out.truth = truth
-        tds = trial_data(trials)
-        out.n_trials = len(tds)
-        model = parse_model("variable_viscosity")
-        classic = paper_method(tds)
-        match = match_trials(model, tds, start=classic.start_values(model))
-        fit = fit_match(match, trials, classic=classic)
+        out.n_trials = len(trial_data(trials))
+        # what `balancer-id fit` does (the starts from the data), without the profile
+        fit = run_fit(trials, model="variable_viscosity", profile=False)
+        match = fit.match
         t0 = time.perf_counter()
         d = diagnose(fit)
         out.seconds = time.perf_counter() - t0

@@ -471,6 +471,8 @@ def _discover(
     best = standing[0] if standing else None
     if not discovery_search.should_try(best, ctx.noise_floor, bool(failed)):
         return None
+    if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
+        return None
     command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
     try:
         with step("discovering the missing term"):
