@@ -55,7 +55,11 @@ CODES: dict[str, str] = {
     "diagnose.ambiguous": "two explanations fit about equally well",
     "diagnose.confounded": "two explanations are confounded by how the log was recorded",
     "diagnose.sensor": "a measurement-side effect (sensor low-pass, delay, gain)",
+    "diagnose.discovered": "a missing force found as a sparse sum of terms in the states",
     "diagnose.other": "another remark of the diagnosis",
+    # improving
+    "improve.discovered": "improve --discover wrote the discovered force as an effect file",
+    "improve.no_discovery": "improve --discover found nothing to write (no file written)",
     # robot coupling
     "robot.lightly_damped": "the robot-balancer loop is lightly damped (vibrates)",
     "robot.unstable": "the robot-balancer loop is unstable",

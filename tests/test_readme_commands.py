@@ -116,15 +116,21 @@ def test_a_readme_command_runs_and_says_what_the_readme_says(cli, workdir, monke
         logs = [w for w in words[2:] if w.endswith(".csv") or w.endswith("/")]
         assert len(rows) - 1 >= len(logs) and all(",ok," in r for r in rows[1:]), rows
     if words[1] == "diagnose" and "--effects-file" not in words:
-        # walk-through step 1: a missing effect that no built-in explains; the position
+        # walk-through step 1: a missing effect that no built-in explains; the position;
+        # the force discovered with the hose's stiffness (truth 4 N/m)
         assert "effect missing" in out and "position" in out
+        k = float(re.search(r"F = (-[0-9.]+)\*z", out).group(1))
+        assert k == pytest.approx(-4.0, rel=0.03), out
     if words[1] == "diagnose" and "--effects-file" in words:
         # step 3: the user's effect is ranked first, with the command that fits it
         first = re.search(r"^\s*1\. (\S+):$", out, re.M)
         assert first is not None and first.group(1) == "+hose_spring", out
     if words[1] == "improve":
-        # step 4: hose_spring is added and the error falls to the noise floor (0.03)
-        last = next(line for line in out.splitlines() if "│ hose_spring" in line)
+        # step 2: the discovered force is written, added, and the error falls to the noise
+        # floor (0.03)
+        name = Path(words[words.index("--effects-out") + 1])
+        assert (workdir / name).read_text().startswith("# Written by balancer-id")
+        last = next(line for line in out.splitlines() if f"│ {name.stem}" in line)
         rmse = float(last.split("│")[4])
         assert 0.025 < rmse < 0.035, out
         assert "consistent with noise" in " ".join(out.split())

@@ -719,6 +719,14 @@ def improve(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
+    discover: Annotated[
+        bool,
+        typer.Option("--discover", help="Then find a missing force in the states (needs FILE)."),
+    ] = False,
+    effects_out: Annotated[
+        Path | None,
+        typer.Option("--effects-out", help="--discover: write the force here as an effect."),
+    ] = None,
     quiet: QuietOpt = False,
     options: ReadOptions = None,  # type: ignore[assignment]
 ) -> None:
@@ -741,6 +749,14 @@ def improve(
         from balancer_id.report.document import check_report_path
 
         check_report_path(report, logs)
+    if discover != (effects_out is not None):
+        raise UsageError("--discover and --effects-out FILE.py go together; give both")
+    if effects_out is not None:
+        from balancer_id.diagnostics.discover import check_effects_out
+
+        check_effects_out(
+            effects_out, inputs=inputs_of(logs, effects_file, trajectory_text), overwrite=overwrite
+        )
     fitted = _fit(
         logs,
         options,
@@ -750,7 +766,11 @@ def improve(
         trajectory_text=trajectory_text,
     )
     with stage(f"improving {fitted.model}: adding effects (at most {max_steps})"):
-        result = run_improve(fitted, max_steps=max_steps)
+        result = run_improve(
+            fitted, max_steps=max_steps, discover_to=effects_out, overwrite=overwrite
+        )
+    if result.discovery_note is not None:
+        typer.echo(f"balancer-id: {result.discovery_note}", err=True)
     out = result.to_dict()
     if plot is not None:
         from balancer_id.report.plots import plot_error_ladder

@@ -5,11 +5,13 @@ from __future__ import annotations
 import contextlib
 import os
 import shlex
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from balancer_id.diagnostics import adequacy, arena
+from balancer_id.diagnostics import discover as discovery_search
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
 from balancer_id.diagnostics.candidates import Candidate, Refit, candidates, quick_refit
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
@@ -29,7 +31,7 @@ from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
 from balancer_id.notes import Note
 from balancer_id.simulation.kernel import compile_models, get_kernel
-from balancer_id.status import tell
+from balancer_id.status import step, tell
 
 #: BIC improvement a candidate needs before an effect is called missing. Calibrated on
 #: simulated logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -186,6 +188,8 @@ class Diagnosis(Displayable):
     notes: list[Note] = field(default_factory=list)
     #: The runner-up when it is close or confounded with the best, and how to tell them.
     ambiguity: dict[str, object] | None = None
+    #: The discovered missing force (:mod:`~balancer_id.diagnostics.discover`), or None.
+    discovery: discovery_search.Discovery | None = None
 
     def __post_init__(self) -> None:
         # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
@@ -255,6 +259,17 @@ class Diagnosis(Displayable):
                     f" {s.signature.evidence}"
                 )
                 lines.append(f"       {s.command}")
+        if self.discovery is not None:
+            d = self.discovery
+            lines.append("[[Discovered term]] (sparse regression of the force discrepancy)")
+            lines.append(f"    {d.formula} (N); BIC falls by {d.delta_bic:.0f}")
+            for t in d.terms:
+                se = f" +/- {t.stderr:.2g}" if t.stderr is not None else ""
+                lines.append(
+                    f"    {t.expression}: {t.coefficient:.4g}{se} {t.term.unit},"
+                    f" chosen in {t.inclusion:.0%} of the bootstrap resamples"
+                )
+            lines.append(f"    {d.command}")
         return lines
 
     def to_dict(self) -> dict[str, object]:
@@ -279,11 +294,18 @@ class Diagnosis(Displayable):
                 "explanations": [e.to_dict() for e in self.explanations],
                 "ambiguity": self.ambiguity,
                 "notes": [n.to_dict() for n in self.notes],
+                "discovery": self.discovery.to_dict() if self.discovery is not None else None,
             }
         )
 
 
-def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
+def diagnose(
+    fit: FitResult,
+    *,
+    threads: int | None = None,
+    discover: bool = True,
+    extra_terms: Sequence[discovery_search.Term] = (),
+) -> Diagnosis:
     """Test the residual of a fit and rank the effects that could explain it.
 
     The fit's paper's method and per-trial fits are reused (the per-trial fits are
@@ -298,6 +320,12 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
     threads : int, optional
         Candidates refitted at once; None uses :data:`REFIT_THREADS` (one per core).
         A batch's workers pass 1: their processes already share the cores.
+    discover : bool
+        When the tests fail and no explanation of the arena brings the residual to the
+        noise floor, search the missing force as a sparse sum of candidate terms
+        (:func:`~balancer_id.diagnostics.discover.discover`); False never searches.
+    extra_terms : sequence of Term
+        The user's own candidate terms, added to the discovery's library.
 
     Returns
     -------
@@ -391,6 +419,9 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
     rest_rss, rest_n = arena.whitened_rss(adequacy.rest_noise(ctx), inp.ar)
     inp.rest_innovation = rest_rss / rest_n if rest_n >= 50 else None
     explanations = _explain(inp, suggestions, failures)
+    found = None
+    if discover:
+        found = _discover(inp, ctx, checks, explanations, failures, fit, extra_terms)
     verdict, summary, notes, ambiguity, best = _arena_verdict(
         ctx, tests, checks, explanations, suggestions, inp, fit
     )
@@ -400,6 +431,8 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
         suggestions = []  # nothing offered without benefit
     elif best is not None and best.kind in ("split", "drift", "sensor") and ambiguity is None:
         suggestions = []  # no effect that would only mimic it
+    elif best is not None and best.kind == "discovered":
+        suggestions = [s for s in suggestions if is_missing(s) and not s.null]
     else:
         keep = set(best.effects) if best is not None and best.kind == "pair" else None
         suggestions = [
@@ -419,7 +452,45 @@ def diagnose(fit: FitResult, *, threads: int | None = None) -> Diagnosis:
         checks,
         notes,
         ambiguity,
+        found,
     )
+
+
+def _discover(
+    inp: ArenaInput,
+    ctx: DiagnosisContext,
+    checks: list[dict[str, object]],
+    explanations: list[Explanation],
+    failures: list[str],
+    fit: FitResult,
+    extra_terms: Sequence[discovery_search.Term],
+) -> discovery_search.Discovery | None:
+    """The discovered force when the arena's best leaves the tests failed; joins the arena."""
+    failed = [t for t in checks if not t["passed"]]
+    standing = _standing(explanations, bool(failed))
+    best = standing[0] if standing else None
+    if not discovery_search.should_try(best, ctx.noise_floor, bool(failed)):
+        return None
+    if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
+        return None
+    command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
+    try:
+        with step("discovering the missing term"):
+            found = discovery_search.discover(
+                inp, ctx, rival=best, command=command, extra_terms=extra_terms
+            )
+    except Exception as exc:  # the search must not stop the diagnosis
+        failures.append(f"discovery failed: {exc!r}")
+        return None
+    if found is None:
+        return None
+    found.excess_drop = excess_drop(inp.match.metrics["rmse"], found.rmse, inp.noise_floor)
+    e = found.explanation()
+    available = inp.available()
+    e.share = e.delta_bic / available if available else None
+    explanations.append(e)
+    explanations.sort(key=lambda x: -x.delta_bic)
+    return found
 
 
 def _explain(
@@ -569,6 +640,9 @@ def _arena_verdict(
         summary = text + ". Best: " + summary
     if best.kind == "sensor":
         notes.append(Note("diagnose.sensor", summary, None, "warning"))
+    if best.kind == "discovered":
+        summary = f"{summary} {_unknown_hint(tests)}"
+        notes.append(Note("diagnose.discovered", summary, None, "warning"))
     return verdict, summary, notes, ambiguity, best
 
 
@@ -612,6 +686,21 @@ def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
     )
     if e.kind == "effect":
         return f"adding {e.effects[0]}: {head}. Fit it: {fit.command(_model_for(fit, e))}"
+    if e.kind == "discovered":
+        alts = [a for a in d.get("alternatives", []) or []]  # type: ignore[union-attr]
+        also = (
+            " (" + ", ".join(f"{a['expression']}" for a in alts) + " fits about as well: the "
+            "data cannot tell them apart; record faster or longer trials)"
+            if alts
+            else ""
+        )
+        return (
+            f"no library effect explains the residual; a force found in the states does: "
+            f"{d['formula']} (N){also} lowers BIC by {e.delta_bic:.0f} and removes "
+            f"{e.excess_drop:.0%} of the error above the noise floor. Write it as an effect "
+            f"and refit: {fit.command(subcommand='improve')} --discover --effects-out "
+            "discovered.py"
+        )
     if "split_after_run" in d:
         k = int(d["split_after_run"])  # type: ignore[arg-type]
         n = int(str(d["group_by"]).rsplit("-", 1)[-1])

@@ -9,16 +9,19 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose, is_missing
+from balancer_id.diagnostics.discover import Discovery
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.data import FitData, TrialData
 from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
+from balancer_id.notes import Note
 from balancer_id.status import step
 
 #: Folds of the cross-validation across trials.
@@ -48,6 +51,8 @@ class ImproveStep:
     fit: FitResult
     cv_rmse: float | None
     evidence: str = ""
+    #: The effect added is a discovered force (``improve --discover``).
+    discovered: bool = False
 
     @property
     def match(self) -> MatchResult:
@@ -67,6 +72,7 @@ class ImproveStep:
             "cv_rmse": self.cv_rmse,
             "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
             "evidence": self.evidence,
+            "discovered": self.discovered,
             "command": self.fit.command(),
         }
 
@@ -78,6 +84,12 @@ class ImproveResult(Displayable):
     steps: list[ImproveStep]
     final: Diagnosis
     rejected: list[str] = field(default_factory=list)
+    #: ``--discover``: the effect file written (``file``, ``effect``, ``formula``), or None.
+    discovered: dict[str, object] | None = None
+    #: ``--discover``: what happened (a file written, or why none was).
+    discovery_note: Note | None = None
+    #: ``--discover``: the discovery that was written and added as a step.
+    discovery: Discovery | None = field(default=None, repr=False)
 
     def _shown_match(self) -> MatchResult:
         return self.steps[-1].match
@@ -99,6 +111,8 @@ class ImproveResult(Displayable):
             )
         if self.rejected:
             lines.append(f"    rejected: {', '.join(self.rejected)}")
+        if self.discovery_note is not None:
+            lines.append(f"    discovery: {self.discovery_note}")
         lines.append(f"    final verdict: {self.final.verdict}")
         return lines
 
@@ -118,6 +132,10 @@ class ImproveResult(Displayable):
                 "final_verdict": self.final.verdict,
                 "final_summary": self.final.summary,
                 "rejected": self.rejected,
+                "discovered": self.discovered,
+                "discovery_note": (
+                    self.discovery_note.to_dict() if self.discovery_note is not None else None
+                ),
             }
         )
 
@@ -172,7 +190,12 @@ def cross_validated_rmse(
 
 
 def improve(
-    fit: FitResult, *, max_steps: int = 4, diagnosis: Diagnosis | None = None
+    fit: FitResult,
+    *,
+    max_steps: int = 4,
+    diagnosis: Diagnosis | None = None,
+    discover_to: str | Path | None = None,
+    overwrite: bool = False,
 ) -> ImproveResult:
     """Climb the ladder from a fit: add the best-supported effect while it helps.
 
@@ -185,6 +208,14 @@ def improve(
         Effects to add at most.
     diagnosis : Diagnosis, optional
         The diagnosis of ``fit`` when it is already made (it is not made again).
+    discover_to : str or Path, optional
+        ``--discover --effects-out FILE.py``: when, after the library's effects, the
+        diagnosis discovers a missing force, write it to this file as a user effect, add
+        it as a step and refit; when nothing is missing, no file is written (the result's
+        ``discovery_note`` says so).
+    overwrite : bool
+        Replace ``discover_to`` when a previous ``--discover`` wrote it (a file of the
+        user's is never replaced).
 
     Returns
     -------
@@ -229,4 +260,77 @@ def improve(
         steps.append(ImproveStep(current.model, s.effect, current, cv, s.signature.evidence))
         with step(f"step {k + 2}: {current.model}"):
             diagnosis = diagnose(current)
-    return ImproveResult(steps, diagnosis, rejected)
+    result = ImproveResult(steps, diagnosis, rejected)
+    if discover_to is not None:
+        _discover_step(result, trials, discover_to, overwrite)
+    return result
+
+
+def _discover_step(
+    result: ImproveResult, trials: list[TrialData], path: str | Path, overwrite: bool
+) -> None:
+    """Write the last diagnosis's discovered force as an effect file, add it and refit."""
+    from balancer_id.diagnostics.discover import write_effect
+    from balancer_id.model.registry import Registry
+
+    found = result.final.discovery
+    current = result.steps[-1].fit
+    if found is None:
+        why = (
+            "nothing is missing"
+            if result.final.verdict == "adequate"
+            else "no force in the candidate terms explains what is missing better than the "
+            "explanations tried"
+        )
+        result.discovery_note = Note(
+            "improve.no_discovery", f"{why}: no effect file written ({path})", None, "info"
+        )
+        return
+    fixed = current.fixed or None
+    cv_old = result.steps[-1].cv_rmse
+    cv_new = cross_validated_rmse(found.refit.model, trials, found.refit.values(), found.fixed)
+    if cv_old is not None and cv_new is not None and cv_new >= cv_old:
+        result.rejected.append(
+            f"discovered {found.formula}: BIC falls by {found.delta_bic:.0f} but the held-out "
+            f"error does not ({cv_new:.4f} vs {cv_old:.4f} m/s^2)"
+        )
+        result.discovery_note = Note(
+            "improve.no_discovery",
+            f"the discovered force does not lower the held-out error: no effect file written "
+            f"({path})",
+            None,
+            "info",
+        )
+        return
+    evidence = (
+        f"Held-out RMSE {cv_new:.4g} m/s^2 (before {cv_old:.4g})."
+        if cv_new is not None and cv_old is not None
+        else ""
+    )
+    path, name = write_effect(found, path, evidence=evidence, overwrite=overwrite)
+    registry = Registry(list(current.spec_model.registry))
+    if name in registry:  # a file of the same name loaded before: the new one replaces it
+        registry = Registry([c for c in registry if c.name != name])
+    (cls,) = registry.load_file(path)
+    model = Model((*current.spec_model.effects, cls), registry)
+    values = {**found.refit.values(), **{t.term.name: t.coefficient for t in found.terms}}
+    start = {n: values[n] for n in model.param_names if n in values}
+    with step(f"step {len(result.steps) + 1}: {model.spec} (discovered)"):
+        match = match_trials(model, trials, start=start, fixed=fixed)
+        new = fit_match(
+            match,
+            current.trial_set,
+            classic=current.classic,
+            fixed=current.held(model),
+            effects_files=[*current.effects_files, str(path)],
+        )
+        result.steps.append(ImproveStep(new.model, name, new, cv_new, found.formula, True))
+        result.final = diagnose(new)
+    result.discovered = {"file": str(path), "effect": name, "formula": found.formula}
+    result.discovery = found
+    result.discovery_note = Note(
+        "improve.discovered",
+        f"wrote {path}: effect '{name}', {found.formula} (N); load it with --effects-file {path}",
+        None,
+        "info",
+    )

@@ -591,7 +591,8 @@ def plot_error_ladder(
     ----------
     steps : sequence of mapping
         CONTRACT.md ``improve`` steps: keys ``model``, ``added``, ``rmse``, ``aic``,
-        ``bic`` (``added`` empty or ``None`` for the starting model).
+        ``bic`` (``added`` empty or ``None`` for the starting model); a step with
+        ``discovered`` true (a discovered force) is hatched and labelled so.
     path : str or Path, optional
         Write a PNG here (atomically) instead of returning the figure.
     chosen : str, optional
@@ -611,6 +612,10 @@ def plot_error_ladder(
         return _finish(fig, path)
     x = np.arange(len(steps))
     labels = [(f"+ {s['added']}" if s.get("added") else str(s["model"])) for s in steps]
+    labels = [
+        f"{t}\n(discovered)" if s.get("discovered") else t
+        for t, s in zip(labels, steps, strict=True)
+    ]
     rmse = np.array([_num(s.get("rmse")) for s in steps])
     bic = np.array([_num(s.get("bic")) for s in steps])
     aic = np.array([_num(s.get("aic")) for s in steps])
@@ -618,6 +623,10 @@ def plot_error_ladder(
         chosen = steps[int(np.nanargmin(bic))]["model"]
     colors = ["#0072B2" if s["model"] == chosen else "#9DB9D3" for s in steps]
     bars = ax.bar(x, np.nan_to_num(rmse), color=colors, width=0.6, zorder=2)
+    for b, s in zip(bars, steps, strict=True):
+        if s.get("discovered"):  # a discovered force: hatched
+            b.set_hatch("//")
+            b.set_edgecolor("#D55E00")
     for b, r in zip(bars, rmse, strict=True):
         if np.isfinite(r):
             ax.annotate(

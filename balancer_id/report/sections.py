@@ -234,9 +234,22 @@ def improve_section(result: ImproveResult) -> Section:
         for k, s in enumerate(d["steps"])
     ]
     blocks: list[Any] = [Table(["step", "model", "added", "RMSE", "held-out RMSE", "BIC"], rows)]
-    if len(d["steps"]) > 1:  # one bar would show nothing falling
+    steps = list(d["steps"])
+    found = result.final.discovery
+    if found is not None:  # discovered but not written (no --discover): its error, dashed
+        steps.append(
+            {
+                "model": "discovered",
+                "added": found.formula,
+                "rmse": found.rmse,
+                "bic": None,
+                "aic": None,
+                "discovered": True,
+            }
+        )
+    if len(steps) > 1:  # one bar would show nothing falling
         blocks.append(
-            Plot(plot_error_ladder(d["steps"]), caption="The error falling as effects are added")
+            Plot(plot_error_ladder(steps), caption="The error falling as effects are added")
         )
     else:
         blocks.append(
@@ -271,13 +284,22 @@ def write_improve_report(result: ImproveResult, path: str | Path) -> Path:
     UsageError
         Another suffix, a missing directory, or ``path`` is one of the input logs.
     """
+    from balancer_id.report.discovery_section import discovery_section
     from balancer_id.report.document import write_fit_report
 
+    found = discovery_section(
+        result.discovery or result.final.discovery,
+        str(result.discovered["file"]) if result.discovered else None,
+    )
     return write_fit_report(
         result.steps[-1].fit,
         path,
         lead_sections=[finding_section(result.final)],
-        extra_sections=[improve_section(result), diagnosis_section(result.final)],
+        extra_sections=[
+            improve_section(result),
+            *([found] if found is not None else []),
+            diagnosis_section(result.final),
+        ],
         warnings=result.final.fit_warnings(),
     )
 
@@ -314,9 +336,13 @@ def write_full_report(
     UsageError
         A bad report path (suffix, directory, or one of the logs).
     """
+    from balancer_id.report.discovery_section import discovery_section
     from balancer_id.report.document import write_fit_report
 
     extra = [diagnosis_section(diagnosis)]
+    found = discovery_section(diagnosis.discovery)
+    if found is not None:
+        extra.append(found)
     if improved is not None:
         extra.append(improve_section(improved))
     return write_fit_report(

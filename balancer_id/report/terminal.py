@@ -370,8 +370,32 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     for k, s in enumerate(result["suggestions"], 1):
         console.print(f"  {k}. {s['change']}:", markup=False, highlight=False)
         print_command(console, s["command"])
+    if result.get("discovery"):
+        _print_discovery(console, result["discovery"])
     for f in result.get("failed_candidates", []):
         _stderr(console).print(f"[yellow]candidate failed:[/yellow] {f}")
+
+
+def _print_discovery(console: Console, d: dict[str, Any]) -> None:
+    """The discovered force: its terms, coefficients and inclusion, and the command."""
+    table = Table(title=f"discovered term: {d['formula']} (N)")
+    for col in ("term", "coefficient", "stderr", "unit", "inclusion"):
+        table.add_column(col, overflow="fold")
+    for t in d["terms"]:
+        se = t["stderr"]
+        table.add_row(
+            t["expression"],
+            f"{t['coefficient']:.4g}",
+            "-" if se is None else f"{se:.2g}",
+            t["unit"],
+            f"{t['inclusion']:.0%}",
+        )
+    console.print(table)
+    console.print(
+        f"BIC falls by {d['bic_drop']:.0f}; RMSE after {_fmt(d['rmse_after'])} m/s^2. "
+        "Write it as an effect and refit:"
+    )
+    print_command(console, d["command"])
 
 
 def print_improve(console: Console, result: dict[str, Any]) -> None:
@@ -399,6 +423,8 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
     console.print(table)
     for r in result.get("rejected", []):
         console.print(f"[yellow]not taken:[/yellow] {r}")
+    if result.get("discovery_note"):
+        console.print(f"discovery: {result['discovery_note']['text']}", markup=False)
     if result["steps"]:
         console.print("the final model's fit:")
         print_command(console, result["steps"][-1]["command"])

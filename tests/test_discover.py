@@ -1,0 +1,164 @@
+"""Discovery of a missing force (issue 18): seeded logs with a hidden spring or drag.
+
+The hidden forces are simulated with the discovery's own library effect (every term at 0
+but the hidden one), so no extra kernel is compiled; the search is not told which.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import EXAMPLES, PAPER, PAPER_THRUSTS
+
+from balancer_id.diagnostics import discover as discovery
+from balancer_id.diagnostics.diagnosis import diagnose
+from balancer_id.diagnostics.improve import improve
+from balancer_id.errors import OutputExistsError
+from balancer_id.identify.api import trial_data
+from balancer_id.identify.matching import match_trials
+from balancer_id.identify.result import FitResult, fit_match
+from balancer_id.model import Registry, parse_model
+from balancer_id.model.registry import default_registry
+from balancer_id.read.recording import Log
+from balancer_id.segment import find_trials
+from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
+from balancer_id.trials import LoadedLog, TrialSet
+
+NOISE = 0.03
+
+
+def hidden_force(term: str, coefficient: float, seed: int, rho: float = 0.0) -> TrialSet:
+    """Six paper trials with one library term hidden at ``coefficient``, read back."""
+    terms = discovery.default_terms(0.3, None)
+    lib = discovery.library_effect(terms)
+    registry = Registry()
+    registry.add(lib)
+    model = parse_model(f"variable_viscosity+{lib.name}", registry)
+    truth = {k: v for k, v in PAPER.items() if k in model.param_names}
+    truth.update({key: val for t in terms for key, val in t.shapes})
+    for j, t in enumerate(terms):
+        truth[f"q{j}"] = coefficient if t.expression == term else 0.0
+    sensor = SensorSettings(
+        tilt_deg=15.0, accel_noise=NOISE, force_noise=0.03, noise_correlation=rho
+    )
+    recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
+    log = Log(Path(f"hidden_{seed}.csv"), "pasco-capstone", recs)
+    return TrialSet([LoadedLog(log, find_trials(log))])
+
+
+def fit_paper_model(trials: TrialSet) -> FitResult:
+    match = match_trials(parse_model(), trial_data(trials), start={"m_a": 15.0, "T_a": 0.3})
+    return fit_match(match, trials)
+
+
+@pytest.fixture(scope="module")
+def spring():
+    """A hidden spring ``-4 z`` (the README's hose) and the diagnosis of the paper model."""
+    start = fit_paper_model(hidden_force("z", -4.0, seed=31))
+    return start, diagnose(start)
+
+
+def test_a_hidden_spring_is_discovered_with_its_stiffness(spring):
+    _, d = spring
+    found = d.discovery
+    assert found is not None and d.verdict == "effect missing"
+    assert [t.expression for t in found.terms] == ["z"]
+    term = found.terms[0]
+    # the stiffness's standard error at 0.03 m/s^2 noise is ~0.02 N/m: 5 % is > 8 of them
+    assert term.coefficient == pytest.approx(-4.0, rel=0.05)
+    assert term.stderr is not None and 0 < term.stderr < 0.1
+    assert term.term.unit == "N/m" and term.inclusion >= 0.9
+    # the whole model was refitted with it: the other parameters moved back to the truth
+    values = found.refit.values()
+    assert values["m_a"] == pytest.approx(PAPER["m_a"], rel=0.03)
+    assert found.rmse < 1.15 * NOISE
+    out = d.to_dict()
+    json.dumps(out, allow_nan=False)
+    rec = out["discovery"]
+    assert rec["formula"] == f"F = {term.coefficient:.4g}*z"
+    assert rec["terms"][0]["expression"] == "z" and rec["bic_drop"] > 1000
+    assert "--discover --effects-out" in rec["command"]
+    assert out["explanations"][0]["kind"] == "discovered"
+    assert "diagnose.discovered" in {n["code"] for n in out["notes"]}
+
+
+def test_a_hidden_quadratic_drag_is_discovered():
+    # c = 8 N s^2/m^2: at the top speed (~0.45 m/s) about 1.6 N, a third of the viscous force
+    d = diagnose(fit_paper_model(hidden_force("v*abs(v)", -8.0, seed=32)))
+    found = d.discovery
+    assert found is not None
+    assert [t.expression for t in found.terms] == ["v*abs(v)"]
+    # standard error ~0.3 at this noise; 15 % of 8 is 1.2, about 4 of them
+    assert found.terms[0].coefficient == pytest.approx(-8.0, rel=0.15)
+    assert found.terms[0].term.unit == "N s^2/m^2"
+
+
+def test_a_clean_log_discovers_nothing_even_when_forced_to_search(monkeypatch):
+    # the arena says adequate, so the search is not tried; forced, it must find nothing
+    start = fit_paper_model(hidden_force("z", 0.0, seed=33, rho=0.5))
+    assert diagnose(start).discovery is None
+    monkeypatch.setattr(discovery, "should_try", lambda *a: True)
+    d = diagnose(start)
+    assert d.discovery is None and d.verdict == "adequate"
+    assert d.to_dict()["discovery"] is None
+
+
+def test_the_written_effect_loads_as_an_effects_file_and_lowers_the_error(spring, tmp_path):
+    start, d = spring
+    path, name = discovery.write_effect(d.discovery, tmp_path / "hose_found.py")
+    text = path.read_text()
+    assert name == "hose_found" and text.startswith(discovery.MARKER)
+    assert "F = k_z*z" in text and "Param(" in text and '"N/m"' in text
+    registry = default_registry([path])  # what --effects-file does
+    model = parse_model("variable_viscosity+hose_found", registry)
+    assert model.param("k_z").value == pytest.approx(d.discovery.terms[0].coefficient)
+    match = match_trials(model, trial_data(start.trial_set), start=start.values)
+    assert match.values()["k_z"] == pytest.approx(-4.0, rel=0.05)
+    assert match.metrics["rmse"] < 0.5 * start.match.metrics["rmse"]
+    # never over a file of the user's; a file it wrote only with overwrite
+    with pytest.raises(OutputExistsError, match="exists already"):
+        discovery.write_effect(d.discovery, path)
+    discovery.write_effect(d.discovery, path, overwrite=True)
+    mine = tmp_path / "mine.py"
+    mine.write_text((EXAMPLES / "effects" / "hose_spring.py").read_text())
+    with pytest.raises(OutputExistsError, match="not written by balancer-id"):
+        discovery.write_effect(d.discovery, mine, overwrite=True)
+    assert mine.read_text() == (EXAMPLES / "effects" / "hose_spring.py").read_text()
+
+
+def test_improve_discover_on_a_clean_log_writes_no_file(tmp_path):
+    start = fit_paper_model(hidden_force("z", 0.0, seed=34))
+    out = tmp_path / "found.py"
+    result = improve(start, max_steps=1, discover_to=out)
+    assert not out.exists()
+    assert result.discovered is None
+    assert result.discovery_note is not None and result.discovery_note.code == (
+        "improve.no_discovery"
+    )
+    assert "no effect file written" in result.to_dict()["discovery_note"]["text"]
+    assert [s.model for s in result.steps] == ["variable_viscosity"]
+
+
+def test_a_user_term_joins_the_library():
+    t = discovery.Term("z*abs(v)", "N s/m^2", "c_zabsv")
+    assert t.evaluate(np.zeros(2), np.array([1.0, -2.0]), np.array([0.5, 0.5]), np.zeros(2))[
+        1
+    ] == pytest.approx(1.0)
+    src = discovery.library_source([*discovery.default_terms(0.3, None), t])
+    assert "z*abs(v)" in src and "q13 * (z*abs(v))" in src
+
+
+def test_improve_discover_options_are_checked_before_any_work(cli, tmp_path):
+    log = str(Path(__file__).parent.parent / "sample_logs" / "hose_walkthrough.csv")
+    code, _, err = cli("improve", log, "--discover")
+    assert code == 2 and "--discover and --effects-out" in err
+    mine = tmp_path / "mine.py"
+    mine.write_text("# my effect\n")
+    code, _, err = cli("improve", log, "--discover", "--effects-out", mine, "--overwrite")
+    assert code == 2 and "not written by balancer-id" in err and "mine.py" in err
+    assert mine.read_text() == "# my effect\n"
+    code, _, err = cli("improve", log, "--discover", "--effects-out", tmp_path / "x.txt")
+    assert code == 2 and ".py" in err
