@@ -153,7 +153,12 @@ class ReadOptions:
         thrusts = None
         signed = None
         if thrust is not None:
-            items = [x.strip() for x in thrust.split(",") if x.strip()]
+            items = [x.strip() for x in thrust.split(",")]
+            if not all(items):
+                raise UsageError(
+                    f"--thrust '{thrust}': an empty item; give one number per trial, "
+                    "separated by commas (e.g. 2.45,-2.45)"
+                )
             try:
                 thrusts = [float(x) for x in items]
             except ValueError:

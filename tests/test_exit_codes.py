@@ -185,3 +185,18 @@ def test_one_data_row_is_called_one_row_not_blank_cells(cli, tmp_path):
     code, _, err = cli("inspect", log)
     assert code == 3
     assert "only 1 data row(s)" in err and "blank" not in err
+
+
+@pytest.mark.parametrize(
+    ("thrust", "message"),
+    [
+        ("1,2", "2 thrust(s) given but"),  # six trials in the log
+        ("1,,2", "an empty item"),
+        (",", "an empty item"),
+    ],
+)
+def test_a_wrong_thrust_list_is_a_usage_error(cli, thrust, message):
+    code, out, err = cli("fit", LOG, "--thrust", thrust, "--json")
+    assert code == 2, err
+    assert message in err
+    assert json.loads(out)["error"]["exit_code"] == 2

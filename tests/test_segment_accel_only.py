@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from test_segment_synth import make_log, synth_run
 
-from balancer_id.errors import LogReadError, NoTrialError
+from balancer_id.errors import NoTrialError, UsageError
 from balancer_id.segment import find_trials
 
 
@@ -62,7 +62,7 @@ def test_without_thrusts_the_onsets_are_reported():
     with pytest.raises(NoTrialError, match="no force channel and no thrusts given") as err:
         find_trials(make_log(rec))
     assert "no step trial found" in str(err.value) and "3 onset(s)" in str(err.value)
-    with pytest.raises(LogReadError, match="found 3 step trials but 2 thrusts"):
+    with pytest.raises(UsageError, match=r"2 thrust\(s\) given but .* holds 3 step"):
         find_trials(make_log(rec), thrusts=[1.0, 2.0])
 
 

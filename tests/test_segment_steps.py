@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from test_segment_synth import make_log, make_recording, synth_run
 
-from balancer_id.errors import LogReadError, NoTrialError, UsageError
+from balancer_id.errors import NoTrialError, UsageError
 from balancer_id.segment import find_trials
 
 ONSET_SAMPLES = 2.0
@@ -151,11 +151,11 @@ def test_force_sign_fixes_the_direction_and_given_thrusts_replace_the_magnitudes
     assert any(n.startswith("warning:") and "motion" in n for n in noted[0].notes)
 
 
-def test_thrust_count_mismatch_is_a_log_read_error():
+def test_thrust_count_mismatch_is_a_usage_error():
     rec, _ = synth_run(42, [[4.9], [-2.45]])
-    with pytest.raises(LogReadError, match="found 2 step trials but 3 thrusts") as err:
+    with pytest.raises(UsageError, match=r"3 thrust\(s\) given but .* holds 2 step") as err:
         find_trials(make_log(rec), thrusts=[1.0, 2.0, 3.0])
-    assert err.value.exit_code == 3
+    assert err.value.exit_code == 2  # the option's value is wrong, not the log
 
 
 def test_bad_arguments_are_usage_errors():

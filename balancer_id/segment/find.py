@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from balancer_id.constants import G_DEFAULT
-from balancer_id.errors import LogReadError, NoTrialError, UsageError
+from balancer_id.errors import NoTrialError, UsageError
 from balancer_id.notes import Note, has_code
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
@@ -110,11 +110,10 @@ def find_trials(
     if total == 0:
         why = "; ".join(f"{r.rec.name}: {r.why}" for r in runs) or "the log holds no run"
         raise NoTrialError(f"{log.path}: no step trial found ({why})")
-    if given is not None and len(given) != total:
-        raise LogReadError(
-            log.path,
-            f"found {total} step trials but {len(given)} thrusts were given",
-            hint=f"onsets at {_onsets(runs)}; give one thrust per trial, in order",
+    if given is not None and len(given) != total:  # the option's value is wrong: exit 2
+        raise UsageError(
+            f"--thrust: {len(given)} thrust(s) given but {log.path} holds {total} step "
+            f"trial(s) (onsets at {_onsets(runs)}); give one thrust per trial, in order"
         )
     if given is None and any(st.source == "accel" for r in runs for st in r.steps):
         # without force and without thrusts the onsets are no usable step trials
