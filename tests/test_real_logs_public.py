@@ -7,7 +7,7 @@ for ``--columns``, read again with the column map the expectation gives. The out
 one of
 
 * ``right``: read, and every stated fact holds (runs, rate, samples, axes, gravity, rest
-  magnitude, notes);
+  magnitude, notes, the onsets of the acceleration: none in steady travel);
 * ``clear``: refused in one line holding the words the expectation names (the real cause
   and its fix);
 * ``unhelpful``: refused where a reading was expected, or refused without naming the cause;
@@ -85,6 +85,16 @@ def _facts(log: Any, exp: dict[str, Any]) -> list[str]:
             wrong.append(f"rest magnitude {level:.3g} g, expected {low}-{high} g")
     if "gaps" in exp and len(main.gaps) != exp["gaps"]:
         wrong.append(f"{len(main.gaps)} gaps, expected {exp['gaps']}")
+    if "onsets" in exp:
+        try:
+            from balancer_id.segment.find import find_onsets
+        except ImportError:  # an older checkout (bench --code): no onset check
+            find_onsets = None
+        if find_onsets is not None:
+            found = find_onsets(log).get(main.name, [])
+            want = exp["onsets"]
+            if len(found) != len(want) or not np.allclose(found, want, atol=0.5):
+                wrong.append(f"onsets {np.round(found, 2).tolist()}, expected {want}")
     for code in exp.get("notes", []):
         if not has_code(getattr(log, "notes", log.warnings), code):  # older Log: no notes
             wrong.append(f"no note {code}")

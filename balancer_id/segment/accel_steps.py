@@ -8,6 +8,13 @@ closer than ``merge_s`` are one. A trial is an active stretch that starts from r
 lasts at least ``min_trial_s``; the stretch that follows it with the opposite sign and
 lasts under ``max_catch_s`` is its catch (the person stopping the load), not a trial.
 The onset is the start of the first-order rise that best fits the acceleration there.
+
+An onset must stand out of the noise measured near it, coloured noise included (issue
+19.4): a ride's or a hand's sway in travel leaves the resting level too. A change after
+which the acceleration is back at rest is a stop or steady travel, not a new thrust. A
+catch must stop the motion (its impulse takes back the velocity gained). A motion goes on
+over a short drop-out: after it, its catch is still a catch, never a new trial (issue
+17.6).
 """
 
 from __future__ import annotations
