@@ -176,6 +176,11 @@ STOP_STEP = 0.01
 #: 0.25 % to an estimate's variance and saves the last simulation.
 STOP_LINEAR = 0.05
 
+#: The best evaluation's residual and Jacobian are kept for reuse up to this size; beyond
+#: it (a shift-long session) they are simulated again when needed, so that the fit holds
+#: one evaluation's arrays at a time, not two.
+BEST_KEPT_BYTES = 64 * 2**20
+
 CONVERGED = "converged: the step left is a small fraction of every standard error"
 
 
@@ -233,13 +238,19 @@ class _Problem:
             sens[bad] = 0.0
         cost = _sumsq(r)
         if self._best is None or cost < self._best[0]:
-            self._best = (cost, np.asarray(x, dtype=float).tobytes(), r, sens)
+            if r.nbytes + sens.nbytes > BEST_KEPT_BYTES:  # a long session: simulate again
+                r_kept, sens_kept = np.empty(0), np.empty((0, sens.shape[1]))
+            else:
+                r_kept, sens_kept = r, sens
+            self._best = (cost, np.asarray(x, dtype=float).tobytes(), r_kept, sens_kept)
         return r, sens
 
     def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual and Jacobian at ``x``, reusing the best evaluation when it is there."""
-        if self._best is not None and self._best[1] == np.asarray(x, dtype=float).tobytes():
-            return self._best[2], self._best[3]
+        best = self._best
+        if best is not None and best[1] == np.asarray(x, dtype=float).tobytes():
+            if best[2].size == self.n_samples:  # kept (see BEST_KEPT_BYTES)
+                return best[2], best[3]
         return self.evaluate(x)
 
     def residual(self, x: np.ndarray) -> np.ndarray:

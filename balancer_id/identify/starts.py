@@ -63,6 +63,12 @@ class ResponseStart:
         return bool(np.isfinite(self.m_a) and self.m_a > 0 and self.r2 > 0.05)
 
 
+#: Trials the response start is computed from, spread evenly over a longer session: the
+#: start only has to be near (the fit then uses every trial), and its lag grid costs a
+#: regression over every sample it sees.
+MAX_START_TRIALS = 60
+
+
 def _lagged(t: np.ndarray, u: np.ndarray, lag: float) -> np.ndarray:
     """``u`` through ``T df/dt = u - f`` from ``f = u[0]`` (the median sample interval)."""
     if lag <= 0 or u.size < 2:
@@ -79,7 +85,8 @@ def response_start(trials: Sequence[TrialData]) -> ResponseStart:
     Parameters
     ----------
     trials : sequence of TrialData
-        The trials as fitted (measured vertical acceleration and the thrust driving them).
+        The trials as fitted (measured vertical acceleration and the thrust driving them);
+        at most :data:`MAX_START_TRIALS` of them, spread evenly, are used.
 
     Returns
     -------
@@ -88,6 +95,9 @@ def response_start(trials: Sequence[TrialData]) -> ResponseStart:
         regression is degenerate).
     """
     parts = []
+    if len(trials) > MAX_START_TRIALS:  # a start needs no shift's worth of trials
+        keep = np.unique(np.linspace(0, len(trials) - 1, MAX_START_TRIALS).round().astype(int))
+        trials = [trials[int(k)] for k in keep]
     for td in trials:
         t = np.asarray(td.time, dtype=float)
         a = np.asarray(td.accel, dtype=float)
