@@ -191,6 +191,7 @@ def run_in_processes(
 
     ctx = context or _mp_context()
     retry: list[tuple[int, Any]] = []
+    broken = False
     pool = ProcessPoolExecutor(
         max_workers=min(jobs, len(items)),
         mp_context=ctx,
@@ -204,6 +205,7 @@ def run_in_processes(
                 try:
                     futures[pool.submit(func, arg)] = (key, arg)
                 except BrokenProcessPool:
+                    broken = True
                     retry += items[n:]
                     break
         pending = set(futures)
@@ -214,6 +216,7 @@ def run_in_processes(
                 try:
                     payload = fut.result()
                 except BrokenProcessPool:
+                    broken = True
                     retry.append((key, arg))
                     continue
                 except Exception as exc:  # e.g. a result that cannot be pickled
@@ -223,7 +226,9 @@ def run_in_processes(
         _stop_workers(pool)
         raise
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        if broken:  # a broken pool's manager thread can deadlock on a join (CPython 3.11)
+            _stop_workers(pool)
+        pool.shutdown(wait=not broken, cancel_futures=True)
     if retry:
         if notify is not None:
             notify(
