@@ -135,7 +135,8 @@ class Term:
         numpy.ndarray
         """
         fn = eval(f"lambda f, v, z, h: float({self.concrete()})", {"math": math, "abs": abs})
-        return np.array([fn(*x) for x in zip(f, v, z, h, strict=True)], dtype=float)
+        cols = [np.asarray(x, dtype=float).tolist() for x in (f, v, z, h)]
+        return np.array([fn(*x) for x in zip(*cols, strict=True)], dtype=float)
 
 
 def default_terms(v_top: float, period: float | None) -> list[Term]:
