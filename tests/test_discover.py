@@ -147,6 +147,10 @@ def test_a_user_term_joins_the_library():
     assert t.evaluate(np.zeros(2), np.array([1.0, -2.0]), np.array([0.5, 0.5]), np.zeros(2))[
         1
     ] == pytest.approx(1.0)
+    # a sign term on numpy states (its bool arithmetic needs Python floats)
+    coulomb = next(x for x in discovery.default_terms(0.3, None) if x.name == "f_c")
+    got = coulomb.evaluate(np.zeros(3), np.array([-0.2, 0.0, 0.3]), np.zeros(3), np.zeros(3))
+    assert got.tolist() == [-1.0, 0.0, 1.0]
     src = discovery.library_source([*discovery.default_terms(0.3, None), t])
     assert "z*abs(v)" in src and "q13 * (z*abs(v))" in src
 

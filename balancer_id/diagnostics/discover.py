@@ -76,6 +76,8 @@ LEFT_OVER = 0.5
 #: Explanations a missing force can mimic (a parameter that seems to change between runs
 #: when it depends on the speed or the thrust): the search competes with them on BIC.
 MIMICS = ("split", "drift", "pair")
+#: The Coulomb term, and the prefix of the Stribeck terms (tried with it as a pair).
+COULOMB, STRIBECK = "f_c", "f_st"
 #: Terms tried only when the residual's spectrum over position has a period.
 PERIODIC = ("a_sin", "a_cos")
 #: Marker of a file written by ``improve --discover`` (only such a file is ever replaced).
@@ -135,7 +137,8 @@ class Term:
         numpy.ndarray
         """
         fn = eval(f"lambda f, v, z, h: float({self.concrete()})", {"math": math, "abs": abs})
-        return np.array([fn(*x) for x in zip(f, v, z, h, strict=True)], dtype=float)
+        cols = [np.asarray(x, dtype=float).tolist() for x in (f, v, z, h)]
+        return np.array([fn(*x) for x in zip(*cols, strict=True)], dtype=float)
 
 
 def default_terms(v_top: float, period: float | None) -> list[Term]:
@@ -821,13 +824,24 @@ def _search(
         top = ranked[0][1] if ranked else 0.0
         tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > max(TERM_BIC, CLOSE * top)]
         tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
-        best_try: tuple[float, int, MatchResult] | None = None
-        tried: list[tuple[float, int, MatchResult]] = []
-        for new in tries:
-            c = rest.index(new)
-            step, *_ = np.linalg.lstsq(np.hstack([p, q[:, [c]]]), r, rcond=None)
-            start = {**current, q_names[new]: float(step[-1])}
-            trial_support = [*support, new]
+        # a Stribeck term comes with its Coulomb level: the pair is tried too
+        coulomb = next((k for k in rest if terms[k].name == COULOMB), None)
+        groups: list[tuple[int, ...]] = [(j,) for j in tries]
+        groups += [
+            (coulomb, j)
+            for j in tries
+            if coulomb is not None and terms[j].name.startswith(STRIBECK) and coulomb != j
+        ]
+        best_try: tuple[float, tuple[int, ...], MatchResult] | None = None
+        tried: list[tuple[float, tuple[int, ...], MatchResult]] = []
+        for group in groups:
+            cols = [rest.index(k) for k in group]
+            step, *_ = np.linalg.lstsq(np.hstack([p, q[:, cols]]), r, rcond=None)
+            start = {
+                **current,
+                **{q_names[k]: float(x) for k, x in zip(group, step[-len(group) :], strict=True)},
+            }
+            trial_support = [*support, *group]
             hold = {
                 **fixed,
                 **{q_names[k]: 0.0 for k in range(len(terms)) if k not in trial_support},
@@ -840,15 +854,20 @@ def _search(
                 continue
             parts = [fitted.residual[sl] for sl in fitted.data.slices()]
             d_bic, _ = arena.score(inp, parts, len(trial_support))
-            tried.append((d_bic, new, fitted))
-            if best_try is None or d_bic > best_try[0]:
-                best_try = (d_bic, new, fitted)
+            # each term of the group must pay
+            gain = d_bic - TERM_BIC * (len(group) - 1)
+            tried.append((gain, group, fitted))
+            if best_try is None or gain > best_try[0]:
+                best_try = (gain, group, fitted)
         if best_try is None or best_try[0] - d_best <= TERM_BIC:
             break
-        d_best, new, refit = best_try
+        _, chosen_group, refit = best_try
+        d_best = best_try[0] + TERM_BIC * (len(chosen_group) - 1)
+        new = chosen_group[-1]
         # terms that fit about as well in this round: said with the discovery
-        for d_alt, j, alt in tried:
-            if j != new and d_alt >= d_best - CLOSE_BIC:
+        for d_alt, group, alt in tried:
+            j = group[-1]
+            if len(group) == 1 and j != new and d_alt >= best_try[0] - CLOSE_BIC:
                 coef = alt.parameters[q_names[j]].value
                 alternatives.append(
                     {
@@ -858,7 +877,7 @@ def _search(
                         "bic_drop": float(d_alt),
                     }
                 )
-        support = [*support, new]
+        support = [*support, *chosen_group]
         current = {**current, **refit.values()}
     if refit is None or not support:
         return None
