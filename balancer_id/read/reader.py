@@ -103,10 +103,12 @@ def read_log(
         recordings, warnings = build_recordings(
             sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
         )
-    if not recordings and table.n_rows < MIN_ROWS_OF_A_RUN:
+    filled = sum(np.isfinite(v) for v in table.columns.values()) if table.columns else 0
+    n_filled = int(np.count_nonzero(filled)) if table.columns else 0
+    if not recordings and 0 < n_filled < MIN_ROWS_OF_A_RUN:
         raise LogReadError(
             sniffed.path,
-            f"only {table.n_rows} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
+            f"only {n_filled} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
             "samples of a run",
             line=sniffed.header_line + 1,
             hint="record longer, or check that the export includes every sample",

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from balancer_id.numbers import format_number
 from balancer_id.report.blocks import (
     Cell,
     Paragraph,
@@ -14,7 +15,6 @@ from balancer_id.report.blocks import (
     Preformatted,
     Section,
     Table,
-    format_value,
 )
 
 if TYPE_CHECKING:
@@ -98,8 +98,8 @@ def discovery_section(found: Discovery | None, written: str | None = None) -> Se
     rows: list[list[str | Cell]] = [
         [
             t.expression,
-            format_value(t.coefficient, 4),
-            "-" if t.stderr is None else format_value(t.stderr, 2),
+            format_number(t.coefficient, 4),
+            "-" if t.stderr is None else format_number(t.stderr, 2),
             t.term.unit,
             f"{t.inclusion:.0%}",
         ]
