@@ -99,9 +99,9 @@ def test_fit_with_fix_and_table_output(cli, simulated):
     assert "m_a" in out and "held" in out
 
 
-def test_thrusts_that_do_not_match_the_trials_exit_3(cli, simulated):
+def test_thrusts_that_do_not_match_the_trials_are_a_usage_error(cli, simulated):
     code, _, err = cli("fit", simulated, "--thrust", "2.45,4.9")
-    assert code == 3
+    assert code == 2  # the option's value is wrong (CONTRACT.md), not the log
     assert err.count("\n") == 1 and "sim.csv" in err
 
 
