@@ -104,17 +104,17 @@ def cases() -> list[Case]:
     # -- bad files x commands ----------------------------------------------------------
     for name, (content, code, says) in BAD_FILES.items():
         for command in ("inspect", "fit", "diagnose", "report"):
-            extra = ["--out", "r.html"] if command == "report" else []
-            code_here = 0 if (command == "inspect" and code == 4) else code
+            extra = ["--out", "r.html"] if command == "report" else ["--json"]
+            code_here = code
             out.append(
                 Case(
                     "bad file",
                     f"{command} {name}",
-                    [command, name, *extra, "--json"],
+                    [command, name, *extra],
                     code_here,
                     says if code_here else "",
                     quick=command == "fit" and name in QUICK_FILES,
-                    json_out=True,
+                    json_out=command != "report",
                     make=_write(name, content),
                     keep=[name],
                 )
@@ -147,7 +147,7 @@ def cases() -> list[Case]:
         (["fit", "log.csv", "--fix", "zz=1"], "zz"),
         (["fit", "log.csv", "--g", "-9.8"], "--g"),
         (["fit", "log.csv", "--nosuch"], "No such option"),
-        (["fit", "log.csv", "--columns", "time=Nope,force=Nope2,a=Nope3"], "Nope"),
+
         (["simulate", "--thrust", "inf", "--out", "s.csv"], "--thrust"),
         (["simulate", "--thrust", "1e308", "--out", "s.csv"], "--thrust"),
         (["simulate", "--noise", "1e308", "--out", "s.csv"], "--noise"),
@@ -170,6 +170,16 @@ def cases() -> list[Case]:
                 keep=["log.csv"],
             )
         )
+    out.append(
+        Case(
+            "bad option value",
+            "--columns naming columns the file lacks (the log cannot be read so: 3)",
+            ["fit", "log.csv", "--columns", "time=Nope,force=Nope2,a=Nope3"],
+            3,
+            "Nope",
+            make=_copy("log.csv"),
+        )
+    )
     out.append(
         Case(
             "bad option value",

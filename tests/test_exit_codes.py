@@ -200,3 +200,18 @@ def test_a_wrong_thrust_list_is_a_usage_error(cli, thrust, message):
     assert code == 2, err
     assert message in err
     assert json.loads(out)["error"]["exit_code"] == 2
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b'{"parameters": {"m_a": {"value": 15.0}, "T_a": {"value": NaN}}}', "T_a is nan"),
+        (b"\xff\xfe\x00binary", "not a text file"),
+    ],
+)
+def test_a_params_file_that_cannot_be_used_is_named(cli, tmp_path, content, message):
+    params = tmp_path / "p.json"
+    params.write_bytes(content)
+    code, _, err = cli("fit", LOG, "--params", params)
+    assert code == 2, err
+    assert "p.json" in err and message in err

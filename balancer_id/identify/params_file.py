@@ -37,6 +37,10 @@ def read_params_file(path: str | Path) -> dict[str, float]:
         data = json.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise UsageError(f"--params {path}: cannot read it ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise UsageError(
+            f"--params {path}: not a text file; give the output of 'balancer-id fit --json'"
+        ) from None
     except json.JSONDecodeError as exc:
         raise UsageError(
             f"--params {path}: line {exc.lineno} column {exc.colno}: not JSON ({exc.msg}); "
@@ -46,7 +50,12 @@ def read_params_file(path: str | Path) -> dict[str, float]:
     out: dict[str, float] = {}
     for name, item in (table or {}).items():
         value = item.get("value") if isinstance(item, dict) else item
-        if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            if not math.isfinite(value):  # NaN or Infinity: never used as a value
+                raise UsageError(
+                    f"--params {path}: {name} is {value}; give a finite value (or leave "
+                    f"{name} out)"
+                )
             out[str(name)] = float(value)
     if not out:
         raise UsageError(
