@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from balancer_id.notes import Note
+from balancer_id.read.orientation import axis_name
 from balancer_id.read.recording import Recording
 from balancer_id.segment.gravity import VerticalMotion
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
@@ -336,10 +337,4 @@ def vertical_name(
     """
     if motion is None or motion.up.size == 0:
         return ""
-    up = np.asarray(motion.up if at is None else motion.up_at(at), float)
-    names = axes if len(axes) == up.size else ("x", "y", "z")[: up.size]
-    j = int(np.argmax(np.abs(up)))
-    norm = float(np.linalg.norm(up)) or 1.0
-    angle = float(np.degrees(np.arccos(np.clip(abs(up[j]) / norm, -1.0, 1.0))))
-    text = f"{'+' if up[j] >= 0 else '-'}{names[j]}"
-    return text if angle <= 1.0 else f"{text}, {angle:.0f} deg off"
+    return axis_name(np.asarray(motion.up if at is None else motion.up_at(at), float), axes)
