@@ -324,7 +324,8 @@ def advise(
     values: Mapping[str, float],
     target: float = TARGET_DAMPING,
     bounds: Mapping[str, tuple[float, float]] | None = None,
-    viscosity_factor: float | Mapping[str, FactorOf] = 1.0,
+    viscosity_factor: float = 1.0,
+    along: Mapping[str, FactorOf] | None = None,
 ) -> Advice:
     """Settings of ``D0``, ``c_r`` and ``k_r`` (each alone) that reach the target damping.
 
@@ -336,11 +337,13 @@ def advise(
         Damping ratio to reach (0.3 by default).
     bounds : mapping of str to tuple, optional
         Allowed range of each setting.
-    viscosity_factor : float or mapping of str to callable
-        The effective viscosity during the settling as a share of ``D0`` (see
-        :func:`viscosity_factor`); 1 predicts at ``D0`` itself. Per setting, a function
-        of its candidate value (:func:`factor_along`): the share is re-evaluated at each
-        candidate, since a setting changes the settling it is measured on.
+    viscosity_factor : float
+        Today's effective viscosity during the settling as a share of ``D0`` (see
+        :func:`viscosity_factor`); 1 predicts at ``D0`` itself.
+    along : mapping of str to callable, optional
+        Per setting, the share as a function of its candidate value
+        (:func:`factor_along`): re-evaluated at each candidate, since a setting changes
+        the settling it is measured on. A setting not named keeps today's share.
 
     Returns
     -------
@@ -349,12 +352,8 @@ def advise(
     """
     base = dict(values)
     base.setdefault("D0", 0.0)
-    if isinstance(viscosity_factor, Mapping):
-        per = dict(viscosity_factor)
-        today = float(per["D0"](float(base["D0"]))) if "D0" in per else 1.0
-    else:
-        today = float(viscosity_factor)
-        per = {}
+    today = float(viscosity_factor)
+    per = dict(along or {})
     settings = [
         advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today))
         for p in SETTINGS
@@ -614,6 +613,7 @@ def advise_fit(
     values: Mapping[str, float],
     moves: Sequence[TrialInput],
     target: float = TARGET_DAMPING,
+    today: float | None = None,
 ) -> Advice:
     """The whole advice for an identified robot-balancer pair, checked by simulation.
 
@@ -627,6 +627,9 @@ def advise_fit(
         The fitted moves (the first is simulated for the checks and the viscosity factor).
     target : float
         Damping ratio to reach.
+    today : float, optional
+        Today's viscosity share when already known (the fit's coupling has it); None
+        simulates it (:func:`viscosity_factor`).
 
     Returns
     -------
@@ -635,6 +638,8 @@ def advise_fit(
         effective viscosity (:func:`viscosity_factor`) and checked by simulation.
     """
     bounds = {p.name: (p.min, p.max) for p in model.params if p.name in SETTINGS}
+    if today is None:
+        today = viscosity_factor(model, values, moves[0]) if moves else 1.0
     shares: dict[str, FactorOf] = {}
     if moves and "A" in model.param_names and float(values.get("A", 0.0)) > 0:
         for name in SETTINGS:
@@ -645,8 +650,5 @@ def advise_fit(
                 lo, hi = max(lo, bounds[name][0]), min(hi, bounds[name][1])
             if hi > lo > 0:
                 shares[name] = factor_along(model, values, moves[0], name, (lo, hi))
-        if "D0" not in shares:
-            today = viscosity_factor(model, values, moves[0])
-            shares["D0"] = lambda _x: today
-    advice = advise(values, target, bounds, viscosity_factor=shares or 1.0)
+    advice = advise(values, target, bounds, viscosity_factor=today, along=shares)
     return check_by_simulation(advice, model, values, moves)

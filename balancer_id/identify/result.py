@@ -197,7 +197,8 @@ class FitResult(Displayable):
             from balancer_id.identify.advice import advise_fit
 
             moves = [t.input for t in self.match.data.trials]
-            advice = advise_fit(self.match.model, self.values, moves)
+            share = self.coupling.viscosity_factor  # simulated once, for the coupling
+            advice = advise_fit(self.match.model, self.values, moves, today=share)
             object.__setattr__(self, "_advice", advice)  # a cache, not a change
         return self._advice
 
