@@ -21,6 +21,8 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
+from balancer_id.cli import progress
+from balancer_id.cli.progress import one_line
 from balancer_id.constants import G_DEFAULT
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -152,22 +154,6 @@ def _evaluated(annotation: Any, func: Callable[..., Any]) -> Any:
     return annotation
 
 
-def one_line(text: object) -> str:
-    """``text`` on one line, with control characters (terminal escapes) made visible.
-
-    Parameters
-    ----------
-    text : object
-        A message.
-
-    Returns
-    -------
-    str
-    """
-    flat = " ".join(str(text).split())
-    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)
-
-
 def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:
     """The ``error`` object of ``--json`` output: kind, message, exit code, where.
 
@@ -250,8 +236,6 @@ def guarded(func: F) -> F:
 
         json_out = bool(kwargs.get("json_out"))
         if kwargs.get("quiet"):
-            from balancer_id.cli import progress
-
             progress.QUIET = True
         try:
             with warnings.catch_warnings():

@@ -15,6 +15,23 @@ from typing import Any
 QUIET = False
 
 
+def one_line(text: object) -> str:
+    """``text`` on one line, with control characters (terminal escapes) made visible.
+
+    Parameters
+    ----------
+    text : object
+        A message.
+
+    Returns
+    -------
+    str
+    """
+    flat = " ".join(str(text).split())
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)
+
+
+
 def enabled() -> bool:
     """Whether progress is shown (stderr is a terminal and not ``--quiet``).
 
@@ -75,8 +92,6 @@ def batch_progress(
     tuple
         ``(say, tick)``.
     """
-    from balancer_id.cli.options import one_line
-
     if QUIET:  # --quiet: no line per log (the summary line and summary.csv say it all)
         yield (lambda message: None), None
         return
