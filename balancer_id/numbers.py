@@ -47,12 +47,11 @@ def format_number(x: object, digits: int = 4) -> str:
     """
     if x is None:
         return "-"
-    xf = _finite(x)
-    if xf is None:
-        try:
-            float(x)  # type: ignore[arg-type]
-        except (TypeError, ValueError):
-            return str(x)
+    try:
+        xf = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return str(x)
+    if not math.isfinite(xf):
         return "-"
     text = f"{xf:#.{digits}g}"  # keeps trailing zeros: 0.03000, not 0.03
     mantissa, e, exponent = text.partition("e")
