@@ -52,7 +52,7 @@ _LAZY = {
     "diagnose": "balancer_id.diagnostics.api",
     "improve": "balancer_id.diagnostics.api",
     "compare": "balancer_id.diagnostics.api",
-    "validate": "balancer_id.diagnostics.validate",
+    "validate": "balancer_id.diagnostics.api",
     "full_report": "balancer_id.workflows",
 }
 

@@ -607,13 +607,9 @@ def compare(
             effects_files=effects_file or (),
         )
     out = {"models": [r.to_dict() for r in results]}
-    if params is not None and len(results) == 1 and not out["models"][0]["fitted"]:
-        from balancer_id.diagnostics.validate import validate
-
+    if params is not None and len(results) == 1 and results[0].validation is not None:
         # every value known: the saved model on new logs, with a verdict (issue 20.4)
-        out["validation"] = validate(
-            fixed, trials, model=specs[0], effects_files=effects_file or ()
-        ).to_dict()
+        out["validation"] = results[0].validation.to_dict()
     if trajectory_text is not None:  # issue 9: the vibration of each move, side by side
         from balancer_id.diagnostics.vibration import compare_vibration
 

@@ -1,4 +1,4 @@
-"""Library entry points of ``compare``, ``diagnose`` and ``improve``.
+"""Library entry points of ``compare``, ``validate``, ``diagnose`` and ``improve``.
 
 ``diagnose`` and ``improve`` take a :class:`~balancer_id.identify.result.FitResult` and
 reuse what it computed (trials, paper's method, per-trial fits). For convenience they
@@ -8,6 +8,7 @@ first.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,10 @@ from balancer_id.diagnostics.diagnosis import Diagnosis
 from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
 from balancer_id.diagnostics.improve import ImproveResult
 from balancer_id.diagnostics.improve import improve as improve_fit
+from balancer_id.diagnostics.validate import Validation
+from balancer_id.errors import UsageError
 from balancer_id.identify.api import Sources, fit, resolve_model, trial_data
+from balancer_id.identify.params_file import read_params_file
 from balancer_id.identify.result import FitResult
 from balancer_id.model.registry import Registry, default_registry
 from balancer_id.simulation.inputs import Trapezoid
@@ -29,8 +33,6 @@ def _fitted(
 ) -> FitResult:
     if isinstance(source, FitResult):
         if model is not None or any(v not in (None, (), {}) for v in fit_options.values()):
-            from balancer_id.errors import UsageError
-
             raise UsageError(
                 "a FitResult carries its model, options and trials; give fit options to fit()"
             )
@@ -194,3 +196,94 @@ def compare(
     parsed = [resolve_model(spec, registry=registry) for spec in models]
     data = trial_data(as_trial_set(trials, options, trajectory))
     return compare_models(parsed, data, fixed)
+
+
+def held_values(
+    params: FitResult | Mapping[str, float] | str | Path, model: str | None
+) -> tuple[str, dict[str, float]]:
+    """The model spec and values of an identified model.
+
+    Parameters
+    ----------
+    params : FitResult, mapping of str to float, str or Path
+        A fit, its values, or a file written by ``fit --json`` / ``fit --save``.
+    model : str or None
+        The model's spec; None takes the fit's or the file's.
+
+    Returns
+    -------
+    (str, dict of str to float)
+
+    Raises
+    ------
+    UsageError
+        No model given or found, or values that are not a model's.
+    """
+    if isinstance(params, FitResult):
+        return model or params.model, dict(params.values)
+    if isinstance(params, str | Path):
+        values = read_params_file(params)
+        if model is None:
+            try:
+                data = json.loads(Path(params).read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                data = None
+            spec = data.get("model") if isinstance(data, dict) else None
+            model = spec if isinstance(spec, str) else None
+        if model is None:
+            raise UsageError(f"--params {params}: the file names no model; give --model")
+        return model, values
+    if model is None:
+        raise UsageError("validate: give the model's spec with values given as a mapping")
+    return model, {str(k): float(v) for k, v in params.items()}
+
+
+def validate(
+    params: FitResult | Mapping[str, float] | str | Path,
+    trials: Sources,
+    *,
+    model: str | None = None,
+    options: ReadOptions | None = None,
+    effects_files: Sequence[str | Path] = (),
+    trajectory: Any = None,
+) -> Validation:
+    """Simulate an identified model on new logs and say whether it holds.
+
+    Parameters
+    ----------
+    params : FitResult, mapping of str to float, str or Path
+        The identified model: a fit, its values (with ``model``), or a ``fit --json`` file.
+    trials : TrialSet, str, Path or sequence
+        The new logs (or their trials).
+    model : str, optional
+        The model's spec (default: the fit's or the file's).
+    options : ReadOptions, optional
+        How the logs are read.
+    effects_files : sequence of str or Path
+        User effect files the model needs.
+    trajectory : optional
+        The robot's reference move for ``servo`` models (text as for ``--trajectory``).
+
+    Returns
+    -------
+    Validation
+
+    Raises
+    ------
+    UsageError
+        A value the model lacks (then the model is refitted, not validated: use
+        :func:`~balancer_id.diagnostics.api.compare`).
+    """
+    spec, values = held_values(params, model)
+    mdl = resolve_model(spec, effects_files)
+    missing = [n for n in mdl.param_names if n not in values]
+    if missing:
+        raise UsageError(
+            f"cannot validate {spec}: no value for {', '.join(missing)}; give a fit of this "
+            "model (its --json), or compare to refit"
+        )
+    held = {n: float(values[n]) for n in mdl.param_names}
+    data = trial_data(as_trial_set(trials, options, trajectory))
+    (comparison,) = compare_models([mdl], data, held)
+    assert comparison.validation is not None  # every value held: simulated and judged
+    return comparison.validation

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from balancer_id.diagnostics.context import build_context
 from balancer_id.diagnostics.residual_tests import input_correlation, whiteness, worst_windows
+from balancer_id.diagnostics.validate import Validation, judge
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.display import Displayable
@@ -23,6 +24,8 @@ class ModelComparison(Displayable):
     worst: list[dict[str, object]]
     #: Whiteness and cross-correlation with the thrust of the residual (validation).
     residual_tests: dict[str, object] | None = None
+    #: With every value known (nothing fitted): does the model hold on these trials?
+    validation: Validation | None = None
 
     def _shown_match(self) -> MatchResult:
         return self.match
@@ -82,18 +85,22 @@ def compare_models(
     Returns
     -------
     list of ModelComparison
-        In the order given.
+        In the order given; a model whose every value is held is simulated, not fitted,
+        and carries its :class:`~balancer_id.diagnostics.validate.Validation`.
     """
     classic = paper_method(trials)
     out = []
     for model in models:
         s = classic.start_values(model)
         fx = {k: v for k, v in (fixed or {}).items() if k in model.param_names}
-        if set(model.param_names) <= set(fx):  # every value known: validate, no fit
+        known = set(model.param_names) <= set(fx)
+        if known:  # every value known: validate, no fit
             match = evaluate_trials(model, trials, fx)
         else:
             match = match_trials(model, trials, start=s, fixed=fx)
         ctx = build_context(match)
-        tests = {"whiteness": whiteness(ctx), "input_cross_correlation": input_correlation(ctx)}
-        out.append(ModelComparison(match, worst_windows(ctx), tests))
+        thrust = input_correlation(ctx)
+        tests = {"whiteness": whiteness(ctx), "input_cross_correlation": thrust}
+        verdict = judge(ctx, thrust, fx) if known else None
+        out.append(ModelComparison(match, worst_windows(ctx), tests, verdict))
     return out

@@ -17,24 +17,15 @@ Otherwise it does not hold, and the reasons say which test failed and by how muc
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from balancer_id.diagnostics.adequacy import colour_test, level_test
-from balancer_id.diagnostics.compare import ModelComparison, compare_models
-from balancer_id.diagnostics.context import build_context
-from balancer_id.diagnostics.residual_tests import input_correlation
-from balancer_id.errors import UsageError
-from balancer_id.identify.api import resolve_model, trial_data
-from balancer_id.identify.params_file import read_params_file
-from balancer_id.identify.result import FitResult
+from balancer_id.diagnostics.context import DiagnosisContext
 from balancer_id.jsonsafe import json_ready
-from balancer_id.trials import ReadOptions, TrialSet, as_trial_set
 
-__all__ = ["Validation", "validate"]
+__all__ = ["Validation", "judge"]
 
 
 @dataclass(frozen=True)
@@ -54,8 +45,8 @@ class Validation:
         passed, value, limit, text}``.
     reasons : list of str
         The failed tests' texts (empty when it holds).
-    comparison : ModelComparison
-        The simulation on the new trials (errors per trial, worst windows).
+    fit_percent : float
+        NRMSE fit (%) of the model on the new trials.
     """
 
     model: str
@@ -63,19 +54,12 @@ class Validation:
     holds: bool
     tests: list[dict[str, Any]] = field(default_factory=list)
     reasons: list[str] = field(default_factory=list)
-    comparison: ModelComparison | None = None
+    fit_percent: float = float("nan")
 
     @property
     def verdict(self) -> str:
         """``holds`` or ``does not hold``."""
         return "holds" if self.holds else "does not hold"
-
-    @property
-    def fit_percent(self) -> float:
-        """NRMSE fit (%) of the model on the new trials."""
-        if self.comparison is None:
-            return float("nan")
-        return float(self.comparison.match.metrics["nrmse_fit_percent"])
 
     def lines(self) -> list[str]:
         """The verdict and its reasons, one sentence each."""
@@ -131,102 +115,34 @@ def _thrust_test(record: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def held_values(
-    params: FitResult | Mapping[str, float] | str | Path, model: str | None
-) -> tuple[str, dict[str, float]]:
-    """The model spec and values of an identified model.
-
-    Parameters
-    ----------
-    params : FitResult, mapping of str to float, str or Path
-        A fit, its values, or a file written by ``fit --json`` / ``fit --save``.
-    model : str or None
-        The model's spec; None takes the fit's or the file's.
-
-    Returns
-    -------
-    (str, dict of str to float)
-
-    Raises
-    ------
-    UsageError
-        No model given or found, or values that are not a model's.
-    """
-    if isinstance(params, FitResult):
-        return model or params.model, dict(params.values)
-    if isinstance(params, str | Path):
-        values = read_params_file(params)
-        if model is None:
-            try:
-                data = json.loads(Path(params).read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                data = None
-            spec = data.get("model") if isinstance(data, dict) else None
-            model = spec if isinstance(spec, str) else None
-        if model is None:
-            raise UsageError(f"--params {params}: the file names no model; give --model")
-        return model, values
-    if model is None:
-        raise UsageError("validate: give the model's spec with values given as a mapping")
-    return model, {str(k): float(v) for k, v in params.items()}
-
-
-def validate(
-    params: FitResult | Mapping[str, float] | str | Path,
-    trials: TrialSet | str | Path | Sequence[object],
-    *,
-    model: str | None = None,
-    options: ReadOptions | None = None,
-    effects_files: Sequence[str | Path] = (),
-    trajectory: Any = None,
+def judge(
+    ctx: DiagnosisContext, thrust_correlation: Mapping[str, Any], values: Mapping[str, float]
 ) -> Validation:
-    """Simulate an identified model on new logs and say whether it holds.
+    """The verdict on a model simulated with every value known (nothing refitted).
 
     Parameters
     ----------
-    params : FitResult, mapping of str to float, str or Path
-        The identified model: a fit, its values (with ``model``), or a ``fit --json`` file.
-    trials : TrialSet, str, Path or sequence
-        The new logs (or their trials).
-    model : str, optional
-        The model's spec (default: the fit's or the file's).
-    options : ReadOptions, optional
-        How the logs are read.
-    effects_files : sequence of str or Path
-        User effect files the model needs.
-    trajectory : optional
-        The robot's reference move for ``servo`` models (text as for ``--trajectory``).
+    ctx : DiagnosisContext
+        The simulation on the new trials and its residuals.
+    thrust_correlation : mapping
+        The residual's cross-correlation with the thrust (already computed for the
+        comparison).
+    values : mapping of str to float
+        The values simulated.
 
     Returns
     -------
     Validation
-
-    Raises
-    ------
-    UsageError
-        A value the model lacks (then the model is refitted, not validated: use
-        :func:`~balancer_id.diagnostics.api.compare`).
     """
-    spec, values = held_values(params, model)
-    mdl = resolve_model(spec, effects_files)
-    missing = [n for n in mdl.param_names if n not in values]
-    if missing:
-        raise UsageError(
-            f"cannot validate {spec}: no value for {', '.join(missing)}; give a fit of this "
-            "model (its --json), or compare to refit"
-        )
-    held = {n: float(values[n]) for n in mdl.param_names}
-    data = trial_data(as_trial_set(trials, options, trajectory))
-    (comparison,) = compare_models([mdl], data, held)
-    ctx = build_context(comparison.match)
     colour = colour_test(ctx)
-    tests = [level_test(ctx, colour), colour, _thrust_test(input_correlation(ctx))]
+    tests = [level_test(ctx, colour), colour, _thrust_test(thrust_correlation)]
     reasons = [str(t["text"]) for t in tests if not t["passed"]]
+    match = ctx.match
     return Validation(
-        model=spec,
-        values=held,
+        model=match.model.spec,
+        values=dict(values),
         holds=not reasons,
         tests=[_record(t) for t in tests],
         reasons=reasons,
-        comparison=comparison,
+        fit_percent=float(match.metrics["nrmse_fit_percent"]),
     )
