@@ -18,7 +18,7 @@ from balancer_id.read.orientation import orientations, turned_note_text
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
 from balancer_id.read.sniff import Sniffed, sniff
-from balancer_id.read.table import read_table
+from balancer_id.read.table import Table, read_table
 from balancer_id.read.timebase import first_wall_clock
 from balancer_id.read.units import check_accel_unit
 
@@ -30,6 +30,16 @@ NOTES_ONLY = frozenset({"read.column_guess"})
 #: Largest plausible force (N) or acceleration (m/s^2 or g) of any sensor.
 SIGNAL_BOUND = 1e6
 
+
+
+def _rows_with_a_value(table: Table) -> int:
+    """Rows of the table with a number in at least one of its columns."""
+    if not table.columns:
+        return 0
+    filled = np.zeros(table.n_rows, dtype=bool)
+    for values in table.columns.values():
+        filled |= np.isfinite(values)
+    return int(np.count_nonzero(filled))
 
 
 #: Fewer data rows than this hold no run (no rate, no rest, no step).
@@ -103,17 +113,16 @@ def read_log(
         recordings, warnings = build_recordings(
             sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
         )
-    filled = sum(np.isfinite(v) for v in table.columns.values()) if table.columns else 0
-    n_filled = int(np.count_nonzero(filled)) if table.columns else 0
-    if not recordings and 0 < n_filled < MIN_ROWS_OF_A_RUN:
-        raise LogReadError(
-            sniffed.path,
-            f"only {n_filled} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
-            "samples of a run",
-            line=sniffed.header_line + 1,
-            hint="record longer, or check that the export includes every sample",
-        )
     if not recordings:
+        n_filled = _rows_with_a_value(table)
+        if 0 < n_filled < MIN_ROWS_OF_A_RUN:
+            raise LogReadError(
+                sniffed.path,
+                f"only {n_filled} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
+                "samples of a run",
+                line=sniffed.header_line + 1,
+                hint="record longer, or check that the export includes every sample",
+            )
         raise LogReadError(
             sniffed.path,
             "no usable data rows: every run's time, force and acceleration cells are blank",
