@@ -247,3 +247,27 @@ def test_vertical_sign_is_named_and_can_be_given():
     assert down[0].vertical == "-z" and down[0].vertical_sign_known
     np.testing.assert_allclose(down[0].accel, -up[0].accel)
     assert describe_log(make_log(rec), down)["runs"][0]["vertical_sign_known"] is True
+
+
+def test_a_streamed_fit_is_the_fit_held_whole(model, session, monkeypatch):
+    """A shift-long log's fit streams over blocks of rows (issue 21): the session split
+    into blocks of 97 rows (every trial cut, state and sensitivities carried across) and
+    the lead-in case give the estimates and standard errors of the fit held whole."""
+    import balancer_id.identify.matching as matching
+
+    data = from_trials(session)
+    whole = match_trials(model, data, start=START)
+    lone = match_trials(model, [data[4]], start=START)
+    monkeypatch.setattr(matching, "STREAM_BYTES", 0)
+    monkeypatch.setattr(matching, "STREAM_ROWS", 97)
+    streamed = match_trials(model, data, start=START)
+    lone_streamed = match_trials(model, [data[4]], start=START)
+    for a, b in ((whole, streamed), (lone, lone_streamed)):
+        for name, p in a.parameters.items():
+            q = b.parameters[name]
+            scale = p.stderr if p.stderr is not None else abs(p.value)
+            assert q.value == pytest.approx(p.value, rel=1e-6, abs=1e-3 * scale), name
+            assert (q.stderr is None) == (p.stderr is None), name
+            if p.stderr is not None:
+                assert q.stderr == pytest.approx(p.stderr, rel=1e-3), name
+        np.testing.assert_allclose(b.y_model, a.y_model, atol=1e-3 * a.metrics["rmse"])

@@ -355,8 +355,7 @@ def advise(
     today = float(viscosity_factor)
     per = dict(along or {})
     settings = [
-        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today))
-        for p in SETTINGS
+        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today)) for p in SETTINGS
     ]
     return Advice(target, _figures(base, today), settings, today)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -221,9 +221,7 @@ def from_trials(
         if long_gaps.size and kept[long_gaps[0]] >= np.searchsorted(time, trial.t_step) + 10:
             tail[kept[long_gaps[0] + 1 :]] = True  # not fitted; the motion goes on through it
             keep[kept[long_gaps[0] + 1] :] = False
-        restart = bool(
-            continues and keep.any() and time[keep][0] - out[-1].time[-1] > LONG_GAP_S
-        )
+        restart = bool(continues and keep.any() and time[keep][0] - out[-1].time[-1] > LONG_GAP_S)
         if keep.sum() < 10:
             raise IdentificationError(
                 f"{trial.source} [{trial.recording}], trial at {trial.t_step:.2f} s: no "
@@ -501,6 +499,76 @@ class SessionPack:
         """
         out, sens = self.inner.run_sens(model, pvec, cols, substeps)  # type: ignore[attr-defined]
         return out[self.rows], sens[self.rows]
+
+    def stream(
+        self, model: Model, pvec: np.ndarray, max_rows: int, substeps: int = DEFAULT_SUBSTEPS
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        """:meth:`PackedTrials.stream`, each block's fitted rows only.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order.
+        max_rows : int
+            Simulated rows per block.
+        substeps : int
+            RK4 steps per sample interval.
+
+        Yields
+        ------
+        first : int
+            The first fitted row of the block.
+        out : numpy.ndarray
+            Its fitted rows of :meth:`run`'s output.
+        """
+        for first, out in self.inner.stream(model, pvec, max_rows, substeps):
+            a, b = self._fitted(first, out.shape[0])
+            if b > a:
+                yield a, out[self.rows[a:b] - first]
+
+    def stream_sens(
+        self,
+        model: Model,
+        pvec: np.ndarray,
+        cols: Sequence[int],
+        max_rows: int,
+        substeps: int = DEFAULT_SUBSTEPS,
+    ) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """:meth:`PackedTrials.stream_sens`, each block's fitted rows only.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order.
+        cols : sequence of int
+            What to differentiate with respect to (as ``PackedTrials.run_sens``).
+        max_rows : int
+            Simulated rows per block.
+        substeps : int
+            RK4 steps per sample interval.
+
+        Yields
+        ------
+        first : int
+            The first fitted row of the block.
+        out, sens : numpy.ndarray
+            Its fitted rows of the output and the sensitivities.
+        """
+        for first, out, sens in self.inner.stream_sens(model, pvec, cols, max_rows, substeps):
+            a, b = self._fitted(first, out.shape[0])
+            if b > a:
+                pick = self.rows[a:b] - first
+                yield a, out[pick], sens[pick]
+
+    def _fitted(self, first: int, size: int) -> tuple[int, int]:
+        """The fitted rows ``[a, b)`` simulated in the inner rows ``[first, first+size)``."""
+        a = int(np.searchsorted(self.rows, first, side="left"))
+        b = int(np.searchsorted(self.rows, first + size, side="left"))
+        return a, b
 
 
 @dataclass

@@ -45,6 +45,7 @@ class ShownFit(Protocol):
         """Notes or sentences (read only: any sequence of them will do)."""
         ...
 
+
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
 
 

@@ -16,6 +16,7 @@ from balancer_id.identify.metrics import error_metrics
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note
+from balancer_id.simulation.kernel import OUT_COLUMNS
 from balancer_id.status import tell
 
 
@@ -107,11 +108,11 @@ class MatchResult(Displayable):
 
 @dataclass
 class _Outcome:
-    """One optimizer run: the point, its residual and Jacobian, and how it ended."""
+    """One optimizer run: the point, its residual, ``J^T J`` there, and how it ended."""
 
     x: np.ndarray
     residual: np.ndarray
-    jac: np.ndarray
+    jtj: np.ndarray
     success: bool
     message: str
     nfev: int
@@ -119,6 +120,11 @@ class _Outcome:
     @property
     def chisqr(self) -> float:
         return _sumsq(self.residual)
+
+
+def _padded(r: np.ndarray, rows: int) -> np.ndarray:
+    """``r`` with zero rows added to ``rows`` (fewer samples than unknowns)."""
+    return np.vstack([r, np.zeros((rows - r.shape[0], r.shape[1]))])
 
 
 def _sumsq(x: np.ndarray) -> float:
@@ -153,16 +159,30 @@ def _triangular(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
     The Cholesky factor of the small Gram matrix (cheap, one pass over the samples); the
     QR factorization of ``[J | r]`` where the Gram matrix is too ill-conditioned for it.
     """
-    gram = _gram(jac, r)
-    d = np.sqrt(np.diag(gram))
-    if np.all(d > 0):
-        try:
-            chol = np.linalg.cholesky(gram / np.outer(d, d))
-        except np.linalg.LinAlgError:
-            chol = None
-        if chol is not None and np.min(np.abs(np.diag(chol))) > 1e-5:
-            return chol.T * d
+    chol = _cholesky_of_gram(_gram(jac, r))
+    if chol is not None:
+        return chol
     return np.asarray(np.linalg.qr(np.column_stack([jac, r]), mode="r"))
+
+
+def _cholesky_of_gram(gram: np.ndarray) -> np.ndarray | None:
+    """Upper ``R`` with ``R^T R = gram`` (equilibrated), or None where ``gram`` is too
+    ill-conditioned for it (its factor would lose the small directions)."""
+    d = np.sqrt(np.diag(gram))
+    if not np.all(d > 0):
+        return None
+    try:
+        chol = np.linalg.cholesky(gram / np.outer(d, d))
+    except np.linalg.LinAlgError:
+        return None
+    if np.min(np.abs(np.diag(chol))) > 1e-5:
+        return np.asarray(chol.T * d)
+    return None
+
+
+def _merged_r(r_so_far: np.ndarray, block: np.ndarray) -> np.ndarray:
+    """The triangular factor of ``[r_so_far; block]`` (a QR merge, block by block)."""
+    return np.asarray(np.linalg.qr(np.vstack([r_so_far, block]), mode="r"))
 
 
 #: A fit stops when the Gauss-Newton step left is below this fraction of every parameter's
@@ -180,6 +200,13 @@ STOP_LINEAR = 0.05
 #: it (a shift-long session) they are simulated again when needed, so that the fit holds
 #: one evaluation's arrays at a time, not two.
 BEST_KEPT_BYTES = 64 * 2**20
+
+#: An evaluation whose arrays (rows x (outputs + free parameters)) would exceed this
+#: streams instead: the samples are simulated :data:`STREAM_ROWS` at a time (the state
+#: and its sensitivities running on across the blocks) and reduced block by block to the
+#: compressed problem, so that a shift-long log's fit never holds its Jacobian.
+STREAM_BYTES = 96 * 2**20
+STREAM_ROWS = 1 << 16
 
 CONVERGED = "converged: the step left is a small fraction of every standard error"
 
@@ -209,6 +236,8 @@ class _Problem:
         self._fun = np.zeros(len(free) + 1)
         self._best: tuple[float, bytes, np.ndarray, np.ndarray] | None = None
         self.n_samples = int(data.y.size)
+        #: Whether evaluations stream over blocks of rows (see :data:`STREAM_BYTES`).
+        self.stream = self.n_samples * (len(OUT_COLUMNS) + len(free)) * 8 > STREAM_BYTES
         self._last_key: bytes | None = None
         self._last_q: float | None = None
         #: The Gauss-Newton step from the point :meth:`converged` last looked at.
@@ -255,19 +284,82 @@ class _Problem:
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         """The residual over every sample at ``x`` (a plain simulation)."""
-        r = self.data.packed.run(self.model, self.full(x))[:, 0] - self.data.y
+        y = self.data.y
+        if not self.stream:
+            r = self.data.packed.run(self.model, self.full(x))[:, 0] - y
+        else:
+            r = np.empty(self.n_samples)
+            for first, out in self.data.packed.stream(self.model, self.full(x), STREAM_ROWS):
+                stop = first + out.shape[0]
+                np.subtract(out[:, 0], y[first:stop], out=r[first:stop])
         return np.where(np.isfinite(r), r, 1e3)
+
+    def _compressed(self, x: np.ndarray, *, by_qr: bool = False) -> np.ndarray:
+        """``R`` of ``[J | r]`` at ``x``, streamed over blocks of rows (one simulation).
+
+        The Gram matrix is summed block by block and factored as :func:`_triangular`
+        does; where it is too ill-conditioned, the evaluation is made again merging each
+        block's QR factor instead (``by_qr``).
+        """
+        self.nfev += 1
+        k = len(self.free)
+        gram = np.zeros((k + 1, k + 1))
+        merged = np.zeros((0, k + 1))
+        cost = 0.0
+        finite = True
+        y = self.data.y
+        blocks = self.data.packed.stream_sens(self.model, self.full(x), self.free, STREAM_ROWS)
+        for first, out, sens in blocks:
+            r = out[:, 0] - y[first : first + out.shape[0]]
+            if not (np.isfinite(r).all() and np.isfinite(sens).all()):
+                finite = finite and bool(np.isfinite(r).all())
+                bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
+                r[bad] = 1e3
+                sens[bad] = 0.0
+            cost += _sumsq(r)
+            if by_qr:
+                merged = _merged_r(merged, np.column_stack([sens, r]))
+            else:
+                with np.errstate(over="ignore", invalid="ignore"):
+                    _accumulate_gram(gram, sens, r, 2048)
+        self.finite = finite
+        if self._best is None or cost < self._best[0]:
+            empty = np.empty(0), np.empty((0, k))
+            self._best = (cost, np.asarray(x, dtype=float).tobytes(), *empty)
+        if by_qr:
+            return merged if merged.shape[0] == k + 1 else _padded(merged, k + 1)
+        chol = _cholesky_of_gram(gram)
+        if chol is None:
+            self.nfev -= 1
+            return self._compressed(x, by_qr=True)
+        return chol
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         key = np.asarray(x, dtype=float).tobytes()
         if key != self._key:
-            r, sens = self.evaluate(x)
             k = len(self.free)
-            aug = _triangular(sens, r)
+            if self.stream:
+                aug = self._compressed(x)
+            else:
+                r, sens = self.evaluate(x)
+                aug = _triangular(sens, r)
             self._key = key
             self._jac = aug[:, :k].copy()
             self._fun = aug[:, k].copy()
         return self._fun.copy()
+
+    def jtj(self, x: np.ndarray) -> np.ndarray:
+        """``J^T J`` at ``x`` (from the compressed problem)."""
+        if np.asarray(x, dtype=float).tobytes() != self._key:
+            self.fun(x)
+        return self._jac.T @ self._jac
+
+    def outcome(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residual over every sample at ``x`` and ``J^T J`` there."""
+        if self.stream:
+            return self.residual(x), self.jtj(x)
+        r, jac = self.at(x)
+        return r, _gram(jac, r)[:-1, :-1]
 
     def jac(self, x: np.ndarray, *_: object) -> np.ndarray:
         if np.asarray(x, dtype=float).tobytes() != self._key:
@@ -360,9 +452,16 @@ class _Problem:
             x, cost = new, new_cost
 
     def linear_step(self, x: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual and Jacobian at ``x + step`` from those at ``x`` (the linear model)."""
+        """Residual at ``x + step`` from the linear model at ``x``, and ``J^T J`` there.
+
+        A streamed problem (which holds no Jacobian) simulates the residual at
+        ``x + step`` instead; ``J^T J`` is the one at ``x`` (the step is a small fraction
+        of every standard error).
+        """
+        if self.stream:
+            return self.residual(x + step), self.jtj(x)
         r, jac = self.at(x)
-        return r + jac @ step, jac
+        return r + jac @ step, _gram(jac, r)[:-1, :-1]
 
 
 def match_trials(
@@ -501,7 +600,7 @@ def match_trials(
     ends: list[_Outcome] = []
     if not free:
         r = problem.residual(base[free])
-        best = _Outcome(base[free], r, np.zeros((r.size, 0)), True, "no free parameter", 1)
+        best = _Outcome(base[free], r, np.zeros((0, 0)), True, "no free parameter", 1)
     for k, x0 in enumerate(starts if free else [], 1):
         if len(starts) > 1:
             tell(f"start {k}/{len(starts)}")
@@ -509,8 +608,8 @@ def match_trials(
         if diff_step is None:
             x0, last = problem.gauss_newton(x0, lo, hi, max_nfev)
             if last is not None:
-                r, jac = problem.linear_step(x0, last)
-                outcome = _Outcome(x0 + last, r, jac, True, CONVERGED, problem.nfev - used)
+                r, jtj = problem.linear_step(x0, last)
+                outcome = _Outcome(x0 + last, r, jtj, True, CONVERGED, problem.nfev - used)
                 ends.append(outcome)
                 if best is None or outcome.chisqr < best.chisqr:
                     best = outcome
@@ -541,12 +640,12 @@ def match_trials(
         if stopped:
             x_end, last = stopped[0], stopped[1]
             stopped.clear()
-            r, jac = problem.linear_step(x_end, last)
+            r, jtj = problem.linear_step(x_end, last)
             x_end = x_end + last
             message = CONVERGED
         else:
-            r, jac = problem.at(x_end)
-        outcome = _Outcome(x_end, r, jac, ret.status > 0 or message == CONVERGED, message, ret.nfev)
+            r, jtj = problem.outcome(x_end)
+        outcome = _Outcome(x_end, r, jtj, ret.status > 0 or message == CONVERGED, message, ret.nfev)
         ends.append(outcome)
         if best is None or outcome.chisqr < best.chisqr:
             best = outcome
@@ -686,11 +785,11 @@ def _unresolved_lag_note(name: str, value: float, floor: float) -> Note:
 
 def _covariance(out: _Outcome) -> np.ndarray | None:
     """Parameter covariance ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it)."""
-    n, k = out.jac.shape
+    n, k = out.residual.size, out.jtj.shape[0]
     if k == 0 or n <= k:
         return None
     try:
-        cov = np.linalg.inv(_gram(out.jac, out.residual)[:k, :k])
+        cov = np.linalg.inv(out.jtj)
     except np.linalg.LinAlgError:
         return None
     cov *= out.chisqr / (n - k)

@@ -53,8 +53,7 @@ def read_params_file(path: str | Path) -> dict[str, float]:
         if isinstance(value, int | float) and not isinstance(value, bool):
             if not math.isfinite(value):  # NaN or Infinity: never used as a value
                 raise UsageError(
-                    f"--params {path}: {name} is {value}; give a finite value (or leave "
-                    f"{name} out)"
+                    f"--params {path}: {name} is {value}; give a finite value (or leave {name} out)"
                 )
             out[str(name)] = float(value)
     if not out:

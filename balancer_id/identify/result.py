@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
+
 @dataclass(repr=False)
 class FitResult(Displayable):
     """Everything ``balancer-id fit`` reports, and what it was computed from.
@@ -383,9 +384,7 @@ def fit_match(
         trial_set=trials if trials is not None else TrialSet(),
         fixed=dict(fixed or {}),
         effects_files=[str(f) for f in effects_files],
-        coupling=robot_coupling(
-            match.model, match.values(), [t.input for t in match.data.trials]
-        ),
+        coupling=robot_coupling(match.model, match.values(), [t.input for t in match.data.trials]),
         include_per_trial=per_trial,
         warnings=list(warnings),
     )

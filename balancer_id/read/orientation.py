@@ -26,6 +26,8 @@ REST_SPREAD = 0.3
 #: An orientation must rest at least this long in all (s) to count: a phone held still a
 #: moment mid-turn is no orientation of its own.
 MIN_PART_REST_S = 1.0
+#: Samples per block of the resting test (bounds its working memory on long logs).
+BLOCK = 1 << 18
 #: The note names at most this many resting stretches.
 MAX_SHOWN = 6
 
@@ -81,41 +83,26 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
         return []
     rate = rec.sample_rate_hz if np.isfinite(rec.sample_rate_hz) else 100.0
     w = max(3, round(REST_WINDOW_S * rate))
-    filled = np.where(ok[:, None], acc, 0.0)
-    weight = ndimage.uniform_filter1d(ok.astype(float), w, mode="nearest")
-    mean = (
-        ndimage.uniform_filter1d(filled, w, axis=0, mode="nearest")
-        / np.maximum(weight, 1e-9)[:, None]
-    )
-    sq = (
-        ndimage.uniform_filter1d(filled**2, w, axis=0, mode="nearest")
-        / np.maximum(weight, 1e-9)[:, None]
-    )
-    spread = np.sqrt(np.clip(sq - mean**2, 0.0, None).sum(axis=1))
-    mag = np.linalg.norm(mean, axis=1)
-    rest = ok & (np.abs(mag - g) <= REST_G_TOLERANCE * g) & (spread <= REST_SPREAD)
-    labels, _ = ndimage.label(rest)
+    rest, unit = _rest_directions(acc, ok, w, g)
     groups: list[list[int]] = []  # per orientation: [first, last, n]
     sums: list[np.ndarray] = []
     spans: list[tuple[int, int, int]] = []  # (orientation, first, last) of each rest
-    for k, sl in enumerate(ndimage.find_objects(labels), start=1):
-        idx = np.arange(sl[0].start, sl[0].stop)[labels[sl] == k]
-        if idx.size < w:
+    for start, stop in _stretches(rest):
+        if stop - start < w:
             continue
-        u = mean[idx] / mag[idx, None]
-        d = u.sum(axis=0)
+        d = unit[start:stop].sum(axis=0, dtype=np.float64)
         direction = d / np.linalg.norm(d)
         for j, s in enumerate(sums):
             if _angle(direction, s) <= TURN_DEG:
                 sums[j] = s + d
-                groups[j][1] = int(idx[-1])
-                groups[j][2] += int(idx.size)
+                groups[j][1] = stop - 1
+                groups[j][2] += stop - start
                 break
         else:
             j = len(sums)
             sums.append(d)
-            groups.append([int(idx[0]), int(idx[-1]), int(idx.size)])
-        spans.append((j, int(idx[0]), int(idx[-1])))
+            groups.append([start, stop - 1, stop - start])
+        spans.append((j, start, stop - 1))
     min_rest = MIN_PART_REST_S * rate
     keep = [j for j, (_, _, n) in enumerate(groups) if n >= min_rest]
     out = [
@@ -136,6 +123,45 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
         Orientation(out[i].up, out[i].first, out[i].last, out[i].n_rest, tuple(sequence))
         for i in order
     ]
+
+
+def _rest_directions(
+    acc: np.ndarray, ok: np.ndarray, w: int, g: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Resting samples and the unit direction of the short-window mean acceleration.
+
+    Computed in blocks of :data:`BLOCK` samples (each with ``w`` samples of its
+    neighbours on either side, so that the moving windows are those of the whole run):
+    the working arrays stay a block long whatever the log's length; the directions are
+    kept as float32 (their sums over a rest are taken in float64).
+    """
+    n = acc.shape[0]
+    rest = np.zeros(n, dtype=bool)
+    unit = np.zeros((n, 3), dtype=np.float32)
+    for start in range(0, n, BLOCK):
+        stop = min(n, start + BLOCK)
+        lo, hi = max(0, start - w), min(n, stop + w)
+        good = ok[lo:hi]
+        filled = np.where(good[:, None], acc[lo:hi], 0.0)
+        weight = np.maximum(ndimage.uniform_filter1d(good.astype(float), w, mode="nearest"), 1e-9)
+        mean = ndimage.uniform_filter1d(filled, w, axis=0, mode="nearest") / weight[:, None]
+        filled **= 2
+        sq = ndimage.uniform_filter1d(filled, w, axis=0, mode="nearest") / weight[:, None]
+        core = slice(start - lo, start - lo + stop - start)
+        mean, sq, good = mean[core], sq[core], good[core]
+        spread = np.sqrt(np.clip(sq - mean**2, 0.0, None).sum(axis=1))
+        mag = np.linalg.norm(mean, axis=1)
+        rest[start:stop] = (
+            good & (np.abs(mag - g) <= REST_G_TOLERANCE * g) & (spread <= REST_SPREAD)
+        )
+        unit[start:stop] = mean / np.where(mag > 0, mag, 1.0)[:, None]
+    return rest, unit
+
+
+def _stretches(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The ``[start, stop)`` of every run of True in ``mask``, in order."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.view(np.int8), [0]))))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _angle(u: np.ndarray, v: np.ndarray) -> float:

@@ -146,10 +146,11 @@ def vertical_motion(
     finite = [bool(np.isfinite(acc[:, j]).any()) for j in range(acc.shape[1])]
     if not any(finite) or acc.shape[0] < 2:
         return None
-    # an empty column reads nothing: zeros, so that "up" keeps one entry per column
-    acc = np.column_stack(
-        [fill_nan(acc[:, j]) if ok else np.zeros(acc.shape[0]) for j, ok in enumerate(finite)]
-    )
+    if not np.isfinite(acc).all():  # a whole finite log is used as it is, not copied
+        # an empty column reads nothing: zeros, so that "up" keeps one entry per column
+        acc = np.column_stack(
+            [fill_nan(acc[:, j]) if ok else np.zeros(acc.shape[0]) for j, ok in enumerate(finite)]
+        )
     axes = tuple(rec.accel_axes) if len(rec.accel_axes) == acc.shape[1] else ("x", "y", "z")
     rate = rec.sample_rate_hz if np.isfinite(rec.sample_rate_hz) else rate_of(rec.time)
     w = n_samples(REST_WINDOW_S, rate if np.isfinite(rate) else 200.0, minimum=3)

@@ -192,7 +192,8 @@ def read_trajectory_csv(path: str | Path) -> TabulatedMove:
     bad = np.flatnonzero(~np.isfinite(table).all(axis=1))
     if bad.size:
         raise LogReadError(
-            path, f"row {bad[0] + 1} of the data holds a value that is not finite",
+            path,
+            f"row {bad[0] + 1} of the data holds a value that is not finite",
             hint="every time and position must be a number",
         )
     if np.any(np.diff(table[:, 0]) <= 0):

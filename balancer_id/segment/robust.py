@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy import ndimage
 
@@ -134,7 +136,8 @@ def smooth(x: np.ndarray, size: int) -> np.ndarray:
     if size <= 1:
         return np.asarray(x, dtype=float)
     med = ndimage.median_filter(np.asarray(x, dtype=float), size=size, mode="nearest")
-    return ndimage.uniform_filter1d(med, size=size, mode="nearest")
+    # in place (the 1-D filters work through a line buffer): one signal-long array
+    return ndimage.uniform_filter1d(med, size=size, mode="nearest", output=med)
 
 
 def local_std(x: np.ndarray, size: int) -> np.ndarray:
@@ -179,22 +182,36 @@ def before_after_means(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
     c = np.concatenate([[0.0], np.cumsum(x - x.mean())])
     before = np.full(n, np.nan)
     after = np.full(n, np.nan)
-    if n >= w:
-        i = np.arange(w, n + 1)
-        before[i[:-1]] = (c[i[:-1]] - c[i[:-1] - w]) / w
-        j = np.arange(0, n - w + 1)
-        after[j] = (c[j + w] - c[j]) / w
+    if n >= w:  # slices, not index arrays: no temporary the size of the signal
+        np.subtract(c[w:n], c[: n - w], out=before[w:])
+        before[w:] /= w
+        np.subtract(c[w:], c[: n - w + 1], out=after[: n - w + 1])
+        after[: n - w + 1] /= w
     return before, after
 
 
-def _detrended_blocks(x: np.ndarray, block: int) -> np.ndarray:
-    """``x`` cut into blocks of ``block`` samples, each minus its least-squares line."""
+#: Samples per batch of blocks in the block statistics (bounds their working memory).
+BLOCK_BATCH = 1 << 18
+
+
+def _detrended_block_stat(
+    x: np.ndarray, block: int, stat: Callable[[np.ndarray], np.ndarray]
+) -> np.ndarray:
+    """``stat`` (per row) of ``x`` cut into blocks of ``block`` samples, each minus its
+    least-squares line; the blocks are detrended a batch at a time, so that no copy of
+    the whole signal is made."""
     nb = x.size // block
-    blocks = np.asarray(x[: nb * block], dtype=float).reshape(nb, block)
     t = np.arange(block) - (block - 1) / 2.0
-    centred = blocks - blocks.mean(axis=1, keepdims=True)
-    slope = centred @ t / (t @ t)
-    return centred - slope[:, None] * t
+    per_batch = max(1, BLOCK_BATCH // block)
+    out = np.empty(nb)
+    for first in range(0, nb, per_batch):
+        last = min(nb, first + per_batch)
+        blocks = np.asarray(x[first * block : last * block], dtype=float).reshape(-1, block)
+        centred = blocks - blocks.mean(axis=1, keepdims=True)
+        slope = centred @ t / (t @ t)
+        centred -= slope[:, None] * t
+        out[first:last] = stat(centred)
+    return out
 
 
 def block_noise(x: np.ndarray, block: int, floor: float) -> float:
@@ -219,7 +236,8 @@ def block_noise(x: np.ndarray, block: int, floor: float) -> float:
     x = np.asarray(x, dtype=float)
     if x.size < block or block < 3:
         return float(max(floor, np.std(x) if x.size > 1 else 0.0))
-    return float(max(floor, median(np.std(_detrended_blocks(x, block), axis=1))))
+    spread = _detrended_block_stat(x, block, lambda b: np.std(b, axis=1))
+    return float(max(floor, median(spread)))
 
 
 def block_range(x: np.ndarray, block: int) -> float:
@@ -242,7 +260,7 @@ def block_range(x: np.ndarray, block: int) -> float:
     x = np.asarray(x, dtype=float)
     if x.size < block or block < 3:
         return float(np.ptp(x)) if x.size else 0.0
-    return float(median(np.ptp(_detrended_blocks(x, block), axis=1)))
+    return float(median(_detrended_block_stat(x, block, lambda b: np.ptp(b, axis=1))))
 
 
 def clipped_mean(x: np.ndarray, half_width: float) -> float:
@@ -360,12 +378,24 @@ def find_peaks(x: np.ndarray, height: float, distance: int) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.size < 3:
         return np.zeros(0, dtype=np.intp)
-    starts = np.flatnonzero(np.r_[True, x[1:] != x[:-1]])
-    ends = np.r_[starts[1:] - 1, x.size - 1]
-    v = x[starts]
+    # only samples at least ``height`` high, and their neighbours, can make a peak: the
+    # search runs on them alone (a long log's signal is mostly below the height); the
+    # neighbours lie below it, so joining the stretches never joins two flat tops
+    high = x >= height
+    near = high.copy()
+    near[1:] |= high[1:] | high[:-1]
+    near[:-1] |= high[1:]
+    sel = np.flatnonzero(near)
+    del high, near
+    xs = x[sel]
+    if xs.size < 3:
+        return np.zeros(0, dtype=np.intp)
+    starts = np.flatnonzero(np.r_[True, xs[1:] != xs[:-1]])
+    ends = np.r_[starts[1:] - 1, xs.size - 1]
+    v = xs[starts]
     inner = np.arange(1, starts.size - 1)
     is_peak = (v[inner - 1] < v[inner]) & (v[inner + 1] < v[inner])
-    peaks = (starts[inner[is_peak]] + ends[inner[is_peak]]) // 2
+    peaks = (sel[starts[inner[is_peak]]] + sel[ends[inner[is_peak]]]) // 2
     peaks = peaks[x[peaks] >= height]
     distance = int(np.ceil(max(distance, 1)))
     if distance <= 1 or peaks.size < 2:

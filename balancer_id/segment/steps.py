@@ -243,9 +243,13 @@ def detect_force_steps(
     w = n_samples(settings.force_window_s, rate, 3)
     fm = ndimage.median_filter(f, size=odd(n_samples(settings.despike_s, rate)), mode="nearest")
     before, after = before_after_means(fm, w)
-    d = np.nan_to_num(after - before)
+    # |mean after - mean before|, in place: one signal-long array, not three
+    size_of_step = np.abs(
+        np.nan_to_num(np.subtract(after, before, out=after), copy=False), out=after
+    )
+    del before
     sigma = block_noise(f, n_samples(settings.noise_block_s, rate, 5), floor=1e-3)
-    largest = float(np.max(np.abs(d))) if n else 0.0
+    largest = float(np.max(size_of_step)) if n else 0.0
     thr = max(
         settings.min_step_N,
         STEP_K_NOISE * sigma,
@@ -253,7 +257,8 @@ def detect_force_steps(
         STEP_FRACTION_OF_LARGEST * largest,
     )
     det = Detection([], largest, thr, "N")
-    peaks = find_peaks(np.abs(d), thr, w)
+    peaks = find_peaks(size_of_step, thr, w)
+    del size_of_step
     win = n_samples(settings.level_window_s, rate, 3)
     gb = n_samples(settings.guard_before_s, rate)
     ga = n_samples(settings.guard_after_s, rate)

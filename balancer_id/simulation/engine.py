@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -168,25 +168,33 @@ class PackedTrials:
             ``(n_trials, 3)`` array (rest where a trial has no ``x0``).
         """
         times = [np.ascontiguousarray(tr.time, dtype=float) for tr in trials]
-        zeros = [np.zeros_like(t) for t in times]
-        zr = [
-            z if tr.z_ref is None else np.asarray(tr.z_ref, float)
-            for z, tr in zip(zeros, trials, strict=True)
-        ]
-        vr = [
-            z if tr.v_ref is None else np.asarray(tr.v_ref, float)
-            for z, tr in zip(zeros, trials, strict=True)
-        ]
+        t_all = np.concatenate(times)
+        if all(tr.z_ref is None and tr.v_ref is None for tr in trials):
+            zr_all = vr_all = np.zeros_like(t_all)  # no robot: one array of zeros, read only
+        else:
+            zeros = [np.zeros_like(t) for t in times]
+            zr_all = np.concatenate(
+                [
+                    z if tr.z_ref is None else np.asarray(tr.z_ref, float)
+                    for z, tr in zip(zeros, trials, strict=True)
+                ]
+            )
+            vr_all = np.concatenate(
+                [
+                    z if tr.v_ref is None else np.asarray(tr.v_ref, float)
+                    for z, tr in zip(zeros, trials, strict=True)
+                ]
+            )
         return cls(
-            t_all=np.concatenate(times),
+            t_all=t_all,
             offsets=np.concatenate([[0], np.cumsum([t.size for t in times])]).astype(np.int64),
             bt_all=np.concatenate([tr.thrust.times for tr in trials]).astype(float),
             bu_all=np.concatenate([tr.thrust.values for tr in trials]).astype(float),
             boffsets=np.concatenate(
                 [[0], np.cumsum([tr.thrust.times.size for tr in trials])]
             ).astype(np.int64),
-            zr_all=np.concatenate(zr),
-            vr_all=np.concatenate(vr),
+            zr_all=zr_all,
+            vr_all=vr_all,
             x0_all=np.array(
                 [(0.0, 0.0, 0.0) if tr.x0 is None else tr.x0 for tr in trials], dtype=float
             ).reshape(len(trials), 3),
@@ -263,11 +271,25 @@ class PackedTrials:
             ``(n_total, len(cols))``: the derivative of the output acceleration (column 0
             of ``out``) with respect to each of ``cols``.
         """
-        cols_arr = np.ascontiguousarray(cols, dtype=np.int64).reshape(-1)
-        if cols_arr.size and (cols_arr.min() < 0 or cols_arr.max() >= pvec.size + 3):
-            raise ValueError(f"sensitivity columns must lie in 0..{pvec.size + 2}")
+        cols_arr = _sensitivity_columns(cols, pvec.size)
+        pvec = np.ascontiguousarray(pvec, dtype=float)
+        s_in = initial_sensitivities(self.offsets.size - 1, pvec.size, cols_arr)
+        out, sens, _ = self._simulate_sens(model, pvec, cols_arr, substeps, s_in)
+        return out, sens
+
+    def _simulate_sens(
+        self,
+        model: Model,
+        pvec: np.ndarray,
+        cols: np.ndarray,
+        substeps: int,
+        s_in: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The sensitivity kernel from the sensitivities ``s_in`` (segments x 3 x cols);
+        returns the output, the sensitivities and each segment's final ``S``."""
         out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
-        sens = np.empty((self.t_all.size, cols_arr.size))
+        sens = np.empty((self.t_all.size, cols.size))
+        s_out = np.empty_like(s_in)
         get_kernel(model).simulate_batch_sens(
             self.t_all,
             self.offsets,
@@ -277,13 +299,203 @@ class PackedTrials:
             self.zr_all,
             self.vr_all,
             self.x0_all,
-            np.ascontiguousarray(pvec, dtype=float),
+            pvec,
             substeps,
-            cols_arr,
+            cols,
             out,
             sens,
+            s_in,
+            s_out,
         )
-        return out, sens
+        return out, sens, s_out
+
+    def stream(
+        self,
+        model: Model,
+        pvec: np.ndarray,
+        max_rows: int,
+        substeps: int = DEFAULT_SUBSTEPS,
+    ) -> Iterator[tuple[int, np.ndarray]]:
+        """Simulate every trial a block of rows at a time (a long log's memory bound).
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order (SI units).
+        max_rows : int
+            Rows per block (at least 2); a trial longer than a block is split, the
+            state running on across the split exactly as in one pass.
+        substeps : int
+            RK4 steps per sample interval.
+
+        Yields
+        ------
+        first : int
+            The block's first row.
+        out : numpy.ndarray
+            Its rows of :meth:`run`'s output.
+        """
+        carry: np.ndarray | None = None
+        for block in self._blocks(max_rows):
+            sub = block.pack(self, carry)
+            out = sub.run(model, pvec, substeps)
+            carry = out[-1, _STATE_COLUMNS] if block.split_after else None
+            yield block.first, out[block.skip :]
+
+    def stream_sens(
+        self,
+        model: Model,
+        pvec: np.ndarray,
+        cols: Sequence[int],
+        max_rows: int,
+        substeps: int = DEFAULT_SUBSTEPS,
+    ) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """:meth:`run_sens` a block of rows at a time; the sensitivities, like the state,
+        run on across a split trial exactly as in one pass.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        pvec : numpy.ndarray
+            Parameter values in ``model.param_names`` order (SI units).
+        cols : sequence of int
+            What to differentiate with respect to (see :meth:`run_sens`).
+        max_rows : int
+            Rows per block (at least 2).
+        substeps : int
+            RK4 steps per sample interval.
+
+        Yields
+        ------
+        first : int
+            The block's first row.
+        out, sens : numpy.ndarray
+            Its rows of :meth:`run_sens`'s output and sensitivities.
+        """
+        cols_arr = _sensitivity_columns(cols, pvec.size)
+        pvec = np.ascontiguousarray(pvec, dtype=float)
+        carry: np.ndarray | None = None
+        carry_s: np.ndarray | None = None
+        for block in self._blocks(max_rows):
+            sub = block.pack(self, carry)
+            s_in = initial_sensitivities(sub.offsets.size - 1, pvec.size, cols_arr)
+            if carry_s is not None:
+                s_in[0] = carry_s
+            out, sens, s_out = sub._simulate_sens(model, pvec, cols_arr, substeps, s_in)
+            carry = out[-1, _STATE_COLUMNS] if block.split_after else None
+            carry_s = s_out[-1].copy() if block.split_after else None
+            yield block.first, out[block.skip :], sens[block.skip :]
+
+    def _blocks(self, max_rows: int) -> list[_Block]:
+        """The row blocks of :meth:`stream` (each at most ``max_rows`` rows)."""
+        n = int(self.t_all.size)
+        size = max(2, int(max_rows))
+        edges = set(self.offsets.tolist())  # a block edge here splits no segment
+        return [
+            _Block(a, min(n, a + size), a not in edges, min(n, a + size) not in edges)
+            for a in range(0, n, size)
+        ]
+
+
+#: Output columns of the state (drive force, velocity, position), the order of ``x0``.
+_STATE_COLUMNS = [3, 1, 2]
+
+#: A split segment's breakpoints are kept from this long (s) before the block's first
+#: sample on: enough for the drive's input delay (a dead time) to find the thrust that
+#: acts there; a delay of a minute is no balancer's.
+_BREAKPOINT_LOOKBACK_S = 60.0
+
+
+@dataclass(frozen=True)
+class _Block:
+    """Rows ``[first, stop)`` of a pack; ``split_before``/``split_after``: a segment runs
+    on across the block's first/last edge (then the block starts one row early, from the
+    state the previous block ended in, and that row is skipped)."""
+
+    first: int
+    stop: int
+    split_before: bool
+    split_after: bool
+
+    @property
+    def skip(self) -> int:
+        return 1 if self.split_before else 0
+
+    def pack(self, whole: PackedTrials, carry: np.ndarray | None) -> PackedTrials:
+        """The block's rows of ``whole`` as a pack of its own (views where it can)."""
+        a = self.first - self.skip
+        b = self.stop
+        offs = whole.offsets
+        j0 = int(np.searchsorted(offs, a, side="right")) - 1
+        j1 = int(np.searchsorted(offs, b, side="left"))  # segments j0 .. j1-1
+        edges = np.clip(offs[j0 : j1 + 1], a, b) - a
+        b_lo, b_hi = [], []
+        for j in range(j0, j1):
+            lo, hi = int(whole.boffsets[j]), int(whole.boffsets[j + 1])
+            if j == j0 and self.split_before:  # the thrust acting at the block's start on
+                t0 = whole.t_all[a] - _BREAKPOINT_LOOKBACK_S
+                lo += max(0, int(np.searchsorted(whole.bt_all[lo:hi], t0, side="right")) - 1)
+            if j == j1 - 1 and self.split_after:  # none after the block's last sample
+                last = whole.t_all[b - 1]
+                hi = lo + int(np.searchsorted(whole.bt_all[lo:hi], last, side="right")) + 1
+                hi = min(hi, int(whole.boffsets[j + 1]))
+            b_lo.append(lo)
+            b_hi.append(hi)
+        bt = np.concatenate([whole.bt_all[lo:hi] for lo, hi in zip(b_lo, b_hi, strict=True)])
+        bu = np.concatenate([whole.bu_all[lo:hi] for lo, hi in zip(b_lo, b_hi, strict=True)])
+        sizes = np.array([hi - lo for lo, hi in zip(b_lo, b_hi, strict=True)], dtype=np.int64)
+        x0 = whole.x0_all[j0:j1].copy()
+        if self.split_before:
+            assert carry is not None
+            x0[0] = carry
+        return PackedTrials(
+            t_all=whole.t_all[a:b],
+            offsets=edges.astype(np.int64),
+            bt_all=bt,
+            bu_all=bu,
+            boffsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+            zr_all=whole.zr_all[a:b],
+            vr_all=whole.vr_all[a:b],
+            x0_all=x0,
+        )
+
+
+def _sensitivity_columns(cols: Sequence[int], n_params: int) -> np.ndarray:
+    """``cols`` as the kernel's int64 array, checked against the parameter count."""
+    cols_arr = np.ascontiguousarray(cols, dtype=np.int64).reshape(-1)
+    if cols_arr.size and (cols_arr.min() < 0 or cols_arr.max() >= n_params + 3):
+        raise ValueError(f"sensitivity columns must lie in 0..{n_params + 2}")
+    return cols_arr
+
+
+def initial_sensitivities(n_segments: int, n_params: int, cols: np.ndarray) -> np.ndarray:
+    """The sensitivities ``S`` (segments x 3 x columns) at each segment's start.
+
+    Zero for a parameter; the unit vector for an initial state (column
+    ``n_params + s`` is the derivative with respect to state ``s`` of the segment's own
+    ``x0``).
+
+    Parameters
+    ----------
+    n_segments : int
+        Segments packed.
+    n_params : int
+        Parameters of the model.
+    cols : numpy.ndarray
+        The sensitivity columns (see :meth:`PackedTrials.run_sens`).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    s_in = np.zeros((n_segments, 3, cols.size))
+    for c, k in enumerate(cols):
+        if k >= n_params:
+            s_in[:, int(k) - n_params, c] = 1.0
+    return s_in
 
 
 def simulate_many(

@@ -34,7 +34,7 @@ from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA
 
-KERNEL_VERSION = "17"
+KERNEL_VERSION = "18"
 
 #: Columns of the kernel's output array. ``h`` is the operating force as the force sensor
 #: sees it: with the thrust undelayed (the dead time acts between sensor and drive).
@@ -196,14 +196,14 @@ S|    dvm = np.zeros(nc)
 S|    vm0 = vmax_of(p)
 S|    for c in range(nc):
 S|        k = cols[c]
+S|        for r in range(3):
+S|            S[r, c] = s_in[r, c]
 S|        if k < npar:
 S|            eps = col_step(p, cols, npar, c)
 S|            pp[k] = p[k] + eps
 S|            ddelay[c] = (delay_of(pp) - delay) / eps
 S|            dvm[c] = (vmax_of(pp) - vm0) / eps
 S|            pp[k] = p[k]
-S|        else:
-S|            S[k - npar, c] = 1.0
     nb = bt.shape[0]
     f = f0
     v = v0
@@ -273,6 +273,9 @@ S|            sens[i, c] = (y1 - y0) / eps
         out[i, 2] = z
         out[i, 3] = f
         out[i, 4] = h - u + u_now
+S|    for r in range(3):
+S|        for c in range(nc):
+S|            s_out[r, c] = S[r, c]
 
 
 @jit(cache={cache})
@@ -312,9 +315,9 @@ _VARIANTS: dict[bool, dict[str, str]] = {
         "batch": "simulate_batch_sens",
         "rk_args": ", pp, cols, npar, S",
         "step_args": ", pp, cols, npar, S, S0, dvm",
-        "trial_args": ", cols, sens",
-        "batch_args": "cols, out, sens",
-        "trial_call_args": " cols, sens[a0:a1],",
+        "trial_args": ", cols, sens, s_in, s_out",
+        "batch_args": "cols, out, sens, s_in, s_out",
+        "trial_call_args": " cols, sens[a0:a1], s_in[j], s_out[j],",
     },
 }
 
@@ -693,6 +696,8 @@ def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
         cols,
         np.empty((2, len(OUT_COLUMNS))),
         np.empty((2, cols.size)),
+        np.zeros((1, 3, cols.size)),
+        np.empty((1, 3, cols.size)),
     )
 
 
