@@ -156,7 +156,17 @@ def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
     width += 1 - width % 2
     if width >= 3 and u.size > width:
         u = median_filter(u, size=width, mode="nearest")
-    return Thrust.series(time, u)
+    elif u is force:
+        u = u.copy()
+    return Thrust(time, u)  # the trial's own times, not a copy (a long log is held once)
+
+
+def _kept(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``x[keep]``; a view when ``keep`` is one stretch (a long log is held once)."""
+    idx = np.flatnonzero(keep)
+    if idx.size and idx[-1] - idx[0] + 1 == idx.size:
+        return x[idx[0] : idx[-1] + 1]
+    return x[keep]
 
 
 def from_trials(
@@ -240,7 +250,7 @@ def from_trials(
             )
         else:
             thrust = Thrust.step(trial.t_step, trial.thrust_N)
-        time, accel = time[keep], accel[keep]
+        time, accel = _kept(time, keep), _kept(accel, keep)
         z_ref = v_ref = None
         if reference is not None:
             z_ref, v_ref = reference.evaluate(time)

@@ -21,11 +21,11 @@ def error_metrics(y: np.ndarray, y_model: np.ndarray, n_params: int) -> dict[str
         ``rmse`` (m/s^2), ``nrmse_fit_percent`` = 100 (1 - ||y - y_model|| / ||y - mean(y)||),
         ``aic`` = n ln(RSS/n) + 2k and ``bic`` = n ln(RSS/n) + k ln n, ``n_samples``.
     """
-    r = np.asarray(y, float) - np.asarray(y_model, float)
-    n = int(r.size)
-    dev = np.asarray(y, float) - np.mean(y)
-    rss = float(np.einsum("i,i", r, r))  # not BLAS: its threads cost more than they give
-    spread = float(np.sqrt(np.einsum("i,i", dev, dev)))
+    y = np.asarray(y, float)
+    y_model = np.asarray(y_model, float)
+    n = int(y.size)
+    rss = _sum_of_squares(y, y_model)
+    spread = float(np.sqrt(_sum_of_squares(y, float(np.mean(y)) if n else 0.0)))
     fit = 100.0 * (1.0 - np.sqrt(rss) / spread) if spread > 0 else float("nan")
     log_l = n * np.log(max(rss, 1e-300) / max(n, 1))
     return {
@@ -35,3 +35,17 @@ def error_metrics(y: np.ndarray, y_model: np.ndarray, n_params: int) -> dict[str
         "bic": float(log_l + n_params * np.log(max(n, 1))),
         "n_samples": n,
     }
+
+
+#: Samples per block of :func:`_sum_of_squares` (its temporary stays this long).
+BLOCK = 1 << 16
+
+
+def _sum_of_squares(a: np.ndarray, b: np.ndarray | float) -> float:
+    """``sum((a - b)**2)`` a block at a time: no temporary the length of a long log, and
+    no BLAS (its threads cost more than they give here)."""
+    total = 0.0
+    for i in range(0, a.size, BLOCK):
+        d = a[i : i + BLOCK] - (b if isinstance(b, float) else b[i : i + BLOCK])
+        total += float(np.einsum("i,i", d, d))
+    return total

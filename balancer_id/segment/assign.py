@@ -251,8 +251,8 @@ def build_trials(
                 t_end=float(rec.time[win.stop - 1]),
                 thrust_N=float(level_new),
                 direction="up" if direction > 0 else "down",
-                time=rec.time[sl].copy(),
-                accel=accel[sl].copy()
+                time=_read_only(rec.time[sl]),
+                accel=_read_only(accel[sl])
                 if accel is not None
                 else np.full(sl.stop - sl.start, np.nan),
                 force=trial_force,
@@ -338,3 +338,11 @@ def vertical_name(
     if motion is None or motion.up.size == 0:
         return ""
     return axis_name(np.asarray(motion.up if at is None else motion.up_at(at), float), axes)
+
+
+def _read_only(view: np.ndarray) -> np.ndarray:
+    """A read-only view: trials share the run's samples (a long log is held once) and
+    none may change another's."""
+    view = view.view()
+    view.flags.writeable = False
+    return view
