@@ -82,12 +82,20 @@ def main() -> None:
     parser.add_argument("--hours", type=float, nargs="+", default=[0.25, 1.0, 4.0, 8.0])
     parser.add_argument("--diagnose", type=float, default=0.0, help="diagnose up to these hours")
     parser.add_argument("--dir", type=Path, default=None, help="where to write the logs")
+    parser.add_argument(
+        "--keep", type=Path, default=None, help="keep the logs in this folder and reuse them"
+    )
     args = parser.parse_args()
     rows: list[tuple[float, int, float, str, float, float, int]] = []
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         for hours in args.hours:
-            log = Path(tmp) / f"session_{hours:g}h.csv"
-            n = write_session(log, hours)
+            log = (args.keep or Path(tmp)) / f"session_{hours:g}h.csv"
+            if args.keep is not None and log.exists():
+                n = sum(1 for _ in log.open()) - 1  # the header line
+            else:
+                if args.keep is not None:
+                    args.keep.mkdir(parents=True, exist_ok=True)
+                n = write_session(log, hours)
             data_mb = n * 5 * 8 / 1e6
             commands = {"inspect": ["inspect"], "fit": ["fit", "--no-cache"]}
             if hours <= args.diagnose:
@@ -100,7 +108,8 @@ def main() -> None:
                     f"{seconds:7.1f} s  peak {peak:7.0f} MB  exit {code}",
                     flush=True,
                 )
-            log.unlink()
+            if args.keep is None:
+                log.unlink()
     print("\n| hours | rows | numeric MB | command | seconds | peak MB | peak / budget |")
     print("|---:|---:|---:|---|---:|---:|---:|")
     for hours, n, data_mb, name, seconds, peak, code in rows:
