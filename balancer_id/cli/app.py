@@ -148,7 +148,8 @@ def _console():
 def _load(logs: list[Path], options: ReadOptions, trajectory_text: str | None):
     from balancer_id.trials import load_trials
 
-    return load_trials(logs, options, trajectory(trajectory_text), trajectory_text)
+    with stage(f"reading {logs[0].name}" if len(logs) == 1 else f"reading {len(logs)} logs"):
+        return load_trials(logs, options, trajectory(trajectory_text), trajectory_text)
 
 
 def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
@@ -232,12 +233,13 @@ def inspect(
     from balancer_id.trials import describe_log, read, segment
 
     check_outputs({"--plot": plot}, [log], overwrite)
-    data = read(log, options)
-    try:
-        trials = segment(data, options, trajectory(trajectory_text))
-        problem = None
-    except NoTrialError as exc:
-        trials, problem = [], exc
+    with stage(f"reading {log.name}"):
+        data = read(log, options)
+        try:
+            trials = segment(data, options, trajectory(trajectory_text))
+            problem = None
+        except NoTrialError as exc:
+            trials, problem = [], exc
     info = describe_log(data, trials)
     if problem is not None:
         info["error"] = error_record(one_line(problem), problem.exit_code, problem)

@@ -17,6 +17,7 @@ import numpy as np
 
 from balancer_id.errors import LogReadError
 from balancer_id.read.sniff import BoundedReader, FileTooLarge, Sniffed, open_regular
+from balancer_id.status import tell
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -112,11 +113,14 @@ def _read(
             return pd.read_csv(stream, **kwargs)
         # chunk by chunk into columns allocated once for the rows the file size promises
         # (grown if it promised too few): the peak is the numbers once plus one chunk
-        size = max(16, int(_expected_rows(sniffed) * 1.03) + 16)
+        expected = _expected_rows(sniffed)
+        size = max(16, int(expected * 1.03) + 16)
         columns = {c: np.empty(size) for c in usecols}
         n = 0
         with pd.read_csv(stream, chunksize=CHUNK_ROWS, **kwargs) as chunks:
             for chunk in chunks:
+                if expected > CHUNK_ROWS:  # a long log: say how far the reading is
+                    tell(f"reading rows: {min(n / expected, 0.99):.0%} of ~{expected:,}")
                 k = len(chunk)
                 if n + k > size:
                     size = max(n + k, size + size // 4)

@@ -26,6 +26,7 @@ from balancer_id.segment.steps import (
 )
 from balancer_id.segment.trial import Trial
 from balancer_id.segment.window import Channel, Window, channel, end_at_releases, trial_windows
+from balancer_id.status import step, tell
 
 
 def find_trials(
@@ -86,7 +87,10 @@ def find_trials(
     """
     given = _check_arguments(thrusts, force_sign, vertical, min_step_N)
     settings = StepSettings(min_step_N=float(min_step_N))
-    runs = [_detect(rec, vertical, g, settings) for rec in log.recordings]
+    runs = []
+    for k, rec in enumerate(log.recordings, 1):
+        with step(f"finding the trials of run {k}/{len(log.recordings)}"):
+            runs.append(_detect(rec, vertical, g, settings))
     _note_verticals(log, runs)
     total = sum(len(r.steps) for r in runs)
     if total == 0 and given is None:
@@ -209,6 +213,7 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     dropped (see :func:`_moved`), and so is a step found inside the previous trial's
     catch; the windows are then redone.
     """
+    tell("the vertical")
     motion = vertical_motion(rec, vertical=vertical, g=g)
     breaks = gap_breaks(rec, settings.bridge_gap_s)
     if motion is not None and motion.turns:  # a turned sensor: no window crosses a turn
@@ -220,6 +225,7 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     if rec.n_samples < 4 or (force is None and accel is None):
         return Run(rec, motion, breaks, [], [], "no usable force or acceleration channel")
     if force is not None:
+        tell("the force steps")
         det = detect_force_steps(rec.time, force, breaks, settings)
         what = "force change"
     else:
@@ -227,6 +233,7 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
         det = detect_accel_steps(rec.time, accel, breaks, settings)
         what = "acceleration departure"
     rate = rate_of(rec.time)
+    tell("the trials' windows")
     chans = (channel(force, rate, settings), channel(accel, rate, settings))
     steps = det.steps
     while True:
