@@ -260,7 +260,12 @@ def trajectory_text(trajectory: Any) -> str | None:
 
 @dataclass
 class LoadedLog:
-    """A log and the trials found in it."""
+    """A log and the trials found in it.
+
+    ``log`` keeps the runs' names, times, rates, gaps, clocks and notes; their force and
+    acceleration channels are released once the trials are cut (see
+    :meth:`~balancer_id.read.recording.Log.without_channels`): :func:`read` gives them.
+    """
 
     log: Log
     trials: list[Trial] = field(default_factory=list)
@@ -424,7 +429,10 @@ def load_log(
         When no step trial is found.
     """
     log = read(path, options)
-    return LoadedLog(log, segment(log, options, trajectory))
+    trials = segment(log, options, trajectory)
+    # the trials hold the samples they use; the raw channels (a long log's largest
+    # arrays) are not kept with them
+    return LoadedLog(log.without_channels(), trials)
 
 
 def reference_move(spec: str | Path) -> Any:
@@ -592,7 +600,17 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
     dict
         File, format, sample rate, sample count, gaps, one entry per run (channels,
         time span, saturation), the reader's warnings and the trials.
+
+    Raises
+    ------
+    ValueError
+        For a log whose channels were released (the one a :class:`LoadedLog` keeps).
     """
+    if log.channels_released:
+        raise ValueError(
+            f"{log.path}: describe the log as read (balancer_id.trials.read), not the one "
+            "kept with its trials (its channels were released)"
+        )
     runs = []
     gaps = []
     # a trial's warnings reach the top level, named by the trial

@@ -32,7 +32,7 @@ def test_steps_of_five_times_the_force_noise_are_trials(tmp_path, force_noise):
 
 
 def test_a_run_without_a_trial_says_why(tmp_path):
-    from balancer_id.trials import describe_log
+    from balancer_id.trials import describe_log, read, segment
 
     sensor = SensorSettings(force_noise=0.003, accel_noise=0.03)
     model = parse_model("variable_viscosity")
@@ -43,7 +43,8 @@ def test_a_run_without_a_trial_says_why(tmp_path):
     write_recordings(path, [*recs, quiet])
     loaded = load_log(path)
     assert len(loaded.trials) == 2
-    record = describe_log(loaded.log, loaded.trials)
+    data = read(path)  # as inspect does: the log read, segmented, described
+    record = describe_log(data, segment(data))
     run = next(r for r in record["runs"] if r["name"] == "Run #3")
     assert "no step trial found" in run["no_trial_reason"]
     assert any(w.startswith("Run #3: no step trial found") for w in record["warnings"])

@@ -271,3 +271,22 @@ def test_a_streamed_fit_is_the_fit_held_whole(model, session, monkeypatch):
             if p.stderr is not None:
                 assert q.stderr == pytest.approx(p.stderr, rel=1e-3), name
         np.testing.assert_allclose(b.y_model, a.y_model, atol=1e-3 * a.metrics["rmse"])
+
+
+def test_a_loaded_log_keeps_its_trials_not_its_raw_channels(tmp_path, model):
+    """What a fit keeps of a log (issue 21: a long log held once): the trials and the
+    runs' times, names and notes; the raw force and 3-axis acceleration are released,
+    and describing that log (which would miss them) is refused, not answered wrongly."""
+    from balancer_id.trials import describe_log, load_log
+
+    rec = record(model, PAPER, session_thrust(SESSION[:2], 10.0), 22.0, seed=2)
+    path = tmp_path / "s.csv"
+    write_recordings(path, [rec])
+    loaded = load_log(path)
+    assert len(loaded.trials) == 2
+    (run,) = loaded.log.recordings
+    assert run.accel is None and run.force is None and run.time.size == rec.time.size
+    assert loaded.log.channels_released
+    assert not any(t.accel.flags.writeable or t.time.flags.writeable for t in loaded.trials)
+    with pytest.raises(ValueError, match="describe the log as read"):
+        describe_log(loaded.log, loaded.trials)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -124,11 +125,32 @@ class Log:
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)
     verticals: dict[str, dict[str, object]] = field(default_factory=dict)
+    #: True once the runs' force, acceleration and extra channels were released
+    #: (:meth:`without_channels`).
+    channels_released: bool = False
 
     @property
     def n_samples(self) -> int:
         """Total samples over all runs."""
         return sum(r.n_samples for r in self.recordings)
+
+    def without_channels(self) -> Log:
+        """This log with each run's force, acceleration and extra channels released.
+
+        What a fit keeps once the trials are cut (they hold the samples they use): the
+        runs' names, times, rates, gaps and clocks, and the log's notes. A shift-long
+        log's raw channels are its largest arrays; :func:`balancer_id.trials.read` gives
+        them whole.
+
+        Returns
+        -------
+        Log
+            A new log; this one is unchanged.
+        """
+        runs = [
+            dataclasses.replace(r, force=None, accel=None, extra={}) for r in self.recordings
+        ]
+        return dataclasses.replace(self, recordings=runs, channels_released=True)
 
     @property
     def started_at(self) -> float | None:

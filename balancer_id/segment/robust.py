@@ -43,7 +43,7 @@ def odd(n: int) -> int:
     return n if n % 2 else n + 1
 
 
-def median(x: np.ndarray) -> float:
+def median(x: np.ndarray, *, overwrite: bool = False) -> float:
     """``float(np.median(x))`` of a 1-D float array, bit for bit, without its overhead.
 
     The segmenters take hundreds of medians of short stretches a log; ``np.median``'s
@@ -55,6 +55,8 @@ def median(x: np.ndarray) -> float:
     ----------
     x : numpy.ndarray
         One-dimensional samples.
+    overwrite : bool, optional
+        Partition ``x`` itself (a temporary of the caller's) instead of a copy.
 
     Returns
     -------
@@ -65,7 +67,12 @@ def median(x: np.ndarray) -> float:
     if n == 0:
         return float("nan")
     half = n // 2
-    part = np.partition(x, (half - 1, half, n - 1) if n % 2 == 0 else (half, n - 1))
+    kth = (half - 1, half, n - 1) if n % 2 == 0 else (half, n - 1)
+    if overwrite and x.flags.writeable:
+        x.partition(kth)  # in place: the caller's own temporary, no copy of a long log
+        part = x
+    else:
+        part = np.partition(x, kth)
     if np.isnan(part[-1]):
         return float("nan")
     if n % 2:
@@ -93,7 +100,7 @@ def rate_of(time: np.ndarray) -> float:
         dt = dt[good]
     if dt.size == 0:
         return float("nan")
-    return float(1.0 / median(dt))
+    return float(1.0 / median(dt, overwrite=True))
 
 
 def fill_nan(x: np.ndarray) -> np.ndarray:
@@ -107,13 +114,18 @@ def fill_nan(x: np.ndarray) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        A float copy without NaN.
+        A float copy without NaN; where ``x`` has none, a read-only view of it (a long
+        log's channels are not copied to be left as they are).
     """
-    x = np.asarray(x, dtype=float).copy()
+    x = np.asarray(x, dtype=float)
     bad = ~np.isfinite(x)
-    if bad.any():
-        idx = np.arange(x.size)
-        x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+    if not bad.any():
+        view = x.view()
+        view.flags.writeable = False
+        return view
+    x = x.copy()
+    idx = np.arange(x.size)
+    x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
     return x
 
 

@@ -188,8 +188,10 @@ class PackedTrials:
         return cls(
             t_all=t_all,
             offsets=np.concatenate([[0], np.cumsum([t.size for t in times])]).astype(np.int64),
-            bt_all=np.concatenate([tr.thrust.times for tr in trials]).astype(float),
-            bu_all=np.concatenate([tr.thrust.values for tr in trials]).astype(float),
+            bt_all=_shared_if_equal(
+                np.concatenate([tr.thrust.times for tr in trials], dtype=float), t_all
+            ),
+            bu_all=np.concatenate([tr.thrust.values for tr in trials], dtype=float),
             boffsets=np.concatenate(
                 [[0], np.cumsum([tr.thrust.times.size for tr in trials])]
             ).astype(np.int64),
@@ -461,6 +463,12 @@ class _Block:
             vr_all=whole.vr_all[a:b],
             x0_all=x0,
         )
+
+
+def _shared_if_equal(values: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """``other`` where it holds the same numbers as ``values`` (a measured thrust's
+    breakpoints are the sample times: one array, not two, for the read-only kernel)."""
+    return other if values.shape == other.shape and np.array_equal(values, other) else values
 
 
 def _sensitivity_columns(cols: Sequence[int], n_params: int) -> np.ndarray:
