@@ -238,8 +238,8 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     else:
         rest = np.ones(mag.size, dtype=bool)
         how = "all samples (no resting part found)"
-    safe = np.where(mag > 0, mag, 1.0)
-    u = (acc[rest] / safe[rest, None]).mean(axis=0)
+    np.copyto(mag, 1.0, where=mag <= 0)  # |a| from here on only divides
+    u = _mean_direction(acc, mag, rest)
     up = u / np.linalg.norm(u)
     tilt = float(np.degrees(np.arccos(np.clip(np.max(np.abs(up)), -1.0, 1.0))))
     proj = acc @ up
@@ -249,7 +249,22 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
         f"{tilt:.1f} deg from the nearest axis; resting level {offset:+.3f} m/s^2 after "
         f"removing g={g:g}"
     )
-    return VerticalMotion(proj - g, up, rest, method)
+    proj -= g
+    return VerticalMotion(proj, up, rest, method)
+
+
+#: Samples per block of :func:`_mean_direction` (its temporaries stay this long).
+BLOCK = 1 << 16
+
+
+def _mean_direction(acc: np.ndarray, mag: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """Mean of ``acc / mag`` over the ``rest`` samples, a block at a time (no copy of a
+    long log's resting samples)."""
+    total = np.zeros(acc.shape[1])
+    for i in range(0, acc.shape[0], BLOCK):
+        r = rest[i : i + BLOCK]
+        total += (acc[i : i + BLOCK][r] / mag[i : i + BLOCK][r, None]).sum(axis=0)
+    return total / max(int(rest.sum()), 1)
 
 
 def _project_turned(
