@@ -31,6 +31,7 @@ from typing import Any
 from balancer_id.errors import EffectError
 from balancer_id.files import cache_root
 from balancer_id.model.effect import Effect
+from balancer_id.model.registry import USER_MODULE_PREFIX
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA
 
@@ -423,12 +424,12 @@ def _import_line(alias: str, cls: type[Effect]) -> str | None:
     module = sys.modules.get(cls.__module__)
     if "<locals>" in cls.__qualname__ or module is None:
         return None
-    file = getattr(module, "__file__", None)
-    if cls.__module__.startswith("balancer_id_user_effects_") and file:
+    if cls.__module__.startswith(USER_MODULE_PREFIX):
+        # named by its file's content, not its path: the same file elsewhere (a copy, a
+        # test's temporary folder) reuses the compiled kernel
         return (
-            f"from balancer_id.model.registry import import_file_module as _imp\n"
-            f"from pathlib import Path as _Path\n"
-            f"{alias} = _imp(_Path({file!r})).{cls.__qualname__}"
+            "from balancer_id.model.registry import loaded_effect as _loaded\n"
+            f"{alias} = _loaded({cls.__module__!r}, {cls.__qualname__!r})"
         )
     if cls.__module__ == "__main__":
         return None
