@@ -695,11 +695,21 @@ def _fit(
     trajectory_text: str | None,
     per_trial: bool = False,
 ):
-    """Parse the fit's own options, load the trials, fit."""
+    """Parse the fit's own options, load the trials, fit.
+
+    The kernels of the model and of the candidates a diagnosis refits are compiled first,
+    all at once (several processes) when the disk cache lacks them.
+    """
+    from balancer_id.diagnostics.candidates import candidates
     from balancer_id.identify.api import fit as run_fit
+    from balancer_id.identify.api import resolve_model
+    from balancer_id.simulation.kernel import compile_models
 
     fixed = assignments(fix, "--fix")
     trials = _load(logs, options, trajectory_text)
+    start = resolve_model(model, effects_file or ())
+    cands = candidates(start, with_trajectory=trajectory_text is not None)
+    compile_models([start, *(c.model for c in cands)])
     with stage(f"fitting {model or 'variable_viscosity'}"):
         return run_fit(
             trials,

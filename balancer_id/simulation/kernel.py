@@ -640,12 +640,20 @@ def get_kernel(model: Model, *, quiet: bool = False) -> Kernel:
     return kernel
 
 
+#: Processes compiling kernels at once in :func:`compile_models` (None: one per CPU).
+COMPILE_JOBS: int | None = None
+#: Longest a compiling process may take (s); past it the kernel is compiled here instead.
+COMPILE_TIMEOUT_S = 900.0
+
+
 def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> None:
     """Compile (or load from the disk cache) the kernels of several models.
 
     The first run after an install compiles the built-in models once; each kernel that
     has to be compiled is announced on stderr with a count (``2/5``), so a long first
-    start is not mistaken for a hang.
+    start is not mistaken for a hang. Several kernels missing from the disk cache are
+    compiled at once, each in its own Python process (numba compiles one function at a
+    time under the GIL), and then loaded from the cache here.
 
     Parameters
     ----------
@@ -661,26 +669,146 @@ def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> No
     """
     todo = [m for m in models if (m.effects, m.param_names) not in _KERNELS]
     need = [m for m in todo if not _is_cached(m)]
-    for k, m in enumerate(need, 1):
-        if _VERBOSE_COMPILE:
+    if _VERBOSE_COMPILE:
+        for k, m in enumerate(need, 1):
             note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+    if len(need) > 1:
+        _compile_in_processes(need, sensitivities)
+    for m in need:
         try:
             _warm(m, get_kernel(m, quiet=True), sensitivities)
         except Exception:  # a broken effect is reported where the model is used
             continue
 
 
-def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
-    """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
+def _compile_in_processes(models: Sequence[Model], sensitivities: bool) -> None:
+    """Fill the disk cache with the kernels of ``models``, several processes at once.
+
+    Each process imports one kernel file (and the user effects files it needs), runs it
+    on a tiny input and leaves numba's machine code in the cache. A kernel whose process
+    fails is simply compiled later in this process, which reports any error.
+    """
+    import subprocess
+    from concurrent.futures import ThreadPoolExecutor
+
+    jobs = min(len(models), COMPILE_JOBS or _cpus())
+    if jobs < 2 or not HAVE_NUMBA:
+        return
+    commands = []
+    for model in models:
+        try:
+            kernel = _build(model)
+        except Exception:
+            continue
+        if kernel.path is None:  # compiled in memory: nothing another process can share
+            continue
+        files = [
+            str(getattr(sys.modules.get(c.__module__), "__file__", ""))
+            for c in model.effects
+            if c.__module__.startswith(USER_MODULE_PREFIX)
+        ]
+        commands.append(
+            [
+                sys.executable,
+                "-c",
+                "import sys; from balancer_id.simulation.kernel import compile_file; "
+                "compile_file(sys.argv[1], int(sys.argv[2]), sys.argv[3] == '1', sys.argv[4:])",
+                str(kernel.path),
+                str(len(model.params)),
+                "1" if sensitivities else "0",
+                *files,
+            ]
+        )
+    package_root = str(Path(__file__).resolve().parents[2])
+    env = dict(os.environ, BALANCER_ID_QUIET="1")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
+    )
+
+    def run(command: list[str]) -> None:
+        try:
+            subprocess.run(
+                command,
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                timeout=COMPILE_TIMEOUT_S,
+                check=False,
+            )
+        except (OSError, subprocess.SubprocessError):
+            pass  # compiled here afterwards
+
+    with ThreadPoolExecutor(jobs, thread_name_prefix="balancer-id-compile") as pool:
+        list(pool.map(run, commands))
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def compile_file(
+    path: str, n_params: int, sensitivities: bool, effects_files: Sequence[str]
+) -> None:
+    """Compile the kernel file at ``path`` into numba's disk cache (in a helper process).
+
+    Parameters
+    ----------
+    path : str
+        A kernel file written by this module.
+    n_params : int
+        The model's number of parameters.
+    sensitivities : bool
+        Also compile the sensitivity kernel.
+    effects_files : sequence of str
+        The user effects files the kernel takes effects from, loaded first.
+    """
     import numpy as np
 
-    if not sensitivities:
-        return
+    from balancer_id.model.registry import import_file_module
+
+    for file in effects_files:
+        import_file_module(Path(file))
+    kernel_path = Path(path)
+    module = _import_path(kernel_path.stem, kernel_path)
+    pvec = np.ones(n_params)
+    _run_tiny(module.simulate_batch, pvec)
+    if sensitivities:
+        _run_tiny_sens(module.simulate_batch_sens, pvec)
+
+
+def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
+    """Run a state kernel once on a two-sample trial (compiles it, or loads it)."""
+    import numpy as np
+
     t = np.array([0.0, 0.005])
     z = np.zeros(2)
-    pvec = np.array([p.value for p in model.params])
+    simulate_batch(
+        t,
+        np.array([0, 2]),
+        np.array([0.0]),
+        np.array([0.0]),
+        np.array([0, 1]),
+        z,
+        z,
+        np.zeros((1, 3)),
+        pvec,
+        1,
+        np.empty((2, len(OUT_COLUMNS))),
+    )
+
+
+def _run_tiny_sens(simulate_batch_sens: Any, pvec: Any) -> None:
+    """Run a sensitivity kernel once on a two-sample trial (compiles it, or loads it)."""
+    import numpy as np
+
+    t = np.array([0.0, 0.005])
+    z = np.zeros(2)
     cols = np.arange(pvec.size, dtype=np.int64)
-    kernel.simulate_batch_sens(
+    simulate_batch_sens(
         t,
         np.array([0, 2]),
         np.array([0.0]),
@@ -697,6 +825,15 @@ def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
     )
 
 
+def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
+    """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
+    import numpy as np
+
+    if not sensitivities:
+        return
+    _run_tiny_sens(kernel.simulate_batch_sens, np.array([p.value for p in model.params]))
+
+
 def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     """Run the kernel once on a tiny input, so compile errors name the model's effects."""
     import numpy as np
@@ -707,24 +844,8 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
             f"compiling the simulation kernel of '{model.spec}' (once; cached in "
             f"{kernel.path.parent})"
         )
-    t = np.array([0.0, 0.005])
-    z = np.zeros(2)
-    out = np.empty((2, len(OUT_COLUMNS)))
-    pvec = np.array([p.value for p in model.params])
     try:
-        kernel.simulate_batch(
-            t,
-            np.array([0, 2]),
-            np.array([0.0]),
-            np.array([0.0]),
-            np.array([0, 1]),
-            z,
-            z,
-            np.zeros((1, 3)),
-            pvec,
-            1,
-            out,
-        )
+        _run_tiny(kernel.simulate_batch, np.array([p.value for p in model.params]))
         if fresh:  # the fit's kernel too, under the same note, into the same cache
             _warm(model, kernel, True)
     except Exception as exc:
