@@ -477,7 +477,7 @@ def simulate(
 
     Example: balancer-id simulate --param m_a=0.5 --out sim.csv
     """
-    from balancer_id.identify.api import resolve_model
+    from balancer_id.model.spec import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
     known: dict[str, float] = {}

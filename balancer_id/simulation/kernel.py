@@ -23,7 +23,8 @@ import os
 import re
 import stat
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -667,58 +668,65 @@ def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> No
     A model whose kernel cannot be compiled is skipped here; :func:`get_kernel` raises
     its error where the model is used.
     """
-    todo = [m for m in models if (m.effects, m.param_names) not in _KERNELS]
+    unique = {(m.effects, m.param_names): m for m in models}  # a model named twice: once
+    todo = [m for key, m in unique.items() if key not in _KERNELS]
     need = [m for m in todo if not _is_cached(m)]
-    if _VERBOSE_COMPILE:
-        for k, m in enumerate(need, 1):
-            note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
-    if len(need) > 1:
-        _compile_in_processes(need, sensitivities)
-    for m in need:
+    if not need:
+        return
+    with _compile_lock():  # one process compiles; the others wait, then load
+        need = [m for m in need if not _is_cached(m)]
+        if _VERBOSE_COMPILE:
+            for k, m in enumerate(need, 1):
+                note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+        _compile_shared(need, sensitivities)
+
+
+def _compile_here(models: Sequence[Model], sensitivities: bool) -> None:
+    for m in models:
         try:
             _warm(m, get_kernel(m, quiet=True), sensitivities)
         except Exception:  # a broken effect is reported where the model is used
             continue
 
 
-def _compile_in_processes(models: Sequence[Model], sensitivities: bool) -> None:
-    """Fill the disk cache with the kernels of ``models``, several processes at once.
+@contextmanager
+def _compile_lock() -> Iterator[None]:
+    """Hold the kernel cache's lock file: processes started together (test workers, a
+    batch's workers, two commands) compile a missing kernel once, not each."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: each process compiles for itself
+        yield
+        return
+    folder = cache_dir()
+    if _private_dir(folder) is not None:
+        yield
+        return
+    with open(folder / ".compile.lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
-    Each process imports one kernel file (and the user effects files it needs), runs it
-    on a tiny input and leaves numba's machine code in the cache. A kernel whose process
-    fails is simply compiled later in this process, which reports any error.
+
+def _compile_shared(models: Sequence[Model], sensitivities: bool) -> None:
+    """Compile ``models`` here and in helper processes at once, one share each.
+
+    A helper process imports its kernel files (and the user effects files they need),
+    runs each on a tiny input and leaves numba's machine code in the disk cache; this
+    process compiles its own share meanwhile, then loads the others' from the cache. A
+    kernel whose helper failed is compiled here afterwards, which reports any error.
     """
     import subprocess
     from concurrent.futures import ThreadPoolExecutor
 
     jobs = min(len(models), COMPILE_JOBS or _cpus())
     if jobs < 2 or not HAVE_NUMBA:
+        _compile_here(models, sensitivities)
         return
-    commands = []
-    for model in models:
-        try:
-            kernel = _build(model)
-        except Exception:
-            continue
-        if kernel.path is None:  # compiled in memory: nothing another process can share
-            continue
-        files = [
-            str(getattr(sys.modules.get(c.__module__), "__file__", ""))
-            for c in model.effects
-            if c.__module__.startswith(USER_MODULE_PREFIX)
-        ]
-        commands.append(
-            [
-                sys.executable,
-                "-c",
-                "import sys; from balancer_id.simulation.kernel import compile_file; "
-                "compile_file(sys.argv[1], int(sys.argv[2]), sys.argv[3] == '1', sys.argv[4:])",
-                str(kernel.path),
-                str(len(model.params)),
-                "1" if sensitivities else "0",
-                *files,
-            ]
-        )
+    shares = [list(models[i::jobs]) for i in range(jobs)]
+    commands = [c for c in (_compile_command(s, sensitivities) for s in shares[1:]) if c]
     package_root = str(Path(__file__).resolve().parents[2])
     env = dict(os.environ, BALANCER_ID_QUIET="1")
     env["PYTHONPATH"] = os.pathsep.join(
@@ -739,8 +747,44 @@ def _compile_in_processes(models: Sequence[Model], sensitivities: bool) -> None:
         except (OSError, subprocess.SubprocessError):
             pass  # compiled here afterwards
 
-    with ThreadPoolExecutor(jobs, thread_name_prefix="balancer-id-compile") as pool:
-        list(pool.map(run, commands))
+    threads = max(1, len(commands))
+    with ThreadPoolExecutor(threads, thread_name_prefix="balancer-id-compile") as pool:
+        running = [pool.submit(run, c) for c in commands]
+        _compile_here(shares[0], sensitivities)
+        for job in running:
+            job.result()
+    _compile_here([m for share in shares[1:] for m in share], sensitivities)
+
+
+def _compile_command(models: Sequence[Model], sensitivities: bool) -> list[str] | None:
+    """The command of a helper process compiling ``models``' kernel files (None: none of
+    them has a file, e.g. effects defined inside a function)."""
+    import json
+
+    kernels, files = [], []
+    for model in models:
+        try:
+            kernel = _build(model)
+        except Exception:
+            continue
+        if kernel.path is None:  # compiled in memory: nothing another process can share
+            continue
+        kernels.append([str(kernel.path), len(model.params)])
+        files += [
+            str(getattr(sys.modules.get(c.__module__), "__file__", ""))
+            for c in model.effects
+            if c.__module__.startswith(USER_MODULE_PREFIX)
+        ]
+    if not kernels:
+        return None
+    job = {"kernels": kernels, "sensitivities": sensitivities, "effects_files": files}
+    return [
+        sys.executable,
+        "-c",
+        "import json, sys; from balancer_id.simulation.kernel import compile_files; "
+        "compile_files(**json.loads(sys.argv[1]))",
+        json.dumps(job),
+    ]
 
 
 def _cpus() -> int:
@@ -750,34 +794,36 @@ def _cpus() -> int:
         return os.cpu_count() or 1
 
 
-def compile_file(
-    path: str, n_params: int, sensitivities: bool, effects_files: Sequence[str]
+def compile_files(
+    kernels: Sequence[tuple[str, int]], sensitivities: bool, effects_files: Sequence[str]
 ) -> None:
-    """Compile the kernel file at ``path`` into numba's disk cache (in a helper process).
+    """Compile kernel files into numba's disk cache (what a helper process runs).
 
     Parameters
     ----------
-    path : str
-        A kernel file written by this module.
-    n_params : int
-        The model's number of parameters.
+    kernels : sequence of (str, int)
+        Each kernel file written by this module and its model's number of parameters.
     sensitivities : bool
-        Also compile the sensitivity kernel.
+        Also compile the sensitivity kernels.
     effects_files : sequence of str
-        The user effects files the kernel takes effects from, loaded first.
+        The user effects files the kernels take effects from, loaded first.
     """
     import numpy as np
 
     from balancer_id.model.registry import import_file_module
 
-    for file in effects_files:
+    for file in dict.fromkeys(effects_files):
         import_file_module(Path(file))
-    kernel_path = Path(path)
-    module = _import_path(kernel_path.stem, kernel_path)
-    pvec = np.ones(n_params)
-    _run_tiny(module.simulate_batch, pvec)
-    if sensitivities:
-        _run_tiny_sens(module.simulate_batch_sens, pvec)
+    for path, n_params in kernels:
+        kernel_path = Path(path)
+        try:
+            module = _import_path(kernel_path.stem, kernel_path)
+            pvec = np.ones(int(n_params))
+            _run_tiny(module.simulate_batch, pvec)
+            if sensitivities:
+                _run_tiny_sens(module.simulate_batch_sens, pvec)
+        except Exception:  # the process that asked compiles it again and says why
+            continue
 
 
 def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
