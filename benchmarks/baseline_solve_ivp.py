@@ -16,14 +16,18 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import lmfit
 import numpy as np
 
 from balancer_id.identify.api import trial_data
 from balancer_id.model import parse_model
-from balancer_id.simulation.reference import simulate_reference
 from balancer_id.trials import load_trials
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' simlib
+
+from simlib.reference import simulate_reference
 
 
 def fit_script(trials, start=None) -> lmfit.minimizer.MinimizerResult:

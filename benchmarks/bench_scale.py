@@ -29,9 +29,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # simlib
+
+from simlib.sessions import record, session_thrust, write_recordings
 
 from balancer_id.model.spec import parse_model
-from balancer_id.simulation.sessions import record, session_thrust, write_recordings
 
 PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 CYCLE = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)

@@ -37,8 +37,11 @@ from balancer_id.identify.per_trial import fit_each_trial
 from balancer_id.model import parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
-from balancer_id.simulation.sessions import guided_move_thrust, record, session_thrust
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' simlib
+
+from simlib.sessions import guided_move_thrust, record, session_thrust
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 TOLERANCE = {"m_a": 0.02, "T_a": 0.05, "D0": 0.08, "A": 0.15}

@@ -12,6 +12,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +20,10 @@ from balancer_id.model import parse_model
 from balancer_id.simulation import Thrust, TrialInput
 from balancer_id.simulation.engine import PackedTrials
 from balancer_id.simulation.kernel import get_kernel
-from balancer_id.simulation.reference import simulate_reference
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' simlib
+
+from simlib.reference import simulate_reference
 
 SPEC = "variable_viscosity+karnopp+speed_limit+dead_time"
 PARAMS = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4, "f_s": 0.98, "v_max": 0.5, "tau_d": 0.05}

@@ -18,6 +18,25 @@ PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 PAPER_THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _kernels_compiled_once():
+    """The kernels most tests use, compiled before the first test, once per session.
+
+    Missing ones go into the disk cache at once, in several processes, and once for all
+    xdist workers (the others wait on the cache's lock, then find them): no test pays
+    for a compilation that another worker is doing too.
+    """
+    from balancer_id.diagnostics.candidates import candidates
+    from balancer_id.model import parse_model
+    from balancer_id.simulation.kernel import compile_models
+
+    models = []
+    for spec in ("variable_viscosity", "viscous"):
+        model = parse_model(spec)
+        models += [model, *(c.model for c in candidates(model))]
+    compile_models(models)
+
+
 @pytest.fixture(autouse=True)
 def _no_result_cache(monkeypatch):
     """Commands compute their results in tests (the result cache has its own test)."""

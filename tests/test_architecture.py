@@ -279,49 +279,56 @@ def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
     assert out.count("[[Variables]]") >= 2 and out.count("[[Diagnosis]]") >= 2
 
 
+#: What :class:`GuessedOffset`'s guess was given, one mapping per call.
+GUESSES_SEEN: list[dict[str, float]] = []
+
+
+class GuessedOffset(balancer_id.Effect):
+    """A constant force ``F += k_g`` whose start comes from the data (defined at module
+    level: importable by name, its kernel is compiled once into the disk cache rather
+    than in memory in every session)."""
+
+    name = "offset_guessed"
+    summary = "constant force"
+    parameters = (balancer_id.Param("k_g", 0.0, -5.0, 5.0, "N", "constant force"),)
+
+    @classmethod
+    def guess(cls, trials, current):
+        GUESSES_SEEN.append(dict(current))
+        return {"k_g": 0.25}
+
+    @staticmethod
+    def force(f, v, z, h, k_g):
+        return k_g
+
+
+class BadGuess(GuessedOffset):
+    """Its guess raises."""
+
+    name = "bad_guess"
+    parameters = (balancer_id.Param("k_b", 0.0, -5.0, 5.0, "N", "constant force"),)
+
+    @classmethod
+    def guess(cls, trials, current):
+        raise RuntimeError("no idea")
+
+    @staticmethod
+    def force(f, v, z, h, k_b):
+        return k_b
+
+
 def test_an_effects_guess_hook_starts_its_refit_and_a_failing_one_is_named(small_log):
-    from balancer_id import Effect, Param
     from balancer_id.diagnostics.diagnosis import diagnose
     from balancer_id.identify.api import fit
     from balancer_id.model import Registry
 
-    seen: list[dict[str, float]] = []
-
-    class Offset(Effect):
-        """A constant force ``F += k_g`` whose start comes from the data."""
-
-        name = "offset_guessed"
-        summary = "constant force"
-        parameters = (Param("k_g", 0.0, -5.0, 5.0, "N", "constant force"),)
-
-        @classmethod
-        def guess(cls, trials, current):
-            seen.append(dict(current))
-            return {"k_g": 0.25}
-
-        @staticmethod
-        def force(f, v, z, h, k_g):
-            return k_g
-
-    class BadGuess(Offset):
-        """Its guess raises."""
-
-        name = "bad_guess"
-        parameters = (Param("k_b", 0.0, -5.0, 5.0, "N", "constant force"),)
-
-        @classmethod
-        def guess(cls, trials, current):
-            raise RuntimeError("no idea")
-
-        @staticmethod
-        def force(f, v, z, h, k_b):
-            return k_b
-
+    GUESSES_SEEN.clear()
     registry = Registry()
-    registry.add(Offset)
+    registry.add(GuessedOffset)
     registry.add(BadGuess)
     result = fit(str(small_log), model="viscous", registry=registry)
     diagnosis = diagnose(result)
+    seen = GUESSES_SEEN
     assert seen and set(seen[0]) == set(result.values)
     # the guess started its refit: it is in the arena (a suggestion only with benefit)
     assert any("offset_guessed" in e.effects for e in diagnosis.explanations)

@@ -23,7 +23,7 @@ from conftest import SAMPLE_LOGS
 from balancer_id.batch import LOCK_NAME, _folder_lock, run_batch
 from balancer_id.errors import OutputExistsError, OutputWriteError, UsageError
 from balancer_id.files import atomic_write_text, check_output
-from balancer_id.simulation.synth import _keep_mask
+from balancer_id.simulation.synth import keep_mask
 
 LOG = SAMPLE_LOGS / "paper_balancer.csv"
 
@@ -174,7 +174,7 @@ def test_control_characters_never_reach_the_terminal(cli, tmp_path):
 # -- nothing hangs -----------------------------------------------------------------------
 @pytest.mark.parametrize("fraction", [0.5, 0.99, 1.0, 2.0])
 def test_dropping_any_fraction_of_samples_terminates(fraction):
-    keep = _keep_mask(2000, fraction, np.random.default_rng(0))
+    keep = keep_mask(2000, fraction, np.random.default_rng(0))
     assert keep[0] and keep[-1]
     target = min(int(min(fraction, 1.0) * 2000), 1998)
     assert target <= (~keep).sum() <= min(target + 5, 1998)  # bursts of up to 5 samples

@@ -64,16 +64,32 @@ def _forget() -> None:
         del sys.modules[name]
 
 
-def test_a_new_cache_folder_is_private_and_a_first_compile_is_announced(fresh_cache, capfd):
-    K.compile_models([parse_model("base")])
-    assert "compiling the simulation kernel of 'base' (1/1; once)" in capfd.readouterr().err
-    K.compile_models([parse_model("base")])  # already there: nothing to say
+def test_a_new_cache_folder_is_private_and_a_first_compile_is_announced(
+    fresh_cache, capfd, monkeypatch
+):
+    found_cached = []  # whether each kernel was in the disk cache when loaded here
+    load = K._compile_now
+    monkeypatch.setattr(
+        K,
+        "_compile_now",
+        lambda model, kernel, quiet=False: (
+            found_cached.append(K._is_cached_path(kernel.path)) or load(model, kernel, quiet)
+        ),
+    )
+    monkeypatch.setattr(K, "COMPILE_JOBS", 2)
+    models = [parse_model("base"), parse_model("viscous")]
+    K.compile_models(models)  # two missing kernels: one compiled here, one by a helper process
+    err = capfd.readouterr().err
+    assert "compiling the simulation kernel of 'base' (1/2; once)" in err
+    assert "compiling the simulation kernel of 'viscous' (2/2; once)" in err
+    assert found_cached == [False, True]  # 'viscous' was in the cache when loaded here
+    K.compile_models(models)  # already there: nothing to say
     assert capfd.readouterr().err == ""
     _forget()
     want = _accel()
     assert fresh_cache.is_dir() and (fresh_cache.stat().st_mode & 0o777) == 0o700
-    (src,) = fresh_cache.glob("bid_kernel_*.py")
-    assert (src.stat().st_mode & 0o077) == 0
+    sources = list(fresh_cache.glob("bid_kernel_*.py"))
+    assert len(sources) == 2 and all((src.stat().st_mode & 0o077) == 0 for src in sources)
     _forget()
     assert np.allclose(
         _accel(), want, rtol=1e-12, atol=1e-15
@@ -132,3 +148,4 @@ def test_a_cache_writable_by_others_is_refused(tmp_path, monkeypatch, capfd):
     err = capfd.readouterr().err
     assert "kernel cache not used" in err and "writable by others" in err
     assert err.count("\n") == 1
+

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from simlib.sessions import write_recordings
 
 from balancer_id.identify.api import fit
 from balancer_id.model.spec import parse_model
 from balancer_id.notes import has_code
-from balancer_id.simulation.sessions import write_recordings
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 from balancer_id.trials import ReadOptions
 

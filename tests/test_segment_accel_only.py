@@ -95,8 +95,9 @@ def test_high_rate_log_gives_the_onsets_of_the_200hz_log(seed):
 def _session_without_force(truth, levels, holds, seed, tilt):
     import dataclasses
 
+    from simlib.sessions import record, session_thrust
+
     from balancer_id.model import parse_model
-    from balancer_id.simulation.sessions import record, session_thrust
     from balancer_id.simulation.synth import SensorSettings
 
     holds = np.broadcast_to(np.asarray(holds, float), (len(levels),))

@@ -7,9 +7,9 @@ Seeded simulated logs: a 0.3 kg balancer stepped by 0.05-0.15 N, force noise 0.0
 from __future__ import annotations
 
 import pytest
+from simlib.sessions import write_recordings
 
 from balancer_id.model.spec import parse_model
-from balancer_id.simulation.sessions import write_recordings
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 from balancer_id.trials import load_log
 

@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from simlib.sessions import record, session_thrust
 
 from balancer_id.identify.data import LONG_GAP_S, from_trials
 from balancer_id.identify.matching import match_trials
@@ -16,7 +17,6 @@ from balancer_id.model import parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
 from balancer_id.simulation.engine import simulate
-from balancer_id.simulation.sessions import record, session_thrust
 from balancer_id.simulation.synth import SensorSettings
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}

@@ -16,6 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import PAPER, PAPER_THRUSTS
+from simlib.sessions import (
+    guided_move_thrust,
+    record,
+    session_thrust,
+    write_recordings,
+)
 from test_segment_synth import make_log, synth_run
 
 from balancer_id.diagnostics.diagnosis import diagnose
@@ -27,12 +33,6 @@ from balancer_id.model import parse_model
 from balancer_id.read.recording import Log
 from balancer_id.segment import find_trials
 from balancer_id.simulation.inputs import Thrust
-from balancer_id.simulation.sessions import (
-    guided_move_thrust,
-    record,
-    session_thrust,
-    write_recordings,
-)
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 from balancer_id.trials import describe_log
 

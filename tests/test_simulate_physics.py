@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from simlib.reference import simulate_reference
 
 from balancer_id.model import parse_model
 from balancer_id.model.effects import BUILTIN_EFFECTS
 from balancer_id.simulation import Thrust, Trapezoid, TrialInput, simulate
-from balancer_id.simulation.reference import simulate_reference
 
 M, T = 15.1, 0.33
 DT = 0.005

@@ -11,9 +11,9 @@ from __future__ import annotations
 import json
 
 import pytest
+from simlib.sessions import write_recordings
 
 from balancer_id.model import parse_model
-from balancer_id.simulation.sessions import write_recordings
 from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 from balancer_id.trials import ReadOptions
 

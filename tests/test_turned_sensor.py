@@ -16,6 +16,7 @@ import json
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
+from simlib.sessions import write_recordings
 from test_real_logs_public import REAL_LOGS
 from test_segment_synth import make_log, synth_run
 
@@ -24,7 +25,6 @@ from balancer_id.notes import has_code
 from balancer_id.read import read_log
 from balancer_id.read.recording import Recording
 from balancer_id.segment import find_trials
-from balancer_id.simulation.sessions import write_recordings
 from balancer_id.trials import describe_log
 
 #: (time the turn starts, sensor orientation after it): flat, on its side, on its edge.

@@ -16,14 +16,23 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from balancer_id.cli.options import (
+    AccelUnitOpt,
+    ColumnsOpt,
+    Command,
     EffectsFileOpt,
     FixOpt,
+    ForceSignOpt,
+    GOpt,
+    Group,
     JsonOpt,
     LogsArg,
     ModelOpt,
     OverwriteOpt,
     QuietOpt,
+    ThrustOpt,
     TrajectoryOpt,
+    VerticalOpt,
+    WindowOpt,
     assignments,
     at_least,
     check_outputs,
@@ -38,52 +47,11 @@ from balancer_id.cli.options import (
     trajectory,
 )
 from balancer_id.cli.progress import stage
+from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import UsageError
 
 if TYPE_CHECKING:
     from balancer_id.trials import ReadOptions
-
-_TYPE_WORDS = {
-    "str": "TEXT",
-    "int": "INTEGER",
-    "float": "NUMBER",
-    "path": "FILE",
-    "Path": "FILE",
-    "bool": "",
-}
-
-
-def _in_words(label: str | None) -> str | None:
-    """``<list[Path]>`` -> ``FILE...``, ``<str>`` -> ``TEXT``, a flag's ``<bool>`` -> nothing."""
-    if not label or not (label.startswith("<") and ">" in label):
-        return label
-    inner, rest = label[1:].split(">", 1)
-    many = inner.startswith("list[") and inner.endswith("]")
-    inner = inner[5:-1] if many else inner
-    word = _TYPE_WORDS.get(inner, inner.upper())
-    if not word:
-        return None
-    return word + ("..." if many or rest else "")
-
-
-def _help_types_in_words() -> None:
-    """Typer >= 0.20 shows option types as ``<list[Path]>``; show them as words."""
-    import typer.core as tc
-
-    for cls in (getattr(tc, "TyperOption", None), getattr(tc, "TyperArgument", None)):
-        shown = getattr(cls, "display_type_rich", None)
-        if shown is None or getattr(shown, "_in_words", False):
-            continue
-
-        def in_words(self, ctx, _shown=shown):
-            return _in_words(_shown(self, ctx))
-
-        in_words._in_words = True  # type: ignore[attr-defined]
-        cls.display_type_rich = in_words  # type: ignore[method-assign]
-
-
-_help_types_in_words()
-
 
 #: Physical ranges of simulate's options: beyond them a log would hold inf/NaN samples or
 #: not fit in memory (issue 21: nothing silent).
@@ -99,6 +67,7 @@ WIDTH_WITHOUT_TERMINAL = 160
 MAX_STARTS = 1000
 
 app = typer.Typer(
+    cls=Group,
     add_completion=True,
     context_settings={"help_option_names": ["-h", "--help"]},
     no_args_is_help=True,
@@ -213,17 +182,24 @@ def _render(out: Any, json_out: bool, printer: str) -> None:
 
 
 # Commands -----------------------------------------------------------------------------
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def inspect(
-    log: Annotated[Path, typer.Argument(help="The log to read.")],
+    log: Annotated[Path, typer.Argument(metavar="LOG", help="The log to read.")],
     json_out: JsonOpt = False,
-    plot: Annotated[Path | None, typer.Option("--plot", help="Draw the channels to a PNG.")] = None,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", metavar="FILE", help="Draw the channels to a PNG.")
+    ] = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Show what was read from LOG and the step trials (or the robot move) found in it.
 
@@ -232,6 +208,7 @@ def inspect(
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     check_outputs({"--plot": plot}, [log], overwrite)
     with stage(f"reading {log.name}"):
         data = read(log, options)
@@ -254,21 +231,22 @@ def inspect(
         raise typer.Exit(problem.exit_code)
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def fit(
     logs: LogsArg,
     model: ModelOpt = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     report: Annotated[
-        Path | None, typer.Option("--report", help="Write FILE.html or FILE.pdf.")
+        Path | None, typer.Option("--report", metavar="FILE", help="Write FILE.html or FILE.pdf.")
     ] = None,
     per_trial: Annotated[
         bool, typer.Option("--per-trial", help="Also fit each trial alone.")
     ] = False,
-    starts: Annotated[int, typer.Option("--starts", help="Optimizer starts.")] = 1,
+    starts: Annotated[
+        int, typer.Option("--starts", metavar="INTEGER", help="Optimizer starts.")
+    ] = 1,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
     ] = False,
@@ -276,31 +254,55 @@ def fit(
     trajectory_text: TrajectoryOpt = None,
     params: Annotated[
         Path | None,
-        typer.Option("--params", help="Hold the parameters of an earlier 'fit --json' output."),
+        typer.Option(
+            "--params",
+            metavar="FILE",
+            help="Hold the parameters of an earlier 'fit --json' output.",
+        ),
     ] = None,
     start_values: Annotated[
         list[str] | None,
-        typer.Option("--start", help="Start value of a parameter: NAME=VALUE (repeatable)."),
+        typer.Option(
+            "--start",
+            metavar="TEXT...",
+            help="Start value of a parameter: NAME=VALUE (repeatable).",
+        ),
     ] = None,
     bounds: Annotated[
         list[str] | None,
-        typer.Option("--bounds", help="Narrower bounds: NAME=MIN:MAX (repeatable)."),
+        typer.Option(
+            "--bounds", metavar="TEXT...", help="Narrower bounds: NAME=MIN:MAX (repeatable)."
+        ),
     ] = None,
     save: Annotated[
         Path | None,
-        typer.Option("--save", help="Write the fit (JSON) to FILE, for --params of compare."),
+        typer.Option(
+            "--save", metavar="FILE", help="Write the fit (JSON) to FILE, for --params of compare."
+        ),
     ] = None,
     series: Annotated[
         Path | None,
-        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+        typer.Option(
+            "--series",
+            metavar="FILE",
+            help="Write time, measured, simulated, residual to FILE.csv.",
+        ),
     ] = None,
     overwrite: OverwriteOpt = False,
     group_by: Annotated[
         str | None,
-        typer.Option("--group-by", help="run|log|runs:1-3,4-6: identify each group apart."),
+        typer.Option(
+            "--group-by", metavar="TEXT", help="run|log|runs:1-3,4-6: identify each group apart."
+        ),
     ] = None,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS.
 
@@ -308,6 +310,7 @@ def fit(
     """
     from balancer_id.cli.request import FitRequest
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     fixed = assignments(fix, "--fix")
     if params is not None:  # issue 9: hold an earlier fit's values; --fix wins
         from balancer_id.identify.params_file import held_for_model
@@ -325,7 +328,6 @@ def fit(
     check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
-
             raise UsageError(
                 "--start, --bounds, --save and --series are for one fit: not with --group-by"
             )
@@ -413,41 +415,63 @@ def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -
         print_fit(console, printable(item))
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
 def simulate(
     model: ModelOpt = None,
     param: Annotated[
-        list[str] | None, typer.Option("--param", help="NAME=VALUE of the true model (repeatable).")
+        list[str] | None,
+        typer.Option(
+            "--param", metavar="TEXT...", help="NAME=VALUE of the true model (repeatable)."
+        ),
     ] = None,
-    thrust: Annotated[str, typer.Option("--thrust", help="Thrusts in N, one run each.")] = (
-        "2.45,-2.45,4.9,-4.9,7.35,-7.35"
-    ),
-    out: Annotated[Path, typer.Option("--out", help="The CSV to write (PASCO Capstone).")] = Path(
-        "simulated.csv"
-    ),
-    noise: Annotated[float, typer.Option("--noise", help="Acceleration noise (m/s^2).")] = 0.03,
-    force_noise: Annotated[float, typer.Option("--force-noise", help="Force noise (N).")] = 0.03,
+    thrust: Annotated[
+        str, typer.Option("--thrust", metavar="TEXT", help="Thrusts in N, one run each.")
+    ] = ("2.45,-2.45,4.9,-4.9,7.35,-7.35"),
+    out: Annotated[
+        Path, typer.Option("--out", metavar="FILE", help="The CSV to write (PASCO Capstone).")
+    ] = Path("simulated.csv"),
+    noise: Annotated[
+        float, typer.Option("--noise", metavar="NUMBER", help="Acceleration noise (m/s^2).")
+    ] = 0.03,
+    force_noise: Annotated[
+        float, typer.Option("--force-noise", metavar="NUMBER", help="Force noise (N).")
+    ] = 0.03,
     noise_correlation: Annotated[
-        float, typer.Option("--noise-correlation", help="Lag-one correlation of the noise.")
+        float,
+        typer.Option(
+            "--noise-correlation", metavar="NUMBER", help="Lag-one correlation of the noise."
+        ),
     ] = 0.0,
     quantize: Annotated[bool, typer.Option("--quantize", help="Sensor resolution.")] = False,
-    tilt: Annotated[float, typer.Option("--tilt", help="Sensor tilt (degrees).")] = 10.0,
-    drop: Annotated[float, typer.Option("--drop", help="Fraction of samples dropped.")] = 0.0,
-    rate: Annotated[float, typer.Option("--rate", help="Sample rate (Hz).")] = 200.0,
-    rest: Annotated[float, typer.Option("--rest", help="Rest before each step (s).")] = 2.0,
+    tilt: Annotated[
+        float, typer.Option("--tilt", metavar="NUMBER", help="Sensor tilt (degrees).")
+    ] = 10.0,
+    drop: Annotated[
+        float, typer.Option("--drop", metavar="NUMBER", help="Fraction of samples dropped.")
+    ] = 0.0,
+    rate: Annotated[
+        float, typer.Option("--rate", metavar="NUMBER", help="Sample rate (Hz).")
+    ] = 200.0,
+    rest: Annotated[
+        float, typer.Option("--rest", metavar="NUMBER", help="Rest before each step (s).")
+    ] = 2.0,
     duration: Annotated[
-        float, typer.Option("--duration", help="Motion after each step (s).")
+        float, typer.Option("--duration", metavar="NUMBER", help="Motion after each step (s).")
     ] = 8.0,
-    force_sign: Annotated[int, typer.Option("--force-sign", help="Sign of the force channel.")] = 1,
-    seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+    force_sign: Annotated[
+        int, typer.Option("--force-sign", metavar="INTEGER", help="Sign of the force channel.")
+    ] = 1,
+    seed: Annotated[int, typer.Option("--seed", metavar="INTEGER", help="Random seed.")] = 0,
     overwrite: OverwriteOpt = False,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     json_out: JsonOpt = False,
     params: Annotated[
         Path | None,
-        typer.Option("--params", help="The model and values of 'fit --save' (or --json)."),
+        typer.Option(
+            "--params", metavar="FILE", help="The model and values of 'fit --save' (or --json)."
+        ),
     ] = None,
     quiet: QuietOpt = False,
 ) -> None:
@@ -455,7 +479,7 @@ def simulate(
 
     Example: balancer-id simulate --param m_a=0.5 --out sim.csv
     """
-    from balancer_id.identify.api import resolve_model
+    from balancer_id.model.spec import resolve_model
     from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
 
     known: dict[str, float] = {}
@@ -543,21 +567,27 @@ def simulate(
         typer.echo(f"wrote {out}: {len(recs)} runs of model {mdl.spec}", err=True)
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def compare(
     logs: LogsArg,
     model: Annotated[
         str | None,
         typer.Option(
-            "--model", "-m", help="Models to compare: SPEC[,SPEC2...] (viscous,variable_viscosity)."
+            "--model",
+            "-m",
+            metavar="TEXT",
+            help="Models to compare: SPEC[,SPEC2...] (viscous,variable_viscosity).",
         ),
     ] = None,
-    plot: Annotated[Path | None, typer.Option("--plot", help="Measured vs simulated PNG.")] = None,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", metavar="FILE", help="Measured vs simulated PNG.")
+    ] = None,
     vibration_plot: Annotated[
         Path | None,
-        typer.Option("--vibration-plot", help="With --trajectory: the moves' vibration PNG."),
+        typer.Option(
+            "--vibration-plot", metavar="FILE", help="With --trajectory: the moves' vibration PNG."
+        ),
     ] = None,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
@@ -565,15 +595,29 @@ def compare(
     trajectory_text: TrajectoryOpt = None,
     params: Annotated[
         Path | None,
-        typer.Option("--params", help="Validate the model of 'fit --save' on LOGS (no refit)."),
+        typer.Option(
+            "--params",
+            metavar="FILE",
+            help="Validate the model of 'fit --save' on LOGS (no refit).",
+        ),
     ] = None,
     series: Annotated[
         Path | None,
-        typer.Option("--series", help="Write time, measured, simulated, residual to FILE.csv."),
+        typer.Option(
+            "--series",
+            metavar="FILE",
+            help="Write time, measured, simulated, residual to FILE.csv.",
+        ),
     ] = None,
     overwrite: OverwriteOpt = False,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails.
 
@@ -584,6 +628,7 @@ def compare(
     """
     from balancer_id.diagnostics.api import compare as run_compare
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     fixed = assignments(fix, "--fix")
     if params is not None:  # issue 11: an identified model on new logs, as MATLAB's compare
         from balancer_id.identify.params_file import read_params_file
@@ -652,11 +697,21 @@ def _fit(
     trajectory_text: str | None,
     per_trial: bool = False,
 ):
-    """Parse the fit's own options, load the trials, fit."""
+    """Parse the fit's own options, load the trials, fit.
+
+    The kernels of the model and of the candidates a diagnosis refits are compiled first,
+    all at once (several processes) when the disk cache lacks them.
+    """
+    from balancer_id.diagnostics.candidates import candidates
     from balancer_id.identify.api import fit as run_fit
+    from balancer_id.identify.api import resolve_model
+    from balancer_id.simulation.kernel import compile_models
 
     fixed = assignments(fix, "--fix")
     trials = _load(logs, options, trajectory_text)
+    start = resolve_model(model, effects_file or ())
+    cands = candidates(start, with_trajectory=trajectory_text is not None)
+    compile_models([start, *(c.model for c in cands)])
     with stage(f"fitting {model or 'variable_viscosity'}"):
         return run_fit(
             trials,
@@ -667,9 +722,8 @@ def _fit(
         )
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def diagnose(
     logs: LogsArg,
     model: ModelOpt = None,
@@ -678,7 +732,13 @@ def diagnose(
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Residual tests and ranked suggestions of missing effects.
 
@@ -686,6 +746,7 @@ def diagnose(
     """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     fitted = _fit(
         logs,
         options,
@@ -700,20 +761,27 @@ def diagnose(
     _render(out, json_out, "print_diagnosis")
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def improve(
     logs: LogsArg,
     start: Annotated[
         str | None,
-        typer.Option("--start", help="Model to start from (default variable_viscosity)."),
+        typer.Option(
+            "--start", metavar="TEXT", help="Model to start from (default variable_viscosity)."
+        ),
     ] = None,
-    max_steps: Annotated[int, typer.Option("--max-steps", help="Effects to add at most.")] = 4,
+    max_steps: Annotated[
+        int, typer.Option("--max-steps", metavar="INTEGER", help="Effects to add at most.")
+    ] = 4,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
-    report: Annotated[Path | None, typer.Option("--report", help="FILE.html or FILE.pdf.")] = None,
-    plot: Annotated[Path | None, typer.Option("--plot", help="The error ladder as PNG.")] = None,
+    report: Annotated[
+        Path | None, typer.Option("--report", metavar="FILE", help="FILE.html or FILE.pdf.")
+    ] = None,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", metavar="FILE", help="The error ladder as PNG.")
+    ] = None,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
@@ -723,10 +791,18 @@ def improve(
     ] = False,
     effects_out: Annotated[
         Path | None,
-        typer.Option("--effects-out", help="--discover: write the force here as an effect."),
+        typer.Option(
+            "--effects-out", metavar="FILE", help="--discover: write the force here as an effect."
+        ),
     ] = None,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve.
 
@@ -734,6 +810,7 @@ def improve(
     """
     from balancer_id.diagnostics.improve import improve as run_improve
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     at_least(max_steps, 0, "--max-steps")
     check_outputs(
         {"--report": report, "--plot": plot},
@@ -741,7 +818,6 @@ def improve(
         overwrite,
     )
     if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
-
         raise UsageError("--report and --plot name the same file; give two names")
     if report is not None:
         from balancer_id.report.document import check_report_path
@@ -784,19 +860,24 @@ def improve(
     _render(out, json_out, "print_improve")
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options()
 def report(
     logs: LogsArg,
-    out: Annotated[Path, typer.Option("--out", help="FILE.html or FILE.pdf.")],
+    out: Annotated[Path, typer.Option("--out", metavar="FILE", help="FILE.html or FILE.pdf.")],
     model: ModelOpt = None,
     fix: FixOpt = None,
     effects_file: EffectsFileOpt = None,
     trajectory_text: TrajectoryOpt = None,
     overwrite: OverwriteOpt = False,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots.
 
@@ -804,6 +885,7 @@ def report(
     """
     from balancer_id.workflows import full_report as run_report
 
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
     with stage(f"reporting on {len(logs)} log(s)"):
         done = run_report(
             logs,
@@ -818,21 +900,23 @@ def report(
     typer.echo(f"wrote {done.path}", err=True)
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
-@read_options(thrust=False)
 def batch(
-    paths: Annotated[list[Path], typer.Argument(help="Logs or folders of logs.")],
+    paths: Annotated[list[Path], typer.Argument(metavar="PATHS", help="Logs or folders of logs.")],
     out: Annotated[
-        Path, typer.Option("--out", help="Folder for summary.csv and one JSON per log.")
+        Path,
+        typer.Option("--out", metavar="FILE", help="Folder for summary.csv and one JSON per log."),
     ],
     model: ModelOpt = None,
     fix: FixOpt = None,
     jobs: Annotated[
-        int | None, typer.Option("--jobs", help="Processes (default: all cores).")
+        int | None,
+        typer.Option("--jobs", metavar="INTEGER", help="Processes (default: all cores)."),
     ] = None,
     scheduler: Annotated[
-        str | None, typer.Option("--scheduler", help="Dask scheduler address (or 'local').")
+        str | None,
+        typer.Option("--scheduler", metavar="TEXT", help="Dask scheduler address (or 'local')."),
     ] = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
@@ -848,10 +932,17 @@ def batch(
     ] = False,
     fleet_report: Annotated[
         Path | None,
-        typer.Option("--report", help="FILE.html or FILE.pdf: the fleet view of the logs."),
+        typer.Option(
+            "--report", metavar="FILE", help="FILE.html or FILE.pdf: the fleet view of the logs."
+        ),
     ] = None,
     quiet: QuietOpt = False,
-    options: ReadOptions = None,  # type: ignore[assignment]
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT.
 
@@ -860,6 +951,7 @@ def batch(
     from balancer_id.batch import run_batch
     from balancer_id.cli.progress import batch_progress
 
+    options = read_options(None, force_sign, vertical, columns, g, accel_unit, window)
     if fleet_report is not None:
         from balancer_id.report.document import check_report_path
 
@@ -900,7 +992,7 @@ def batch(
         raise typer.Exit(result.exit_code)
 
 
-@app.command()
+@app.command(cls=Command)
 @guarded
 def effects(
     json_out: JsonOpt = False,

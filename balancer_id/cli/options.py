@@ -1,15 +1,15 @@
 """Options shared by the commands, declared once, and the parsing of their values.
 
 The seven options that say how logs are read (``--thrust``, ``--force-sign``,
-``--vertical``, ``--columns``, ``--g``, ``--accel-unit``, ``--window``) are added to a command by
-:func:`read_options`, which hands the command one checked
-:class:`~balancer_id.trials.ReadOptions`.
+``--vertical``, ``--columns``, ``--g``, ``--accel-unit``, ``--window``) are declared by each
+command that reads logs, and turned into one checked :class:`~balancer_id.trials.ReadOptions`
+by :func:`read_options`. Every option names its value in words (``metavar``: TEXT, FILE,
+NUMBER...); a flag names none (see :class:`Command`).
 """
 
 from __future__ import annotations
 
 import functools
-import inspect
 import json
 import math
 import os
@@ -17,45 +17,118 @@ import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 
 from balancer_id.cli import progress
 from balancer_id.cli.progress import one_line
-from balancer_id.constants import G_DEFAULT
+
+if TYPE_CHECKING:
+    from balancer_id.trials import ReadOptions
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+
+
+class Command(TyperCommand):
+    """A command whose help shows no value type for a flag (``--json``, ``--help``).
+
+    Typer >= 0.28 labels every option with its Python type, a flag too (``<bool>``); an
+    option's ``metavar`` replaces the label, so a flag gets an empty one. The options that
+    take a value give their own (``metavar="FILE"``).
+    """
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        """The command's parameters, each flag without a value label.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The command's context.
+
+        Returns
+        -------
+        list of click.Parameter
+        """
+        return _flags_unlabelled(super().get_params(ctx))
+
+
+class Group(TyperGroup):
+    """The command group, its flags (``--version``, ``--install-completion``, ``--help``)
+    without a value label (see :class:`Command`)."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        """The group's parameters, each flag without a value label.
+
+        Parameters
+        ----------
+        ctx : click.Context
+            The group's context.
+
+        Returns
+        -------
+        list of click.Parameter
+        """
+        return _flags_unlabelled(super().get_params(ctx))
+
+
+def _flags_unlabelled(params: list[Any]) -> list[Any]:
+    for param in params:
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    return params
+
+
 ModelOpt = Annotated[
     str | None,
-    typer.Option("--model", "-m", help="Effects joined by '+' (default variable_viscosity)."),
+    typer.Option(
+        "--model", "-m", metavar="TEXT", help="Effects joined by '+' (default variable_viscosity)."
+    ),
 ]
 EffectsFileOpt = Annotated[
     list[Path] | None,
-    typer.Option("--effects-file", help="A .py file of user effects (repeatable)."),
+    typer.Option(
+        "--effects-file", metavar="FILE...", help="A .py file of user effects (repeatable)."
+    ),
 ]
 ThrustOpt = Annotated[
     str | None,
-    typer.Option("--thrust", help="Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."),
+    typer.Option(
+        "--thrust", metavar="TEXT", help="Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."
+    ),
 ]
 ForceSignOpt = Annotated[
-    int | None, typer.Option("--force-sign", help="+1 or -1: fix the sign of the force channel.")
+    int | None,
+    typer.Option(
+        "--force-sign", metavar="INTEGER", help="+1 or -1: fix the sign of the force channel."
+    ),
 ]
 VerticalOpt = Annotated[
-    str, typer.Option("--vertical", help="auto|x|y|z|-z|...: up axis of logs without gravity.")
+    str,
+    typer.Option(
+        "--vertical", metavar="TEXT", help="auto|x|y|z|-z|...: up axis of logs without gravity."
+    ),
 ]
 ColumnsOpt = Annotated[
-    str | None, typer.Option("--columns", help="Column map of a generic CSV: time=t,force=F,ax=...")
+    str | None,
+    typer.Option(
+        "--columns", metavar="TEXT", help="Column map of a generic CSV: time=t,force=F,ax=..."
+    ),
 ]
-GOpt = Annotated[float, typer.Option("--g", help="Gravity in m/s^2.")]
+GOpt = Annotated[float, typer.Option("--g", metavar="NUMBER", help="Gravity in m/s^2.")]
 AccelUnitOpt = Annotated[
-    str, typer.Option("--accel-unit", help="auto|m/s^2|g: unit of the acceleration columns.")
+    str,
+    typer.Option(
+        "--accel-unit", metavar="TEXT", help="auto|m/s^2|g: unit of the acceleration columns."
+    ),
 ]
 WindowOpt = Annotated[
     list[str] | None,
     typer.Option(
         "--window",
+        metavar="TEXT...",
         help="START:END in s: a stretch where only the measured force acts (repeatable); "
         "each is a trial, nothing is detected (a lab rig).",
     ),
@@ -69,7 +142,8 @@ QuietOpt = Annotated[
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 FixOpt = Annotated[
-    list[str] | None, typer.Option("--fix", help="Hold a parameter: NAME=VALUE (repeatable).")
+    list[str] | None,
+    typer.Option("--fix", metavar="TEXT...", help="Hold a parameter: NAME=VALUE (repeatable)."),
 ]
 OverwriteOpt = Annotated[
     bool,
@@ -79,79 +153,66 @@ TrajectoryOpt = Annotated[
     str | None,
     typer.Option(
         "--trajectory",
+        metavar="TEXT",
         help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..[,start=..]' or a "
         "CSV of time,position.",
     ),
 ]
-LogsArg = Annotated[list[Path], typer.Argument(help="One or more logs.")]
-
-#: The reading options: name -> (annotation, default). ``thrust`` is left out of
-#: commands that read many logs (``batch``).
-READ_OPTIONS: dict[str, tuple[Any, Any]] = {
-    "thrust": (ThrustOpt, None),
-    "force_sign": (ForceSignOpt, None),
-    "vertical": (VerticalOpt, "auto"),
-    "columns": (ColumnsOpt, None),
-    "g": (GOpt, G_DEFAULT),
-    "accel_unit": (AccelUnitOpt, "auto"),
-    "window": (WindowOpt, None),
-}
+LogsArg = Annotated[list[Path], typer.Argument(metavar="LOGS", help="One or more logs.")]
 
 
-def read_options(*, thrust: bool = True) -> Callable[[F], F]:
-    """Add the reading options to a command; it receives them as ``options: ReadOptions``.
+def read_options(
+    thrust: str | None,
+    force_sign: int | None,
+    vertical: str,
+    columns: str | None,
+    g: float,
+    accel_unit: str,
+    window: list[str] | None,
+) -> ReadOptions:
+    """The reading options of a command (its ``--thrust`` ... ``--window``), checked.
+
+    Each command that reads logs declares the seven options itself (:data:`ThrustOpt` ...
+    :data:`WindowOpt`, as its last parameters; ``batch`` has no ``--thrust``) and passes
+    their values here, in this order.
 
     Parameters
     ----------
-    thrust : bool
-        Whether the command takes ``--thrust`` (one log's trial thrusts).
+    thrust : str or None
+        ``--thrust``: thrusts in N separated by commas.
+    force_sign : int or None
+        ``--force-sign``.
+    vertical : str
+        ``--vertical``.
+    columns : str or None
+        ``--columns``: ``ROLE=COLUMN`` pairs.
+    g : float
+        ``--g``.
+    accel_unit : str
+        ``--accel-unit``.
+    window : list of str or None
+        ``--window`` (repeatable).
 
     Returns
     -------
-    callable
-        A decorator for a typer command with an ``options`` parameter.
+    ReadOptions
+
+    Raises
+    ------
+    UsageError
+        A malformed value or one out of its range (the message names the option).
     """
+    from balancer_id.trials import ReadOptions
 
-    def decorate(func: F) -> F:
-        sig = inspect.signature(func)
-        kept = [
-            p.replace(annotation=_evaluated(p.annotation, func))
-            for p in sig.parameters.values()
-            if p.name != "options"
-        ]
-        names = [n for n in READ_OPTIONS if thrust or n != "thrust"]
-        added = [
-            inspect.Parameter(
-                n,
-                inspect.Parameter.KEYWORD_ONLY,
-                default=READ_OPTIONS[n][1],
-                annotation=READ_OPTIONS[n][0],
-            )
-            for n in names
-        ]
-
-        @functools.wraps(func)
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            from balancer_id.trials import ReadOptions
-
-            given = {n: kwargs.pop(n) for n in names if n in kwargs}
-            kwargs["options"] = ReadOptions.from_text(**given)
-            return func(*args, **kwargs)
-
-        params = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in kept] + added
-        wrapper.__signature__ = sig.replace(parameters=params)  # type: ignore[attr-defined]
-        wrapper.__annotations__ = {p.name: p.annotation for p in params}
-        del wrapper.__wrapped__  # typer reads the new signature, not the function's
-        return wrapper  # type: ignore[return-value]
-
-    return decorate
-
-
-def _evaluated(annotation: Any, func: Callable[..., Any]) -> Any:
-    """A string annotation (``from __future__ import annotations``) as its object."""
-    if isinstance(annotation, str):
-        return eval(annotation, func.__globals__)
-    return annotation
+    return ReadOptions.from_text(
+        thrust=thrust,
+        force_sign=force_sign,
+        vertical=vertical,
+        columns=columns,
+        g=g,
+        accel_unit=accel_unit,
+        window=window,
+    )
 
 
 def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:

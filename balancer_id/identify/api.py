@@ -14,8 +14,8 @@ from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
-from balancer_id.model.registry import Registry, default_registry
-from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
+from balancer_id.model.registry import Registry
+from balancer_id.model.spec import Model, resolve_model
 from balancer_id.notes import Note
 from balancer_id.segment.trial import Trial
 from balancer_id.simulation.inputs import Trapezoid
@@ -37,39 +37,6 @@ Sources = TrialSet | str | Path | Sequence[str | Path | Trial | TrialData]
 #: Gauss-Newton covariance leaves out the residuals' curvature, which dominates where
 #: the model misfits and parameters trade at first order (docs/DECISIONS.md).
 NON_QUADRATIC_RATIO = 3.0
-
-
-def resolve_model(
-    model: str | Model | None,
-    effects_files: Sequence[str | Path] = (),
-    registry: Registry | None = None,
-) -> Model:
-    """A Model from a spec string (loading user effect files) or a ready Model.
-
-    Parameters
-    ----------
-    model : str or Model or None
-        A spec such as ``"viscous+karnopp"``, a ready Model (returned as is), or None for
-        the default spec (``variable_viscosity``).
-    effects_files : sequence of str or Path
-        Python files with user effects; only read when ``registry`` is None.
-    registry : Registry, optional
-        The registry to resolve effect names in; None builds the default registry plus
-        ``effects_files``.
-
-    Returns
-    -------
-    Model
-
-    Raises
-    ------
-    ModelSpecError
-        When the spec names an unknown effect or an invalid combination.
-    """
-    if isinstance(model, Model):
-        return model
-    registry = registry or default_registry(effects_files)
-    return parse_model(model or DEFAULT_SPEC, registry)
 
 
 def trial_data(trials: TrialSet) -> list[TrialData]:

@@ -2,7 +2,7 @@
 
 from balancer_id.model.effect import HOOKS, Effect, Param
 from balancer_id.model.registry import Registry, default_registry
-from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model
+from balancer_id.model.spec import DEFAULT_SPEC, Model, parse_model, resolve_model
 
 __all__ = [
     "DEFAULT_SPEC",
@@ -13,4 +13,5 @@ __all__ = [
     "Registry",
     "default_registry",
     "parse_model",
+    "resolve_model",
 ]

@@ -194,10 +194,16 @@ def module_name_for(file: Path) -> str:
     Returns
     -------
     str
-        ``balancer_id_user_effects_<stem>_<hash>``, where the hash is taken from the path.
+        ``balancer_id_user_effects_<stem>_<hash>``, where the hash is taken from the file's
+        content (its path when it cannot be read): the compiled kernels name the module
+        of their effects, so a copy of the file elsewhere (another folder, a test's
+        temporary one) reuses them, and a changed file gets its own.
     """
-    digest = hashlib.sha1(str(file).encode()).hexdigest()[:12]
-    return f"balancer_id_user_effects_{file.stem}_{digest}"
+    try:
+        digest = hashlib.sha1(Path(file).read_bytes()).hexdigest()[:12]
+    except OSError:
+        digest = hashlib.sha1(str(file).encode()).hexdigest()[:12]
+    return f"{USER_MODULE_PREFIX}{file.stem}_{digest}"
 
 
 def import_file_module(file: Path):
@@ -229,6 +235,40 @@ def import_file_module(file: Path):
         return import_path(name, file)
     except Exception as exc:
         raise EffectError(f"{file}: importing the effects file failed: {exc!r}") from None
+
+
+USER_MODULE_PREFIX = "balancer_id_user_effects_"
+
+
+def loaded_effect(module: str, qualname: str) -> type[Effect]:
+    """The user effect class ``qualname`` of the effects file loaded in this process as
+    ``module`` (see :func:`module_name_for`: named after the file's content).
+
+    A generated kernel takes its user effects from here, so its source does not name
+    the file's path: the same effects file in another folder reuses the compiled kernel.
+
+    Parameters
+    ----------
+    module : str
+        The module name the effects file was imported under.
+    qualname : str
+        The class's qualified name in its file.
+
+    Returns
+    -------
+    type
+
+    Raises
+    ------
+    ImportError
+        When no such effects file is loaded in this process.
+    """
+    obj: object = sys.modules.get(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part, None)
+    if not isinstance(obj, type):
+        raise ImportError(f"no effects file loaded in this process defines {module}.{qualname}")
+    return obj
 
 
 def default_registry(effects_files: Iterable[str | Path] = ()) -> Registry:

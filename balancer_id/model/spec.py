@@ -9,9 +9,11 @@ from typing import TYPE_CHECKING
 from balancer_id.errors import ModelSpecError
 from balancer_id.model.effect import EXCLUSIVE_HOOKS, Effect, Param
 from balancer_id.model.effects.base_model import Base
-from balancer_id.model.registry import Registry
+from balancer_id.model.registry import Registry, default_registry
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     import lmfit
 
 #: The paper's model and the default of every command.
@@ -327,3 +329,36 @@ def _check_compatible(spec: str, effects: list[type[Effect]]) -> None:
                     f"'{seen[p.name]}'; rename it in the effect"
                 )
             seen[p.name] = e.name
+
+
+def resolve_model(
+    model: str | Model | None,
+    effects_files: Sequence[str | Path] = (),
+    registry: Registry | None = None,
+) -> Model:
+    """A Model from a spec string (loading user effect files) or a ready Model.
+
+    Parameters
+    ----------
+    model : str or Model or None
+        A spec such as ``"viscous+karnopp"``, a ready Model (returned as is), or None for
+        the default spec (``variable_viscosity``).
+    effects_files : sequence of str or Path
+        Python files with user effects; only read when ``registry`` is None.
+    registry : Registry, optional
+        The registry to resolve effect names in; None builds the default registry plus
+        ``effects_files``.
+
+    Returns
+    -------
+    Model
+
+    Raises
+    ------
+    ModelSpecError
+        When the spec names an unknown effect or an invalid combination.
+    """
+    if isinstance(model, Model):
+        return model
+    registry = registry or default_registry(effects_files)
+    return parse_model(model or DEFAULT_SPEC, registry)

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from balancer_id.read.recording import Recording
 
@@ -81,6 +80,8 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
     ok = np.all(np.isfinite(acc), axis=1)
     if ok.sum() < 8:
         return []
+    from scipy import ndimage  # here: reading a log without gravity never needs it
+
     rate = rec.sample_rate_hz if np.isfinite(rec.sample_rate_hz) else 100.0
     w = max(3, round(REST_WINDOW_S * rate))
     rest, unit = _rest_directions(acc, ok, w, g)

@@ -23,7 +23,8 @@ import os
 import re
 import stat
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ from typing import Any
 from balancer_id.errors import EffectError
 from balancer_id.files import cache_root
 from balancer_id.model.effect import Effect
+from balancer_id.model.registry import USER_MODULE_PREFIX
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA
 
@@ -426,12 +428,12 @@ def _import_line(alias: str, cls: type[Effect]) -> str | None:
     module = sys.modules.get(cls.__module__)
     if "<locals>" in cls.__qualname__ or module is None:
         return None
-    file = getattr(module, "__file__", None)
-    if cls.__module__.startswith("balancer_id_user_effects_") and file:
+    if cls.__module__.startswith(USER_MODULE_PREFIX):
+        # named by its file's content, not its path: the same file elsewhere (a copy, a
+        # test's temporary folder) reuses the compiled kernel
         return (
-            f"from balancer_id.model.registry import import_file_module as _imp\n"
-            f"from pathlib import Path as _Path\n"
-            f"{alias} = _imp(_Path({file!r})).{cls.__qualname__}"
+            "from balancer_id.model.registry import loaded_effect as _loaded\n"
+            f"{alias} = _loaded({cls.__module__!r}, {cls.__qualname__!r})"
         )
     if cls.__module__ == "__main__":
         return None
@@ -642,12 +644,20 @@ def get_kernel(model: Model, *, quiet: bool = False) -> Kernel:
     return kernel
 
 
+#: Processes compiling kernels at once in :func:`compile_models` (None: one per CPU).
+COMPILE_JOBS: int | None = None
+#: Longest a compiling process may take (s); past it the kernel is compiled here instead.
+COMPILE_TIMEOUT_S = 900.0
+
+
 def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> None:
     """Compile (or load from the disk cache) the kernels of several models.
 
     The first run after an install compiles the built-in models once; each kernel that
     has to be compiled is announced on stderr with a count (``2/5``), so a long first
-    start is not mistaken for a hang.
+    start is not mistaken for a hang. Several kernels missing from the disk cache are
+    compiled at once, each in its own Python process (numba compiles one function at a
+    time under the GIL), and then loaded from the cache here.
 
     Parameters
     ----------
@@ -661,28 +671,193 @@ def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> No
     A model whose kernel cannot be compiled is skipped here; :func:`get_kernel` raises
     its error where the model is used.
     """
-    todo = [m for m in models if (m.effects, m.param_names) not in _KERNELS]
+    unique = {(m.effects, m.param_names): m for m in models}  # a model named twice: once
+    todo = [m for key, m in unique.items() if key not in _KERNELS]
     need = [m for m in todo if not _is_cached(m)]
-    for k, m in enumerate(need, 1):
+    if not need:
+        return
+    with _compile_lock():  # one process compiles; the others wait, then load
+        need = [m for m in need if not _is_cached(m)]
         if _VERBOSE_COMPILE:
-            note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+            for k, m in enumerate(need, 1):
+                note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+        _compile_shared(need, sensitivities)
+
+
+def _compile_here(models: Sequence[Model], sensitivities: bool) -> None:
+    for m in models:
         try:
             _warm(m, get_kernel(m, quiet=True), sensitivities)
         except Exception:  # a broken effect is reported where the model is used
             continue
 
 
-def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
-    """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
+@contextmanager
+def _compile_lock() -> Iterator[None]:
+    """Hold the kernel cache's lock file: processes started together (test workers, a
+    batch's workers, two commands) compile a missing kernel once, not each."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: each process compiles for itself
+        yield
+        return
+    folder = cache_dir()
+    if _private_dir(folder) is not None:
+        yield
+        return
+    with open(folder / ".compile.lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _compile_shared(models: Sequence[Model], sensitivities: bool) -> None:
+    """Compile ``models`` here and in helper processes at once, one share each.
+
+    A helper process imports its kernel files (and the user effects files they need),
+    runs each on a tiny input and leaves numba's machine code in the disk cache; this
+    process compiles its own share meanwhile, then loads the others' from the cache. A
+    kernel whose helper failed is compiled here afterwards, which reports any error.
+    """
+    import subprocess
+    from concurrent.futures import ThreadPoolExecutor
+
+    jobs = min(len(models), COMPILE_JOBS or _cpus())
+    if jobs < 2 or not HAVE_NUMBA:
+        _compile_here(models, sensitivities)
+        return
+    shares = [list(models[i::jobs]) for i in range(jobs)]
+    commands = [c for c in (_compile_command(s, sensitivities) for s in shares[1:]) if c]
+    package_root = str(Path(__file__).resolve().parents[2])
+    env = dict(os.environ, BALANCER_ID_QUIET="1")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
+    )
+
+    def run(command: list[str]) -> None:
+        try:
+            subprocess.run(
+                command,
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                timeout=COMPILE_TIMEOUT_S,
+                check=False,
+            )
+        except (OSError, subprocess.SubprocessError):
+            pass  # compiled here afterwards
+
+    threads = max(1, len(commands))
+    with ThreadPoolExecutor(threads, thread_name_prefix="balancer-id-compile") as pool:
+        running = [pool.submit(run, c) for c in commands]
+        _compile_here(shares[0], sensitivities)
+        for job in running:
+            job.result()
+    _compile_here([m for share in shares[1:] for m in share], sensitivities)
+
+
+def _compile_command(models: Sequence[Model], sensitivities: bool) -> list[str] | None:
+    """The command of a helper process compiling ``models``' kernel files (None: none of
+    them has a file, e.g. effects defined inside a function)."""
+    import json
+
+    kernels, files = [], []
+    for model in models:
+        try:
+            kernel = _build(model)
+        except Exception:
+            continue
+        if kernel.path is None:  # compiled in memory: nothing another process can share
+            continue
+        kernels.append([str(kernel.path), len(model.params)])
+        files += [
+            str(getattr(sys.modules.get(c.__module__), "__file__", ""))
+            for c in model.effects
+            if c.__module__.startswith(USER_MODULE_PREFIX)
+        ]
+    if not kernels:
+        return None
+    job = {"kernels": kernels, "sensitivities": sensitivities, "effects_files": files}
+    return [
+        sys.executable,
+        "-c",
+        "import json, sys; from balancer_id.simulation.kernel import compile_files; "
+        "compile_files(**json.loads(sys.argv[1]))",
+        json.dumps(job),
+    ]
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def compile_files(
+    kernels: Sequence[tuple[str, int]], sensitivities: bool, effects_files: Sequence[str]
+) -> None:
+    """Compile kernel files into numba's disk cache (what a helper process runs).
+
+    Parameters
+    ----------
+    kernels : sequence of (str, int)
+        Each kernel file written by this module and its model's number of parameters.
+    sensitivities : bool
+        Also compile the sensitivity kernels.
+    effects_files : sequence of str
+        The user effects files the kernels take effects from, loaded first.
+    """
     import numpy as np
 
-    if not sensitivities:
-        return
+    from balancer_id.model.registry import import_file_module
+
+    for file in dict.fromkeys(effects_files):
+        import_file_module(Path(file))
+    for path, n_params in kernels:
+        kernel_path = Path(path)
+        try:
+            module = _import_path(kernel_path.stem, kernel_path)
+            pvec = np.ones(int(n_params))
+            _run_tiny(module.simulate_batch, pvec)
+            if sensitivities:
+                _run_tiny_sens(module.simulate_batch_sens, pvec)
+        except Exception:  # the process that asked compiles it again and says why
+            continue
+
+
+def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
+    """Run a state kernel once on a two-sample trial (compiles it, or loads it)."""
+    import numpy as np
+
     t = np.array([0.0, 0.005])
     z = np.zeros(2)
-    pvec = np.array([p.value for p in model.params])
+    simulate_batch(
+        t,
+        np.array([0, 2]),
+        np.array([0.0]),
+        np.array([0.0]),
+        np.array([0, 1]),
+        z,
+        z,
+        np.zeros((1, 3)),
+        pvec,
+        1,
+        np.empty((2, len(OUT_COLUMNS))),
+    )
+
+
+def _run_tiny_sens(simulate_batch_sens: Any, pvec: Any) -> None:
+    """Run a sensitivity kernel once on a two-sample trial (compiles it, or loads it)."""
+    import numpy as np
+
+    t = np.array([0.0, 0.005])
+    z = np.zeros(2)
     cols = np.arange(pvec.size, dtype=np.int64)
-    kernel.simulate_batch_sens(
+    simulate_batch_sens(
         t,
         np.array([0, 2]),
         np.array([0.0]),
@@ -701,6 +876,15 @@ def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
     )
 
 
+def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
+    """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
+    import numpy as np
+
+    if not sensitivities:
+        return
+    _run_tiny_sens(kernel.simulate_batch_sens, np.array([p.value for p in model.params]))
+
+
 def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     """Run the kernel once on a tiny input, so compile errors name the model's effects."""
     import numpy as np
@@ -711,24 +895,8 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
             f"compiling the simulation kernel of '{model.spec}' (once; cached in "
             f"{kernel.path.parent})"
         )
-    t = np.array([0.0, 0.005])
-    z = np.zeros(2)
-    out = np.empty((2, len(OUT_COLUMNS)))
-    pvec = np.array([p.value for p in model.params])
     try:
-        kernel.simulate_batch(
-            t,
-            np.array([0, 2]),
-            np.array([0.0]),
-            np.array([0.0]),
-            np.array([0, 1]),
-            z,
-            z,
-            np.zeros((1, 3)),
-            pvec,
-            1,
-            out,
-        )
+        _run_tiny(kernel.simulate_batch, np.array([p.value for p in model.params]))
         if fresh:  # the fit's kernel too, under the same note, into the same cache
             _warm(model, kernel, True)
     except Exception as exc:

@@ -138,7 +138,7 @@ def synthetic_recordings(
     recordings = []
     for k, sim in enumerate(sims):
         specific = (sim.accel + sensor.g)[:, None] * up[None, :]
-        accel = specific + _ar1_noise(
+        accel = specific + ar1_noise(
             rng, sensor.accel_noise, sensor.noise_correlation, specific.shape
         )
         force = sensor.force_offset + sensor.force_sign * sim.operating_force
@@ -146,7 +146,7 @@ def synthetic_recordings(
         if sensor.quantize:
             accel = np.round(accel / ACCEL_RESOLUTION) * ACCEL_RESOLUTION
             force = np.round(force / FORCE_RESOLUTION_N) * FORCE_RESOLUTION_N
-        keep = _keep_mask(n, sensor.drop_fraction, rng)
+        keep = keep_mask(n, sensor.drop_fraction, rng)
         recordings.append(
             Recording(
                 name=f"Run #{k + 1}",
@@ -161,11 +161,25 @@ def synthetic_recordings(
     return recordings
 
 
-def _keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.ndarray:
+def keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.ndarray:
     """Samples kept after wireless drop-outs: bursts of 1-5 samples, first and last kept.
 
     Terminates for any fraction: at most ``4 n`` bursts are drawn, and what the bursts
     leave short of the target is dropped sample by sample.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    drop_fraction : float
+        Fraction of them to drop (0 keeps all).
+    rng : numpy.random.Generator
+        The random source.
+
+    Returns
+    -------
+    numpy.ndarray
+        One bool per sample: True where it is kept.
     """
     keep = np.ones(n, dtype=bool)
     if not drop_fraction > 0 or n < 8:
@@ -252,10 +266,26 @@ def write_synthetic_log(
     return recordings
 
 
-def _ar1_noise(
+def ar1_noise(
     rng: np.random.Generator, sigma: float, rho: float, shape: tuple[int, ...]
 ) -> np.ndarray:
-    """Noise of standard deviation ``sigma`` and lag-one correlation ``rho`` along axis 0."""
+    """Noise of standard deviation ``sigma`` and lag-one correlation ``rho`` along axis 0.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The random source.
+    sigma : float
+        Standard deviation.
+    rho : float
+        Lag-one correlation along axis 0, in [0, 1).
+    shape : tuple of int
+        Shape of the noise array.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     white = rng.normal(0.0, sigma, shape)
     if rho == 0.0:
         return white

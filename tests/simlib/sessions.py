@@ -18,7 +18,7 @@ from balancer_id.model.spec import Model
 from balancer_id.read.recording import Recording
 from balancer_id.simulation.engine import simulate
 from balancer_id.simulation.inputs import Thrust
-from balancer_id.simulation.synth import SensorSettings, _ar1_noise, _keep_mask, up_vector
+from balancer_id.simulation.synth import SensorSettings, ar1_noise, keep_mask, up_vector
 
 
 def session_thrust(
@@ -121,13 +121,13 @@ def record(
     up = up_vector(sensor.tilt_deg, azimuth)
     sim = simulate(model, params, time, thrust)
     specific = (sim.accel + sensor.g)[:, None] * up[None, :]
-    accel = specific + _ar1_noise(rng, sensor.accel_noise, sensor.noise_correlation, specific.shape)
+    accel = specific + ar1_noise(rng, sensor.accel_noise, sensor.noise_correlation, specific.shape)
     force = sensor.force_offset + sensor.force_sign * sim.operating_force
     force = force + rng.normal(0.0, sensor.force_noise, force.shape)
     if sensor.quantize:
         accel = np.round(accel / ACCEL_RESOLUTION) * ACCEL_RESOLUTION
         force = np.round(force / FORCE_RESOLUTION_N) * FORCE_RESOLUTION_N
-    keep = _keep_mask(n, sensor.drop_fraction, rng)
+    keep = keep_mask(n, sensor.drop_fraction, rng)
     return Recording(
         name=name,
         time=time[keep],
