@@ -80,8 +80,6 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
     ok = np.all(np.isfinite(acc), axis=1)
     if ok.sum() < 8:
         return []
-    from scipy import ndimage  # here: reading a log without gravity never needs it
-
     rate = rec.sample_rate_hz if np.isfinite(rec.sample_rate_hz) else 100.0
     w = max(3, round(REST_WINDOW_S * rate))
     rest, unit = _rest_directions(acc, ok, w, g)
@@ -136,6 +134,8 @@ def _rest_directions(
     the working arrays stay a block long whatever the log's length; the directions are
     kept as float32 (their sums over a rest are taken in float64).
     """
+    from scipy import ndimage  # here: reading a log without gravity never needs it
+
     n = acc.shape[0]
     rest = np.zeros(n, dtype=bool)
     unit = np.zeros((n, 3), dtype=np.float32)
