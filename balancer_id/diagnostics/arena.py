@@ -39,6 +39,9 @@ VERDICT_OF = {
 }
 #: Parameters of the split and drift explanations must move by at least this share.
 MIN_RELATIVE_CHANGE = 0.03
+#: Function evaluations of a refinement (:attr:`Explanation.refine`); the first fits of
+#: the arena stop at 60, enough to rank them, not always to tell two close ones apart.
+REFINE_NFEV = 300
 
 
 @dataclass
@@ -81,6 +84,9 @@ class Explanation:
     null: bool = False
     #: Share of the BIC fall a perfect model would bring (:meth:`ArenaInput.available`).
     share: float | None = None
+    #: Refits it from where it ended with more iterations (the arena's fits are capped
+    #: for speed); None when it cannot be refined. Returns the refined explanation.
+    refine: Callable[[], Explanation] | None = field(default=None, repr=False, compare=False)
 
     @property
     def verdict(self) -> str:
@@ -188,6 +194,8 @@ def _fit_varying(
     design: np.ndarray,
     post: Callable[[int, np.ndarray], np.ndarray] | None = None,
     extra: tuple[float, float, float] | None = None,
+    c_start: np.ndarray | None = None,
+    max_nfev: int = 60,
 ) -> tuple[list[np.ndarray], dict[str, float], np.ndarray, float | None]:
     """Least squares of ``model`` where ``name = base + c * design[i]`` in trial ``i``.
 
@@ -203,7 +211,7 @@ def _fit_varying(
     x0 = np.minimum(x0, hi)
     scale = np.maximum(np.abs(x0), 1e-3)
     q = design.shape[1] if design.ndim == 2 else 0
-    c0 = np.zeros(q)
+    c0 = np.zeros(q) if c_start is None else np.asarray(c_start, dtype=float).reshape(q)
     e0 = [] if extra is None else [extra[0]]
     lo_all = np.r_[lo, -np.inf * np.ones(q), [] if extra is None else [extra[1]]]
     hi_all = np.r_[hi, np.inf * np.ones(q), [] if extra is None else [extra[2]]]
@@ -238,7 +246,7 @@ def _fit_varying(
         r = np.concatenate([y - o for y, o in zip(ys, outs, strict=True)])
         return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
 
-    sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=60)
+    sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=max_nfev)
     r = resid(sol.x)
     cuts = np.cumsum([y.size for y in ys])[:-1]
     base = dict(fixed)
@@ -398,51 +406,63 @@ def _split_and_drift(
         return []
     sims = _Trials(inp.trials)
     fixed = {k: v for k, v in held(inp.match).items() if k in model.param_names}
-    out = []
     free = [n for n in model.param_names if n not in fixed]
-    for name in free:
-        for k in range(2, n_runs - 1):
+
+    def fit_one(
+        name: str,
+        k: int | None,
+        begin: dict[str, float],
+        c_start: np.ndarray | None,
+        nfev: int,
+    ) -> Explanation:
+        """The split of ``name`` after run ``k`` (None: its drift), fitted from ``begin``."""
+        if k is None:
+            design = (run / max(n_runs - 1, 1)).astype(float)[:, None]
+        else:
             design = (run >= k).astype(float)[:, None]
-            parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
-            before, after = base[name], base[name] + float(c[0])
-            rel = abs(after - before) / max(abs(before), abs(after), 1e-300)
-            d, rmse = score(inp, parts, 1 + k_base)
-            out.append(
-                Explanation(
-                    "pair" if prefix else "split",
-                    f"{prefix}{name} changes after run {k}",
-                    d + bic_base,
-                    rmse,
-                    list(effects),
-                    [name],
-                    {
-                        "split_after_run": k,
-                        "before": before,
-                        "after": after,
-                        "relative_change": rel,
-                        "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
-                        "n_samples": sims.n,
-                    },
-                    null=rel < MIN_RELATIVE_CHANGE,
-                )
-            )
-        design = (run / max(n_runs - 1, 1)).astype(float)[:, None]
-        parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
-        first, last = base[name], base[name] + float(c[0])
-        rel = abs(last - first) / max(abs(first), abs(last), 1e-300)
+        parts, base, c, _ = _fit_varying(
+            model, sims, begin, fixed, name, design, c_start=c_start, max_nfev=nfev
+        )
+        one, two = base[name], base[name] + float(c[0])
+        rel = abs(two - one) / max(abs(one), abs(two), 1e-300)
         d, rmse = score(inp, parts, 1 + k_base)
-        out.append(
-            Explanation(
+        if k is None:
+            e = Explanation(
                 "pair" if prefix else "drift",
                 f"{prefix}{name} drifting over the runs",
                 d + bic_base,
                 rmse,
                 list(effects),
                 [name],
-                {"first_run": first, "last_run": last, "relative_change": rel, "drift": True},
+                {"first_run": one, "last_run": two, "relative_change": rel, "drift": True},
                 null=rel < MIN_RELATIVE_CHANGE,
             )
-        )
+        else:
+            e = Explanation(
+                "pair" if prefix else "split",
+                f"{prefix}{name} changes after run {k}",
+                d + bic_base,
+                rmse,
+                list(effects),
+                [name],
+                {
+                    "split_after_run": k,
+                    "before": one,
+                    "after": two,
+                    "relative_change": rel,
+                    "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
+                    "n_samples": sims.n,
+                },
+                null=rel < MIN_RELATIVE_CHANGE,
+            )
+        e.refine = lambda: fit_one(name, k, base, c, REFINE_NFEV)
+        return e
+
+    out = []
+    for name in free:
+        for k in range(2, n_runs - 1):
+            out.append(fit_one(name, k, start, None, 60))
+        out.append(fit_one(name, None, start, None, 60))
     return out
 
 
