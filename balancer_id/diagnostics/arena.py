@@ -498,12 +498,81 @@ def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
     return lfilter(b, a, y, zi=lfilter_zi(b, a) * y[0])[0]
 
 
-def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
-    """The resting noise's -3 dB frequency, when its spectrum rolls off.
+#: A rest spectrum is a sensor filter's when a 2nd-order low-pass fits its log this many
+#: times better (sum of squares) than AR(1) colour does.
+FILTER_EVIDENCE = 4.0
 
-    The resting samples before each onset (mean and slope removed) are cut into
-    64-sample segments; their averaged periodogram, relative to its level at the lowest
-    frequencies, falls below one half at the cut-off. White noise does not fall (None).
+
+def rest_spectrum(trials: Sequence[TrialData], fs: float) -> dict[str, float] | None:
+    """The resting noise's averaged spectrum against two shapes: a filter's and AR(1)'s.
+
+    The resting samples before each onset are cut into 64-sample segments (a step of 16;
+    slope removed, Hann window); the log of their averaged periodogram (0 < f <= 0.45 fs)
+    is fitted, up to a level, by a 2nd-order Butterworth low-pass (flat, then falling by
+    40 dB per decade beyond its cut-off: a sensor's filter) and by AR(1) noise (falling
+    gently, by at most 20 dB per decade: colour that is not a filter of the signal, such
+    as the environment's), each over a grid of its one parameter.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials.
+    fs : float
+        Sample rate (Hz).
+
+    Returns
+    -------
+    dict or None
+        ``cutoff_hz`` and ``sse_filter`` of the low-pass, ``phi`` and ``sse_ar1`` of the
+        AR(1), ``segments``; None with fewer than 4 segments.
+    """
+    n_seg = 64
+    segs = []
+    x = np.arange(n_seg) - (n_seg - 1) / 2
+    for td in trials:
+        t = td.time - td.t_step
+        y = np.asarray(td.accel)[t < -0.02]
+        for j in range(0, y.size - n_seg + 1, 16):
+            seg = y[j : j + n_seg]
+            segs.append(seg - np.polyval(np.polyfit(x, seg, 1), x))
+    if len(segs) < 4:
+        return None
+    w = np.hanning(n_seg)
+    p = np.mean(np.abs(np.fft.rfft(np.array(segs) * w, axis=1)) ** 2, axis=0)
+    f = np.fft.rfftfreq(n_seg, 1.0 / fs)
+    keep = (f > 0) & (f <= 0.45 * fs) & (p > 0)
+    if keep.sum() < 6:
+        return None
+    lp, ff = np.log(p[keep]), f[keep]
+
+    def sse(shape: np.ndarray) -> float:
+        r = lp - shape
+        r = r - r.mean()
+        return float(r @ r)
+
+    tf = np.tan(np.pi * ff / fs)
+    cuts = np.geomspace(0.01 * fs, 0.45 * fs, 240)
+    filt = [sse(-np.log1p((tf / np.tan(np.pi * c / fs)) ** 4)) for c in cuts]
+    om = 2 * np.pi * ff / fs
+    phis = np.linspace(0.0, 0.99, 199)
+    ar = [sse(-np.log(1 + q * q - 2 * q * np.cos(om))) for q in phis]
+    i, j = int(np.argmin(filt)), int(np.argmin(ar))
+    return {
+        "cutoff_hz": float(cuts[i]),
+        "sse_filter": filt[i],
+        "phi": float(phis[j]),
+        "sse_ar1": ar[j],
+        "segments": float(len(segs)),
+    }
+
+
+def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
+    """The cut-off of the sensor's low-pass the resting noise shows, or None.
+
+    The resting noise is a filter's when a 2nd-order low-pass fits its spectrum
+    :data:`FILTER_EVIDENCE` times better than AR(1) colour does and its cut-off lies
+    below 0.3 fs (:func:`rest_spectrum`). White noise (no roll-off) and gently
+    coloured noise give None.
 
     Parameters
     ----------
@@ -515,33 +584,22 @@ def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
     Returns
     -------
     float or None
+        The cut-off (Hz).
     """
-    from balancer_id.diagnostics.spectra import welch_psd
-
-    segs = []
-    for td in trials:
-        t = td.time - td.t_step
-        y = td.accel[t < -0.02]
-        for j in range(0, y.size - 63, 32):
-            segs.append(y[j : j + 64])
-    if len(segs) < 4:
+    spec = rest_spectrum(trials, fs)
+    if spec is None:
         return None
-    psds = [welch_psd(s, fs, 64)[1] for s in segs]
-    f = np.fft.rfftfreq(64, 1.0 / fs)
-    p = np.mean(psds, axis=0)
-    low = float(np.mean(p[1:3]))
-    high = float(np.mean(p[len(p) // 2 :]))
-    if not (low > 0) or high > 0.25 * low:
-        return None
-    below = np.flatnonzero(p[1:] < 0.5 * low)
-    return float(f[1 + below[0]]) if below.size else None
+    steep = spec["sse_filter"] * FILTER_EVIDENCE < spec["sse_ar1"]
+    return spec["cutoff_hz"] if steep and spec["cutoff_hz"] < 0.3 * fs else None
 
 
 def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
     """The sensor's low-pass filter on the measured acceleration, when the rest noise shows one.
 
     The current model's output is passed through a 2nd-order Butterworth low-pass whose
-    cut-off starts at the resting noise's and is fitted with the model's parameters.
+    cut-off starts at the resting noise's and is fitted with the model's parameters; the
+    same with the cut-off held at the resting noise's (no parameter added) is scored too,
+    and the better by BIC is the explanation (``detail["cutoff_fitted"]`` says which).
 
     Parameters
     ----------
@@ -563,19 +621,32 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
     def post(i: int, y: np.ndarray) -> np.ndarray:
         return lowpass(y, post.param, fss[i])  # type: ignore[attr-defined]
 
+    def measured(i: int, y: np.ndarray) -> np.ndarray:
+        return lowpass(y, fc0, fss[i])
+
     fixed = held(inp.match)
     names = [n for n in model.param_names if n not in fixed]
+    none = np.zeros((len(inp.trials), 0))
     parts, base, _, fc = _fit_varying(
         model,
         sims,
         inp.match.values(),
         fixed,
         names[0],
-        np.zeros((len(inp.trials), 0)),
+        none,
         post=post,
         extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
     )
     d, rmse = score(inp, parts, 1)
+    # the cut-off as measured at rest (no parameter fitted): when the response cannot
+    # place the cut-off itself, the resting noise's is the estimate
+    parts0, base0, _, _ = _fit_varying(
+        model, sims, inp.match.values(), fixed, names[0], none, post=measured
+    )
+    d0, rmse0 = score(inp, parts0, 0)
+    fitted = d > d0
+    if not fitted:
+        d, rmse, base, fc = d0, rmse0, base0, fc0
     return [
         Explanation(
             "sensor",
@@ -584,7 +655,12 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
             rmse,
             [],
             [],
-            {"cutoff_hz": fc, "rest_noise_cutoff_hz": fc0, "values": base},
+            {
+                "cutoff_hz": fc,
+                "rest_noise_cutoff_hz": fc0,
+                "cutoff_fitted": fitted,
+                "values": base,
+            },
         )
     ]
 

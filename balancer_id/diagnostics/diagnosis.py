@@ -526,7 +526,15 @@ def _explain(
 def _valid(e: Explanation, tests_failed: bool = False) -> bool:
     """An explanation with a benefit: BIC falls enough, not at its null value, and a real
     drop of the error above the noise floor (or of the prewhitened excess)."""
-    if e.null or e.delta_bic <= BIC_THRESHOLD:
+    if e.null:
+        return False
+    if e.kind == "sensor" and not tests_failed:
+        # offered only when the resting noise shows a filter's roll-off (independent
+        # evidence, measured with the balancer still): it stands unless the response
+        # contradicts it. A response fitted as well without it has the sensor's lag in
+        # T_a: that is worth saying, not "adequate"
+        return e.delta_bic > -CLOSE_BIC
+    if e.delta_bic <= BIC_THRESHOLD:
         return False
     if e.excess_drop > MIN_EXCESS_DROP:
         return True
@@ -792,11 +800,25 @@ def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
             + f"; {head}"
         )
     if e.kind == "sensor":
+        if e.delta_bic <= BIC_THRESHOLD:
+            values = d.get("values") or {}
+            now = fit.match.values()
+            moved = [
+                f"{k} {float(values[k]):.4g} with it, {now[k]:.4g} without"  # type: ignore[index]
+                for k in ("T_a", "m_a")
+                if k in values and k in now
+            ]
+            head = (
+                f"the response fits as well with it (BIC {-e.delta_bic:+.0f}), and without it "
+                "the balancer's parameters hold the sensor's lag"
+                + (f" ({'; '.join(moved)})" if moved else "")
+            )
         return (
             f"the accelerometer smooths its signal: a low-pass at {float(d['cutoff_hz']):.1f} Hz "  # type: ignore[arg-type]
-            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz); "  # type: ignore[arg-type]
-            f"{head}. Not the balancer: record with the sensor's filter off or a higher "
-            "bandwidth, or read its delay as part of the sensor"
+            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz, "  # type: ignore[arg-type]
+            f"as a filter's, not as coloured noise's); {head}. Not the balancer: record with "
+            "the sensor's filter off or a higher bandwidth, or read its delay as part of the "
+            "sensor"
         )
     return head
 

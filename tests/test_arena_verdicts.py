@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from conftest import PAPER
+from scipy.signal import lfilter
 
 from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
@@ -142,3 +145,29 @@ def test_refining_a_drift_never_loses_and_recovers_the_truth():
     assert refined.detail["last_run"] == pytest.approx(0.45 * 0.67, rel=0.15)
     assert refined.delta_bic > 30
     assert time.perf_counter() - t0 < 20
+
+
+def resting(noise: np.ndarray) -> list[SimpleNamespace]:
+    """Six trials with 0.5 s of rest before the onset (as a segmented log holds)."""
+    t = np.arange(100) / 200.0
+    return [SimpleNamespace(time=t, t_step=0.5, accel=noise[k]) for k in range(6)]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_rest_spectrum_tells_a_sensor_filter_from_coloured_noise(seed):
+    rng = np.random.default_rng(seed)
+    white = rng.normal(0, 0.03, (6, 100))
+    assert arena.rest_cutoff(resting(white), 200.0) is None
+    # AR(1) noise (the environment's colour, 20 dB per decade at most): no filter
+    for phi in (0.5, 0.85):
+        ar1 = np.array(
+            [lfilter([1.0], [1.0, -phi], rng.normal(0, 0.03, 300))[200:] for _ in range(6)]
+        )
+        spec = arena.rest_spectrum(resting(ar1), 200.0)
+        assert spec["phi"] == pytest.approx(phi, abs=0.15)
+        assert arena.rest_cutoff(resting(ar1), 200.0) is None
+    # a sensor's 2nd-order low-pass at 8 Hz: found, its cut-off within the resolution of
+    # 64-sample segments (3.1 Hz bins)
+    smooth = np.array([arena.lowpass(rng.normal(0, 0.1, 300), 8.0, 200.0)[200:] for _ in range(6)])
+    fc = arena.rest_cutoff(resting(smooth), 200.0)
+    assert fc is not None and 5.5 <= fc <= 11.0
