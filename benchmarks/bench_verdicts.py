@@ -6,7 +6,8 @@ the scale, A (1/N) with its inverse, so ``A |h|`` spans 0.5-4.4 at every scale; 
 0.15-0.5 s, noise 0.015-0.05 m/s^2), recorded by a tilted sensor, written
 in a reader layout, read back and segmented, fitted with the paper's model
 (``variable_viscosity``; ``viscous`` when ``variable_viscosity`` itself is hidden) from
-the paper method's start values, and diagnosed. The truth classes:
+the start values the tool's own fit uses (``identify.starts.fit_start``: the paper's
+method and the response's equation-error fit), and diagnosed. The truth classes:
 
 - ``null-*``: nothing missing (white noise at three scales; AR(1) coloured noise).
 - each library effect but ``servo`` hidden (alternating up/down order).
@@ -68,6 +69,7 @@ from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.result import fit_match
+from balancer_id.identify.starts import fit_start
 from balancer_id.model import parse_model
 from balancer_id.model.effect import Effect, Param
 from balancer_id.model.registry import Registry
@@ -421,7 +423,8 @@ def run_case(case: Case) -> Outcome:
             trials = simulate(case, p, Path(tmp))
         model = parse_model(p.fit_spec)
         classic = paper_method(trials)
-        match = match_trials(model, trials, start=classic.start_values(model))
+        start, _ = fit_start(model, trials, classic)  # as the tool's own fit starts
+        match = match_trials(model, trials, start=start)
         d = diagnose(fit_match(match, classic=classic)).to_dict()
         out.verdict = str(d["verdict"])
         out.summary = str(d["summary"])[:300]

@@ -9,6 +9,7 @@ from balancer_id.errors import BalancerIdError, ModelSpecError
 from balancer_id.identify.classic import ClassicResult
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.starts import fit_start
 from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model, parse_model
 
@@ -93,12 +94,12 @@ def quick_refit(
     The first start is the current fit, then the effect's ``guess`` from the data (when
     it has one), then the signature's start values; a drive-lag parameter the current
     model lacks (``T_up`` added over ``T_a``) starts at the current drive lag. The second
-    (when ``classic`` is given) starts from the paper's method
-    (:meth:`~balancer_id.identify.classic.ClassicResult.start_values` of the candidate)
-    and the effects' default start values, because a fit without the effect may have
-    bent its parameters into a corner the effect's fit cannot leave. A user effect that
-    raises or produces NaN gives a Refit with ``error`` set, naming the effect, instead
-    of stopping the others.
+    (when ``classic`` is given) starts where a fit of the candidate starts, at the data's
+    own scale (:func:`~balancer_id.identify.starts.fit_start`: the paper's method and the
+    response's own equation-error fit), and the effects' default start values, because a
+    fit without the effect may have bent its parameters into a corner the effect's fit
+    cannot leave. A user effect that raises or produces NaN gives a Refit with ``error``
+    set, naming the effect, instead of stopping the others.
 
     Parameters
     ----------
@@ -147,7 +148,8 @@ def quick_refit(
             first.setdefault(name, current.model.drive_lag(now))
     starts = [first]
     if classic is not None:
-        fresh = classic.start_values(model)
+        # at the data's own scale (the paper's method and the response), as a fit starts
+        fresh, _ = fit_start(model, trials, classic)
         if fresh:
             starts.append(clipped({**fresh, **start}))
     fixed = {k: v for k, v in (fixed or {}).items() if k in names}

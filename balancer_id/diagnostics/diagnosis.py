@@ -310,7 +310,7 @@ def diagnose(
 
     The fit's paper's method and per-trial fits are reused (the per-trial fits are
     computed here when the fit has none yet, and kept on it); each candidate is refitted
-    from the fit and from the paper's method's start values.
+    from the fit and from the start values a fit of it would use (the data's own scale).
 
     Parameters
     ----------
