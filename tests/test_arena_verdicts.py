@@ -171,3 +171,20 @@ def test_the_rest_spectrum_tells_a_sensor_filter_from_coloured_noise(seed):
     smooth = np.array([arena.lowpass(rng.normal(0, 0.1, 300), 8.0, 200.0)[200:] for _ in range(6)])
     fc = arena.rest_cutoff(resting(smooth), 200.0)
     assert fc is not None and 5.5 <= fc <= 11.0
+
+
+def test_a_light_balancers_friction_is_not_null():
+    # friction's bounds reach 1e5 N (any balancer); a 1.3 kg balancer's 0.067 N is its
+    # whole friction, not "zero within 1e-6 of the range"
+    from balancer_id.model.effects.dead_time import DeadTime
+    from balancer_id.model.effects.karnopp import Karnopp
+
+    def refit(effect, **values):
+        model = SimpleNamespace(registry={effect.name: effect})
+        return SimpleNamespace(model=model, values=lambda: {"m_a": 1.3, **values})
+
+    assert not arena.is_null(refit(Karnopp, f_s=0.067), "karnopp")
+    assert not arena.is_null(refit(Karnopp, f_s=1e-4), "karnopp")
+    assert arena.is_null(refit(Karnopp, f_s=1e-9), "karnopp")
+    assert arena.is_null(refit(DeadTime, tau_d=1e-9), "dead_time")
+    assert not arena.is_null(refit(DeadTime, tau_d=0.002), "dead_time")

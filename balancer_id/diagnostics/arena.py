@@ -703,7 +703,10 @@ def is_null(refit: MatchResult, effect: str) -> bool:
     """Whether an added effect's own parameters sit where the effect does nothing.
 
     A parameter whose lower bound is 0 (dead time, friction, a rate) and that ended
-    within 1e-6 of its range from 0 does nothing; so does a ``bias`` of 0.
+    within 1e-6 of its own scale from 0 does nothing; so does a ``bias`` of 0. The scale
+    is the parameter's default start value (its range when that is 0), never the range
+    alone: bounds are wide to fit any balancer (friction up to 1e5 N), and 1e-6 of them
+    (0.1 N) is a light balancer's whole friction.
 
     Parameters
     ----------
@@ -729,7 +732,8 @@ def is_null(refit: MatchResult, effect: str) -> bool:
         if v is None:
             return False
         span = max(abs(p.max - p.min), 1e-12) if np.isfinite(p.max - p.min) else 1.0
-        at_zero = abs(v) <= 1e-6 * span
+        scale = abs(p.value) if p.value != 0 and np.isfinite(p.value) else span
+        at_zero = abs(v) <= 1e-6 * scale
         if not (at_zero and (p.min == 0.0 or p.min < 0 < p.max)):
             return False
     return True
