@@ -147,6 +147,7 @@ def quick_refit(
         for name in model.drive_lag_names:
             first.setdefault(name, current.model.drive_lag(now))
     starts = [first]
+    fresh: dict[str, float] = {}
     if classic is not None:
         # at the data's own scale (the paper's method and the response), as a fit starts
         fresh, _ = fit_start(model, trials, classic)
@@ -154,7 +155,10 @@ def quick_refit(
             starts.append(clipped({**fresh, **start}))
     fixed = {k: v for k, v in (fixed or {}).items() if k in names}
     best: MatchResult | None = None
-    for values in starts:
+    k = 0
+    while k < len(starts):
+        values = starts[k]
+        k += 1
         try:
             match = match_trials(model, trials, start=values, fixed=fixed, max_nfev=400)
         except BalancerIdError as exc:
@@ -167,4 +171,18 @@ def quick_refit(
             return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
         if best is None or match.metrics["rmse"] < best.metrics["rmse"]:
             best = match
+        if k == len(starts) == 2 and start and _far_from(best, fresh, "m_a"):
+            # the best ended at a mass 3x away from the data's own: the effect's guessed
+            # start may have led into another basin (a speed limit reached at once makes
+            # a tiny mass with a long lag fit almost as well); one more start, from the
+            # data's scale with the effect's own defaults
+            starts.append(clipped(fresh))
     return Refit(candidate, best)
+
+
+def _far_from(match: MatchResult | None, start: dict[str, float], name: str) -> bool:
+    """Whether ``match`` ended with ``name`` more than a factor 3 from ``start``'s."""
+    if match is None or name not in start or name not in match.values():
+        return False
+    a, b = float(match.values()[name]), float(start[name])
+    return a > 0 and b > 0 and not (1 / 3 < a / b < 3)

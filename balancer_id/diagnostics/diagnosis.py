@@ -513,6 +513,17 @@ def _explain(
         refit = next((s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None)
         if refit is not None:
             try:
+                polished = arena.polish(inp, top, refit)
+                if polished.delta_bic > top.delta_bic:  # the same model, fitted better
+                    top.delta_bic, top.rmse = polished.delta_bic, polished.rmse
+                    top.detail = polished.detail
+                    top.excess_drop = excess_drop(
+                        inp.match.metrics["rmse"], top.rmse, inp.noise_floor
+                    )
+                    top.share = top.delta_bic / available if available else None
+            except Exception as exc:
+                failures.append(f"polishing {top.label} failed: {exc!r}")
+            try:
                 for e in arena.pairs(inp, top, refit):
                     e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
                     e.share = e.delta_bic / available if available else None
