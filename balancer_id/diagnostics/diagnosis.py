@@ -510,28 +510,61 @@ def _explain(
     effects = [e for e in out if e.kind == "effect" and _valid(e, True)]
     if effects:
         top = max(effects, key=lambda e: e.delta_bic)
-        refit = next((s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None)
-        if refit is not None:
-            try:
-                polished = arena.polish(inp, top, refit)
-                if polished.delta_bic > top.delta_bic:  # the same model, fitted better
-                    top.delta_bic, top.rmse = polished.delta_bic, polished.rmse
-                    top.detail = polished.detail
-                    top.excess_drop = excess_drop(
-                        inp.match.metrics["rmse"], top.rmse, inp.noise_floor
-                    )
-                    top.share = top.delta_bic / available if available else None
-            except Exception as exc:
-                failures.append(f"polishing {top.label} failed: {exc!r}")
-            try:
-                for e in arena.pairs(inp, top, refit):
-                    e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
-                    e.share = e.delta_bic / available if available else None
-                    out.append(e)
-            except Exception as exc:
-                failures.append(f"explanations of pairs failed: {exc!r}")
+        _add_pairs(inp, top, suggestions, out, failures, polish=True)
+        # a best that leaves much of the error above the floor is misspecified: the
+        # second effect (one that lowers BIC by the threshold, whatever its share) may
+        # be the one a split or drift completes (friction and a payload change, where a
+        # dead time mimics part of both)
+        best = max((e for e in out if _valid(e, True)), key=lambda e: e.delta_bic)
+        second = sorted(
+            (
+                e
+                for e in out
+                if e.kind == "effect"
+                and e is not top
+                and not e.null
+                and e.delta_bic > BIC_THRESHOLD
+            ),
+            key=lambda e: -e.delta_bic,
+        )
+        if best.excess_drop < FLOOR_DROP and second:
+            _add_pairs(inp, second[0], suggestions, out, failures, polish=False)
     out.sort(key=lambda e: -e.delta_bic)
     return out
+
+
+def _add_pairs(
+    inp: ArenaInput,
+    effect: Explanation,
+    suggestions: list[Suggestion],
+    out: list[Explanation],
+    failures: list[str],
+    polish: bool,
+) -> None:
+    """``effect`` paired with each split and drift, appended to ``out`` (polished first)."""
+    available = inp.available()
+    refit = next((s.refit for s in suggestions if s.effect == effect.effects[0] and s.refit), None)
+    if refit is None:
+        return
+    if polish:
+        try:
+            polished = arena.polish(inp, effect, refit)
+            if polished.delta_bic > effect.delta_bic:  # the same model, fitted better
+                effect.delta_bic, effect.rmse = polished.delta_bic, polished.rmse
+                effect.detail = polished.detail
+                effect.excess_drop = excess_drop(
+                    inp.match.metrics["rmse"], effect.rmse, inp.noise_floor
+                )
+                effect.share = effect.delta_bic / available if available else None
+        except Exception as exc:
+            failures.append(f"polishing {effect.label} failed: {exc!r}")
+    try:
+        for e in arena.pairs(inp, effect, refit):
+            e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+            e.share = e.delta_bic / available if available else None
+            out.append(e)
+    except Exception as exc:
+        failures.append(f"explanations of pairs failed: {exc!r}")
 
 
 def _valid(e: Explanation, tests_failed: bool = False) -> bool:
