@@ -39,6 +39,9 @@ VERDICT_OF = {
 }
 #: Parameters of the split and drift explanations must move by at least this share.
 MIN_RELATIVE_CHANGE = 0.03
+#: Function evaluations of a refinement (:attr:`Explanation.refine`); the first fits of
+#: the arena stop at 60, enough to rank them, not always to tell two close ones apart.
+REFINE_NFEV = 300
 
 
 @dataclass
@@ -81,6 +84,9 @@ class Explanation:
     null: bool = False
     #: Share of the BIC fall a perfect model would bring (:meth:`ArenaInput.available`).
     share: float | None = None
+    #: Refits it from where it ended with more iterations (the arena's fits are capped
+    #: for speed); None when it cannot be refined. Returns the refined explanation.
+    refine: Callable[[], Explanation] | None = field(default=None, repr=False, compare=False)
 
     @property
     def verdict(self) -> str:
@@ -188,6 +194,8 @@ def _fit_varying(
     design: np.ndarray,
     post: Callable[[int, np.ndarray], np.ndarray] | None = None,
     extra: tuple[float, float, float] | None = None,
+    c_start: np.ndarray | None = None,
+    max_nfev: int = 60,
 ) -> tuple[list[np.ndarray], dict[str, float], np.ndarray, float | None]:
     """Least squares of ``model`` where ``name = base + c * design[i]`` in trial ``i``.
 
@@ -203,7 +211,7 @@ def _fit_varying(
     x0 = np.minimum(x0, hi)
     scale = np.maximum(np.abs(x0), 1e-3)
     q = design.shape[1] if design.ndim == 2 else 0
-    c0 = np.zeros(q)
+    c0 = np.zeros(q) if c_start is None else np.asarray(c_start, dtype=float).reshape(q)
     e0 = [] if extra is None else [extra[0]]
     lo_all = np.r_[lo, -np.inf * np.ones(q), [] if extra is None else [extra[1]]]
     hi_all = np.r_[hi, np.inf * np.ones(q), [] if extra is None else [extra[2]]]
@@ -238,7 +246,7 @@ def _fit_varying(
         r = np.concatenate([y - o for y, o in zip(ys, outs, strict=True)])
         return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
 
-    sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=60)
+    sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=max_nfev)
     r = resid(sol.x)
     cuts = np.cumsum([y.size for y in ys])[:-1]
     base = dict(fixed)
@@ -398,51 +406,63 @@ def _split_and_drift(
         return []
     sims = _Trials(inp.trials)
     fixed = {k: v for k, v in held(inp.match).items() if k in model.param_names}
-    out = []
     free = [n for n in model.param_names if n not in fixed]
-    for name in free:
-        for k in range(2, n_runs - 1):
+
+    def fit_one(
+        name: str,
+        k: int | None,
+        begin: dict[str, float],
+        c_start: np.ndarray | None,
+        nfev: int,
+    ) -> Explanation:
+        """The split of ``name`` after run ``k`` (None: its drift), fitted from ``begin``."""
+        if k is None:
+            design = (run / max(n_runs - 1, 1)).astype(float)[:, None]
+        else:
             design = (run >= k).astype(float)[:, None]
-            parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
-            before, after = base[name], base[name] + float(c[0])
-            rel = abs(after - before) / max(abs(before), abs(after), 1e-300)
-            d, rmse = score(inp, parts, 1 + k_base)
-            out.append(
-                Explanation(
-                    "pair" if prefix else "split",
-                    f"{prefix}{name} changes after run {k}",
-                    d + bic_base,
-                    rmse,
-                    list(effects),
-                    [name],
-                    {
-                        "split_after_run": k,
-                        "before": before,
-                        "after": after,
-                        "relative_change": rel,
-                        "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
-                        "n_samples": sims.n,
-                    },
-                    null=rel < MIN_RELATIVE_CHANGE,
-                )
-            )
-        design = (run / max(n_runs - 1, 1)).astype(float)[:, None]
-        parts, base, c, _ = _fit_varying(model, sims, start, fixed, name, design)
-        first, last = base[name], base[name] + float(c[0])
-        rel = abs(last - first) / max(abs(first), abs(last), 1e-300)
+        parts, base, c, _ = _fit_varying(
+            model, sims, begin, fixed, name, design, c_start=c_start, max_nfev=nfev
+        )
+        one, two = base[name], base[name] + float(c[0])
+        rel = abs(two - one) / max(abs(one), abs(two), 1e-300)
         d, rmse = score(inp, parts, 1 + k_base)
-        out.append(
-            Explanation(
+        if k is None:
+            e = Explanation(
                 "pair" if prefix else "drift",
                 f"{prefix}{name} drifting over the runs",
                 d + bic_base,
                 rmse,
                 list(effects),
                 [name],
-                {"first_run": first, "last_run": last, "relative_change": rel, "drift": True},
+                {"first_run": one, "last_run": two, "relative_change": rel, "drift": True},
                 null=rel < MIN_RELATIVE_CHANGE,
             )
-        )
+        else:
+            e = Explanation(
+                "pair" if prefix else "split",
+                f"{prefix}{name} changes after run {k}",
+                d + bic_base,
+                rmse,
+                list(effects),
+                [name],
+                {
+                    "split_after_run": k,
+                    "before": one,
+                    "after": two,
+                    "relative_change": rel,
+                    "group_by": f"runs:1-{k},{k + 1}-{n_runs}",
+                    "n_samples": sims.n,
+                },
+                null=rel < MIN_RELATIVE_CHANGE,
+            )
+        e.refine = lambda: fit_one(name, k, base, c, REFINE_NFEV)
+        return e
+
+    out = []
+    for name in free:
+        for k in range(2, n_runs - 1):
+            out.append(fit_one(name, k, start, None, 60))
+        out.append(fit_one(name, None, start, None, 60))
     return out
 
 
@@ -478,12 +498,81 @@ def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
     return lfilter(b, a, y, zi=lfilter_zi(b, a) * y[0])[0]
 
 
-def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
-    """The resting noise's -3 dB frequency, when its spectrum rolls off.
+#: A rest spectrum is a sensor filter's when a 2nd-order low-pass fits its log this many
+#: times better (sum of squares) than AR(1) colour does.
+FILTER_EVIDENCE = 4.0
 
-    The resting samples before each onset (mean and slope removed) are cut into
-    64-sample segments; their averaged periodogram, relative to its level at the lowest
-    frequencies, falls below one half at the cut-off. White noise does not fall (None).
+
+def rest_spectrum(trials: Sequence[TrialData], fs: float) -> dict[str, float] | None:
+    """The resting noise's averaged spectrum against two shapes: a filter's and AR(1)'s.
+
+    The resting samples before each onset are cut into 64-sample segments (a step of 16;
+    slope removed, Hann window); the log of their averaged periodogram (0 < f <= 0.45 fs)
+    is fitted, up to a level, by a 2nd-order Butterworth low-pass (flat, then falling by
+    40 dB per decade beyond its cut-off: a sensor's filter) and by AR(1) noise (falling
+    gently, by at most 20 dB per decade: colour that is not a filter of the signal, such
+    as the environment's), each over a grid of its one parameter.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials.
+    fs : float
+        Sample rate (Hz).
+
+    Returns
+    -------
+    dict or None
+        ``cutoff_hz`` and ``sse_filter`` of the low-pass, ``phi`` and ``sse_ar1`` of the
+        AR(1), ``segments``; None with fewer than 4 segments.
+    """
+    n_seg = 64
+    segs = []
+    x = np.arange(n_seg) - (n_seg - 1) / 2
+    for td in trials:
+        t = td.time - td.t_step
+        y = np.asarray(td.accel)[t < -0.02]
+        for j in range(0, y.size - n_seg + 1, 16):
+            seg = y[j : j + n_seg]
+            segs.append(seg - np.polyval(np.polyfit(x, seg, 1), x))
+    if len(segs) < 4:
+        return None
+    w = np.hanning(n_seg)
+    p = np.mean(np.abs(np.fft.rfft(np.array(segs) * w, axis=1)) ** 2, axis=0)
+    f = np.fft.rfftfreq(n_seg, 1.0 / fs)
+    keep = (f > 0) & (f <= 0.45 * fs) & (p > 0)
+    if keep.sum() < 6:
+        return None
+    lp, ff = np.log(p[keep]), f[keep]
+
+    def sse(shape: np.ndarray) -> float:
+        r = lp - shape
+        r = r - r.mean()
+        return float(r @ r)
+
+    tf = np.tan(np.pi * ff / fs)
+    cuts = np.geomspace(0.01 * fs, 0.45 * fs, 240)
+    filt = [sse(-np.log1p((tf / np.tan(np.pi * c / fs)) ** 4)) for c in cuts]
+    om = 2 * np.pi * ff / fs
+    phis = np.linspace(0.0, 0.99, 199)
+    ar = [sse(-np.log(1 + q * q - 2 * q * np.cos(om))) for q in phis]
+    i, j = int(np.argmin(filt)), int(np.argmin(ar))
+    return {
+        "cutoff_hz": float(cuts[i]),
+        "sse_filter": filt[i],
+        "phi": float(phis[j]),
+        "sse_ar1": ar[j],
+        "segments": float(len(segs)),
+    }
+
+
+def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
+    """The cut-off of the sensor's low-pass the resting noise shows, or None.
+
+    The resting noise is a filter's when a 2nd-order low-pass fits its spectrum
+    :data:`FILTER_EVIDENCE` times better than AR(1) colour does and its cut-off lies
+    below 0.3 fs (:func:`rest_spectrum`). White noise (no roll-off) and gently
+    coloured noise give None.
 
     Parameters
     ----------
@@ -495,33 +584,22 @@ def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
     Returns
     -------
     float or None
+        The cut-off (Hz).
     """
-    from balancer_id.diagnostics.spectra import welch_psd
-
-    segs = []
-    for td in trials:
-        t = td.time - td.t_step
-        y = td.accel[t < -0.02]
-        for j in range(0, y.size - 63, 32):
-            segs.append(y[j : j + 64])
-    if len(segs) < 4:
+    spec = rest_spectrum(trials, fs)
+    if spec is None:
         return None
-    psds = [welch_psd(s, fs, 64)[1] for s in segs]
-    f = np.fft.rfftfreq(64, 1.0 / fs)
-    p = np.mean(psds, axis=0)
-    low = float(np.mean(p[1:3]))
-    high = float(np.mean(p[len(p) // 2 :]))
-    if not (low > 0) or high > 0.25 * low:
-        return None
-    below = np.flatnonzero(p[1:] < 0.5 * low)
-    return float(f[1 + below[0]]) if below.size else None
+    steep = spec["sse_filter"] * FILTER_EVIDENCE < spec["sse_ar1"]
+    return spec["cutoff_hz"] if steep and spec["cutoff_hz"] < 0.3 * fs else None
 
 
 def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
     """The sensor's low-pass filter on the measured acceleration, when the rest noise shows one.
 
     The current model's output is passed through a 2nd-order Butterworth low-pass whose
-    cut-off starts at the resting noise's and is fitted with the model's parameters.
+    cut-off starts at the resting noise's and is fitted with the model's parameters; the
+    same with the cut-off held at the resting noise's (no parameter added) is scored too,
+    and the better by BIC is the explanation (``detail["cutoff_fitted"]`` says which).
 
     Parameters
     ----------
@@ -543,19 +621,32 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
     def post(i: int, y: np.ndarray) -> np.ndarray:
         return lowpass(y, post.param, fss[i])  # type: ignore[attr-defined]
 
+    def measured(i: int, y: np.ndarray) -> np.ndarray:
+        return lowpass(y, fc0, fss[i])
+
     fixed = held(inp.match)
     names = [n for n in model.param_names if n not in fixed]
+    none = np.zeros((len(inp.trials), 0))
     parts, base, _, fc = _fit_varying(
         model,
         sims,
         inp.match.values(),
         fixed,
         names[0],
-        np.zeros((len(inp.trials), 0)),
+        none,
         post=post,
         extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
     )
     d, rmse = score(inp, parts, 1)
+    # the cut-off as measured at rest (no parameter fitted): when the response cannot
+    # place the cut-off itself, the resting noise's is the estimate
+    parts0, base0, _, _ = _fit_varying(
+        model, sims, inp.match.values(), fixed, names[0], none, post=measured
+    )
+    d0, rmse0 = score(inp, parts0, 0)
+    fitted = d > d0
+    if not fitted:
+        d, rmse, base, fc = d0, rmse0, base0, fc0
     return [
         Explanation(
             "sensor",
@@ -564,7 +655,12 @@ def sensor_lowpass(inp: ArenaInput) -> list[Explanation]:
             rmse,
             [],
             [],
-            {"cutoff_hz": fc, "rest_noise_cutoff_hz": fc0, "values": base},
+            {
+                "cutoff_hz": fc,
+                "rest_noise_cutoff_hz": fc0,
+                "cutoff_fitted": fitted,
+                "values": base,
+            },
         )
     ]
 
@@ -607,7 +703,10 @@ def is_null(refit: MatchResult, effect: str) -> bool:
     """Whether an added effect's own parameters sit where the effect does nothing.
 
     A parameter whose lower bound is 0 (dead time, friction, a rate) and that ended
-    within 1e-6 of its range from 0 does nothing; so does a ``bias`` of 0.
+    within 1e-6 of its own scale from 0 does nothing; so does a ``bias`` of 0. The scale
+    is the parameter's default start value (its range when that is 0), never the range
+    alone: bounds are wide to fit any balancer (friction up to 1e5 N), and 1e-6 of them
+    (0.1 N) is a light balancer's whole friction.
 
     Parameters
     ----------
@@ -633,7 +732,8 @@ def is_null(refit: MatchResult, effect: str) -> bool:
         if v is None:
             return False
         span = max(abs(p.max - p.min), 1e-12) if np.isfinite(p.max - p.min) else 1.0
-        at_zero = abs(v) <= 1e-6 * span
+        scale = abs(p.value) if p.value != 0 and np.isfinite(p.value) else span
+        at_zero = abs(v) <= 1e-6 * scale
         if not (at_zero and (p.min == 0.0 or p.min < 0 < p.max)):
             return False
     return True
@@ -662,6 +762,53 @@ def pairs(inp: ArenaInput, best_effect: Explanation, refit: MatchResult) -> list
         f"{best_effect.label} and ",
         list(best_effect.effects),
         k_base=len(refit.model.param_names) - len(inp.match.model.param_names),
+    )
+
+
+def polish(inp: ArenaInput, best_effect: Explanation, refit: MatchResult) -> Explanation:
+    """The best effect alone, refitted from its refit by the optimiser the pairs use.
+
+    A pair counts only when it beats its effect alone; the pairs' fits start from the
+    effect's refit and may end in a better optimum of the shared parameters than the
+    refit found, a gain the split or drift did not bring. Fitted the same way, with more
+    iterations and nothing split, the effect alone is the fair part to beat.
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit.
+    best_effect : Explanation
+        The best library effect.
+    refit : MatchResult
+        Its refit (the start).
+
+    Returns
+    -------
+    Explanation
+        The effect alone, as fitted here.
+    """
+    model = refit.model
+    fixed = {k: v for k, v in held(inp.match).items() if k in model.param_names}
+    free = [n for n in model.param_names if n not in fixed]
+    parts, base, _, _ = _fit_varying(
+        model,
+        _Trials(inp.trials),
+        refit.values(),
+        fixed,
+        free[0],
+        np.zeros((len(inp.trials), 0)),
+        max_nfev=REFINE_NFEV,
+    )
+    d, rmse = score(inp, parts, len(model.param_names) - len(inp.match.model.param_names))
+    return Explanation(
+        "effect",
+        best_effect.label,
+        d,
+        rmse,
+        list(best_effect.effects),
+        [],
+        {"values": base},
+        null=best_effect.null,
     )
 
 

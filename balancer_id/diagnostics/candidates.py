@@ -9,6 +9,7 @@ from balancer_id.errors import BalancerIdError, ModelSpecError
 from balancer_id.identify.classic import ClassicResult
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.starts import fit_start
 from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model, parse_model
 
@@ -93,12 +94,12 @@ def quick_refit(
     The first start is the current fit, then the effect's ``guess`` from the data (when
     it has one), then the signature's start values; a drive-lag parameter the current
     model lacks (``T_up`` added over ``T_a``) starts at the current drive lag. The second
-    (when ``classic`` is given) starts from the paper's method
-    (:meth:`~balancer_id.identify.classic.ClassicResult.start_values` of the candidate)
-    and the effects' default start values, because a fit without the effect may have
-    bent its parameters into a corner the effect's fit cannot leave. A user effect that
-    raises or produces NaN gives a Refit with ``error`` set, naming the effect, instead
-    of stopping the others.
+    (when ``classic`` is given) starts where a fit of the candidate starts, at the data's
+    own scale (:func:`~balancer_id.identify.starts.fit_start`: the paper's method and the
+    response's own equation-error fit), and the effects' default start values, because a
+    fit without the effect may have bent its parameters into a corner the effect's fit
+    cannot leave. A user effect that raises or produces NaN gives a Refit with ``error``
+    set, naming the effect, instead of stopping the others.
 
     Parameters
     ----------
@@ -146,13 +147,18 @@ def quick_refit(
         for name in model.drive_lag_names:
             first.setdefault(name, current.model.drive_lag(now))
     starts = [first]
+    fresh: dict[str, float] = {}
     if classic is not None:
-        fresh = classic.start_values(model)
+        # at the data's own scale (the paper's method and the response), as a fit starts
+        fresh, _ = fit_start(model, trials, classic)
         if fresh:
             starts.append(clipped({**fresh, **start}))
     fixed = {k: v for k, v in (fixed or {}).items() if k in names}
     best: MatchResult | None = None
-    for values in starts:
+    k = 0
+    while k < len(starts):
+        values = starts[k]
+        k += 1
         try:
             match = match_trials(model, trials, start=values, fixed=fixed, max_nfev=400)
         except BalancerIdError as exc:
@@ -165,4 +171,18 @@ def quick_refit(
             return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
         if best is None or match.metrics["rmse"] < best.metrics["rmse"]:
             best = match
+        if k == len(starts) == 2 and start and _far_from(best, fresh, "m_a"):
+            # the best ended at a mass 3x away from the data's own: the effect's guessed
+            # start may have led into another basin (a speed limit reached at once makes
+            # a tiny mass with a long lag fit almost as well); one more start, from the
+            # data's scale with the effect's own defaults
+            starts.append(clipped(fresh))
     return Refit(candidate, best)
+
+
+def _far_from(match: MatchResult | None, start: dict[str, float], name: str) -> bool:
+    """Whether ``match`` ended with ``name`` more than a factor 3 from ``start``'s."""
+    if match is None or name not in start or name not in match.values():
+        return False
+    a, b = float(match.values()[name]), float(start[name])
+    return a > 0 and b > 0 and not (1 / 3 < a / b < 3)

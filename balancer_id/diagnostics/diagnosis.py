@@ -310,7 +310,7 @@ def diagnose(
 
     The fit's paper's method and per-trial fits are reused (the per-trial fits are
     computed here when the fit has none yet, and kept on it); each candidate is refitted
-    from the fit and from the paper's method's start values.
+    from the fit and from the start values a fit of it would use (the data's own scale).
 
     Parameters
     ----------
@@ -510,23 +510,75 @@ def _explain(
     effects = [e for e in out if e.kind == "effect" and _valid(e, True)]
     if effects:
         top = max(effects, key=lambda e: e.delta_bic)
-        refit = next((s.refit for s in suggestions if s.effect == top.effects[0] and s.refit), None)
-        if refit is not None:
-            try:
-                for e in arena.pairs(inp, top, refit):
-                    e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
-                    e.share = e.delta_bic / available if available else None
-                    out.append(e)
-            except Exception as exc:
-                failures.append(f"explanations of pairs failed: {exc!r}")
+        _add_pairs(inp, top, suggestions, out, failures, polish=True)
+        # a best that leaves much of the error above the floor is misspecified: the
+        # second effect (one that lowers BIC by the threshold, whatever its share) may
+        # be the one a split or drift completes (friction and a payload change, where a
+        # dead time mimics part of both)
+        best = max((e for e in out if _valid(e, True)), key=lambda e: e.delta_bic)
+        second = sorted(
+            (
+                e
+                for e in out
+                if e.kind == "effect"
+                and e is not top
+                and not e.null
+                and e.delta_bic > BIC_THRESHOLD
+            ),
+            key=lambda e: -e.delta_bic,
+        )
+        if best.excess_drop < FLOOR_DROP and second:
+            _add_pairs(inp, second[0], suggestions, out, failures, polish=False)
     out.sort(key=lambda e: -e.delta_bic)
     return out
+
+
+def _add_pairs(
+    inp: ArenaInput,
+    effect: Explanation,
+    suggestions: list[Suggestion],
+    out: list[Explanation],
+    failures: list[str],
+    polish: bool,
+) -> None:
+    """``effect`` paired with each split and drift, appended to ``out`` (polished first)."""
+    available = inp.available()
+    refit = next((s.refit for s in suggestions if s.effect == effect.effects[0] and s.refit), None)
+    if refit is None:
+        return
+    if polish:
+        try:
+            polished = arena.polish(inp, effect, refit)
+            if polished.delta_bic > effect.delta_bic:  # the same model, fitted better
+                effect.delta_bic, effect.rmse = polished.delta_bic, polished.rmse
+                effect.detail = polished.detail
+                effect.excess_drop = excess_drop(
+                    inp.match.metrics["rmse"], effect.rmse, inp.noise_floor
+                )
+                effect.share = effect.delta_bic / available if available else None
+        except Exception as exc:
+            failures.append(f"polishing {effect.label} failed: {exc!r}")
+    try:
+        for e in arena.pairs(inp, effect, refit):
+            e.excess_drop = excess_drop(inp.match.metrics["rmse"], e.rmse, inp.noise_floor)
+            e.share = e.delta_bic / available if available else None
+            out.append(e)
+    except Exception as exc:
+        failures.append(f"explanations of pairs failed: {exc!r}")
 
 
 def _valid(e: Explanation, tests_failed: bool = False) -> bool:
     """An explanation with a benefit: BIC falls enough, not at its null value, and a real
     drop of the error above the noise floor (or of the prewhitened excess)."""
-    if e.null or e.delta_bic <= BIC_THRESHOLD:
+    if e.null:
+        return False
+    if e.kind == "sensor" and not tests_failed:
+        # offered only when the resting noise shows a filter's roll-off (independent
+        # evidence, measured with the balancer still): it stands unless the response
+        # contradicts it. A response fitted as well without it has the sensor's lag in
+        # T_a: that is worth saying, not "adequate"
+        return e.delta_bic > -CLOSE_BIC
+    if e.delta_bic <= BIC_THRESHOLD:
         return False
     if e.excess_drop > MIN_EXCESS_DROP:
         return True
@@ -558,6 +610,67 @@ def _standing(explanations: list[Explanation], tests_failed: bool) -> list[Expla
 
 #: A runner-up of another kind within this share of the best's BIC fall is "close".
 CLOSE_SHARE = 0.05
+#: A runner-up naming other effects or parameters within this many BIC units is "close"
+#: whatever its kind: a likelihood ratio under e^3 ~ 20 (Kass and Raftery's "positive"
+#: evidence, short of "strong"), so the recording cannot tell the two apart.
+CLOSE_BIC = 6.0
+
+
+#: A best removing this share of the error above the noise floor reaches the floor.
+FLOOR_DROP = 0.9
+#: At most this many close explanations are refitted before an ambiguity is declared.
+MAX_REFINED = 4
+
+
+def _refine_close(
+    explanations: list[Explanation], standing: list[Explanation], inp: ArenaInput
+) -> bool:
+    """Refit to convergence the best and the explanations close to it, in place.
+
+    The arena's first fits stop early (enough to rank them); two explanations within the
+    close window may differ by that alone, most when the current fit is far from every
+    explanation's optimum. Each refined explanation replaces its first fit in
+    ``explanations`` (kept sorted). Returns whether any was refined.
+    """
+    best = standing[0]
+    window = max(CLOSE_BIC, CLOSE_SHARE * best.delta_bic if best.excess_drop < FLOOR_DROP else 0)
+    close = [e for e in standing if e.refine is not None and best.delta_bic - e.delta_bic <= window]
+    available = inp.available()
+    done = False
+    for e in close[:MAX_REFINED]:
+        try:
+            new = e.refine()  # type: ignore[misc]
+        except Exception:  # a refinement that fails keeps the first fit
+            continue
+        if new.delta_bic <= e.delta_bic:
+            continue
+        new.excess_drop = excess_drop(inp.match.metrics["rmse"], new.rmse, inp.noise_floor)
+        new.share = new.delta_bic / available if available else None
+        explanations[explanations.index(e)] = new
+        done = True
+    explanations.sort(key=lambda x: -x.delta_bic)
+    return done
+
+
+def _rivals(best: Explanation, e: Explanation, confounded: bool) -> bool:
+    """Whether ``e`` is a runner-up the verdict must name with ``best``.
+
+    Another verdict is a rival when the recording confounds the best with it, when it
+    comes within :data:`CLOSE_BIC`, or, while the best leaves part of the error above the
+    noise floor (it removes less than :data:`FLOOR_DROP` of it: a misspecified best,
+    whose BIC lead is not to be trusted), within :data:`CLOSE_SHARE` of the best's BIC
+    fall. A best that brings the residual to the noise floor is outranked by likelihood
+    alone: a rival 100 BIC units behind is e^50 times less likely. An explanation of the same
+    verdict naming other effects or parameters (D0 drifting against A drifting) is one
+    when within :data:`CLOSE_BIC`: the verdict stands, but not what it names. Another
+    boundary of the same parameter's split is not a rival (what changed is known).
+    """
+    gap = best.delta_bic - e.delta_bic
+    if e.verdict != best.verdict:
+        relative = CLOSE_SHARE * best.delta_bic if best.excess_drop < FLOOR_DROP else 0.0
+        return confounded or gap <= max(CLOSE_BIC, relative)
+    names = (set(best.effects), set(best.parameters))
+    return (set(e.effects), set(e.parameters)) != names and gap <= CLOSE_BIC
 
 
 def _arena_verdict(
@@ -599,19 +712,17 @@ def _arena_verdict(
         )
         return verdict, summary, notes, None, None
     best = standing[0]
+    how = arena.confound(best, inp.trials, inp.runs)
+    rival = next((e for e in standing[1:] if _rivals(best, e, how is not None)), None)
+    if rival is not None and how is None and _refine_close(explanations, standing, inp):
+        # the close ones were refitted to convergence: rank them again
+        standing = _standing(explanations, bool(failed))
+        best = standing[0]
+        how = arena.confound(best, inp.trials, inp.runs)
+        rival = next((e for e in standing[1:] if _rivals(best, e, how is not None)), None)
     verdict = best.verdict
     summary = _explanation_sentence(best, fit)
     ambiguity = None
-    how = arena.confound(best, inp.trials, inp.runs)
-    rival = next(
-        (
-            e
-            for e in standing[1:]
-            if e.verdict != best.verdict
-            and (how is not None or e.delta_bic >= best.delta_bic * (1 - CLOSE_SHARE))
-        ),
-        None,
-    )
     if how is not None and rival is None:
         rival = next((e for e in standing[1:] if e.kind == "effect"), None)
     if rival is not None:
@@ -665,6 +776,14 @@ def _unknown_hint(tests: ResidualTests) -> str:
 
 def _tell_apart(best: Explanation, rival: Explanation) -> str:
     kinds = {best.kind, rival.kind}
+    both = [*best.parameters, *(p for p in rival.parameters if p not in best.parameters)]
+    if kinds <= {"split", "drift", "pair"} and best.verdict == rival.verdict and len(both) > 1:
+        return (
+            "record each thrust level, up and down, at the start and again at the end of "
+            f"the session: {' and '.join(both)} change the response differently across "
+            "thrust levels and directions, so the change seen at every level tells which "
+            "one moved"
+        )
     if "sensor" in kinds:
         return (
             "record a few seconds at rest with the sensor on the frame (its noise spectrum "
@@ -725,11 +844,25 @@ def _explanation_sentence(e: Explanation, fit: FitResult) -> str:
             + f"; {head}"
         )
     if e.kind == "sensor":
+        if e.delta_bic <= BIC_THRESHOLD:
+            values = d.get("values") or {}
+            now = fit.match.values()
+            moved = [
+                f"{k} {float(values[k]):.4g} with it, {now[k]:.4g} without"  # type: ignore[index]
+                for k in ("T_a", "m_a")
+                if k in values and k in now
+            ]
+            head = (
+                f"the response fits as well with it (BIC {-e.delta_bic:+.0f}), and without it "
+                "the balancer's parameters hold the sensor's lag"
+                + (f" ({'; '.join(moved)})" if moved else "")
+            )
         return (
             f"the accelerometer smooths its signal: a low-pass at {float(d['cutoff_hz']):.1f} Hz "  # type: ignore[arg-type]
-            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz); "  # type: ignore[arg-type]
-            f"{head}. Not the balancer: record with the sensor's filter off or a higher "
-            "bandwidth, or read its delay as part of the sensor"
+            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz, "  # type: ignore[arg-type]
+            f"as a filter's, not as coloured noise's); {head}. Not the balancer: record with "
+            "the sensor's filter off or a higher bandwidth, or read its delay as part of the "
+            "sensor"
         )
     return head
 
