@@ -122,6 +122,18 @@ class _Outcome:
         return _sumsq(self.residual)
 
 
+def _residual_and_sens(out: np.ndarray, y: np.ndarray, sens: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The residual ``out[:, 0] - y`` and whether it is finite; rows where it or the
+    sensitivities are not finite get residual 1e3 and a zero Jacobian (``sens`` in place)."""
+    r = out[:, 0] - y
+    finite = bool(np.isfinite(r).all())
+    if not (finite and np.isfinite(sens).all()):
+        bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
+        r[bad] = 1e3
+        sens[bad] = 0.0
+    return r, finite
+
+
 def _padded(r: np.ndarray, rows: int) -> np.ndarray:
     """``r`` with zero rows added to ``rows`` (fewer samples than unknowns)."""
     return np.vstack([r, np.zeros((rows - r.shape[0], r.shape[1]))])
@@ -259,20 +271,21 @@ class _Problem:
         """Residual and Jacobian over every sample at ``x`` (one simulation)."""
         self.nfev += 1
         out, sens = self.data.packed.run_sens(self.model, self.full(x), self.free)
-        r = out[:, 0] - self.data.y
-        self.finite = bool(np.isfinite(r).all())
-        if not (self.finite and np.isfinite(sens).all()):
-            bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
-            r[bad] = 1e3
-            sens[bad] = 0.0
-        cost = _sumsq(r)
-        if self._best is None or cost < self._best[0]:
-            if r.nbytes + sens.nbytes > BEST_KEPT_BYTES:  # a long session: simulate again
-                r_kept, sens_kept = np.empty(0), np.empty((0, sens.shape[1]))
-            else:
-                r_kept, sens_kept = r, sens
-            self._best = (cost, np.asarray(x, dtype=float).tobytes(), r_kept, sens_kept)
+        r, self.finite = _residual_and_sens(out, self.data.y, sens)
+        keep = r.nbytes + sens.nbytes <= BEST_KEPT_BYTES  # a long session: simulate again
+        self._remember(x, _sumsq(r), (r, sens) if keep else None)
         return r, sens
+
+    def _remember(
+        self, x: np.ndarray, cost: float, arrays: tuple[np.ndarray, np.ndarray] | None
+    ) -> None:
+        """Keep ``x`` as the best point evaluated when its cost is the lowest so far,
+        with its residual and Jacobian when ``arrays`` holds them (None: not kept)."""
+        if self._best is not None and cost >= self._best[0]:
+            return
+        if arrays is None:
+            arrays = np.empty(0), np.empty((0, len(self.free)))
+        self._best = (cost, np.asarray(x, dtype=float).tobytes(), *arrays)
 
     def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual and Jacobian at ``x``, reusing the best evaluation when it is there."""
@@ -310,12 +323,8 @@ class _Problem:
         y = self.data.y
         blocks = self.data.packed.stream_sens(self.model, self.full(x), self.free, STREAM_ROWS)
         for first, out, sens in blocks:
-            r = out[:, 0] - y[first : first + out.shape[0]]
-            if not (np.isfinite(r).all() and np.isfinite(sens).all()):
-                finite = finite and bool(np.isfinite(r).all())
-                bad = ~np.isfinite(r) | ~np.all(np.isfinite(sens), axis=1)
-                r[bad] = 1e3
-                sens[bad] = 0.0
+            r, finite_here = _residual_and_sens(out, y[first : first + out.shape[0]], sens)
+            finite = finite and finite_here
             cost += _sumsq(r)
             if by_qr:
                 merged = _merged_r(merged, np.column_stack([sens, r]))
@@ -323,9 +332,7 @@ class _Problem:
                 with np.errstate(over="ignore", invalid="ignore"):
                     _accumulate_gram(gram, sens, r, 2048)
         self.finite = finite
-        if self._best is None or cost < self._best[0]:
-            empty = np.empty(0), np.empty((0, k))
-            self._best = (cost, np.asarray(x, dtype=float).tobytes(), *empty)
+        self._remember(x, cost, None)
         if by_qr:
             return merged if merged.shape[0] == k + 1 else _padded(merged, k + 1)
         chol = _cholesky_of_gram(gram)
