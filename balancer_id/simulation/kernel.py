@@ -829,13 +829,13 @@ def compile_files(
             continue
 
 
-def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
-    """Run a state kernel once on a two-sample trial (compiles it, or loads it)."""
+def _tiny_trial() -> tuple[Any, ...]:
+    """The arguments before the parameters of a two-sample trial at rest (one segment)."""
     import numpy as np
 
     t = np.array([0.0, 0.005])
     z = np.zeros(2)
-    simulate_batch(
+    return (
         t,
         np.array([0, 2]),
         np.array([0.0]),
@@ -844,28 +844,23 @@ def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
         z,
         z,
         np.zeros((1, 3)),
-        pvec,
-        1,
-        np.empty((2, len(OUT_COLUMNS))),
     )
+
+
+def _run_tiny(simulate_batch: Any, pvec: Any) -> None:
+    """Run a state kernel once on a two-sample trial (compiles it, or loads it)."""
+    import numpy as np
+
+    simulate_batch(*_tiny_trial(), pvec, 1, np.empty((2, len(OUT_COLUMNS))))
 
 
 def _run_tiny_sens(simulate_batch_sens: Any, pvec: Any) -> None:
     """Run a sensitivity kernel once on a two-sample trial (compiles it, or loads it)."""
     import numpy as np
 
-    t = np.array([0.0, 0.005])
-    z = np.zeros(2)
     cols = np.arange(pvec.size, dtype=np.int64)
     simulate_batch_sens(
-        t,
-        np.array([0, 2]),
-        np.array([0.0]),
-        np.array([0.0]),
-        np.array([0, 1]),
-        z,
-        z,
-        np.zeros((1, 3)),
+        *_tiny_trial(),
         pvec,
         1,
         cols,
