@@ -17,6 +17,19 @@ T = np.arange(0.0, 2.0, 0.005)
 PARAMS = {"m_a": 15.1, "T_a": 0.33}
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _process_kernels_kept():
+    """The tests here forget the process's kernel modules (what a new process sees); the
+    kernels memoized before them (``K._KERNELS``, restored after each test) get their
+    modules back afterwards, as the later tests of the same worker process expect (numba
+    imports a kernel's module by name when it loads another signature from disk)."""
+    kept = {n: m for n, m in sys.modules.items() if n.startswith("bid_kernel_")}
+    yield
+    for name in [n for n in sys.modules if n.startswith("bid_kernel_")]:
+        del sys.modules[name]
+    sys.modules.update(kept)
+
+
 @pytest.fixture(scope="module")
 def compiled(tmp_path_factory):
     """A cache holding the compiled 'base' kernel (plain and sensitivities), made once."""
