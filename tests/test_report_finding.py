@@ -7,24 +7,27 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from conftest import EXAMPLES
 
 from balancer_id.diagnostics.diagnosis import diagnose
 from balancer_id.diagnostics.improve import improve
-from balancer_id.identify import fit
-from balancer_id.model.spec import parse_model
+from balancer_id.identify import fit, resolve_model
 from balancer_id.simulation.synth import write_synthetic_log
 
-#: A balancer with Coulomb friction (karnopp), fitted without it: an effect is missing.
-TRUE = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "F_c": 0.6}
+#: A balancer with the example hose pulling it back (a user effect), fitted without it: an
+#: effect is missing. The hose's models are those test_diagnose's improve walk simulates
+#: too, so their kernels are compiled once for the suite.
+HOSE = EXAMPLES / "effects" / "hose_spring.py"
+TRUE = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4, "k_h": 4.0}
 
 
 @pytest.fixture(scope="module")
 def diagnosed(tmp_path_factory):
-    path = tmp_path_factory.mktemp("finding") / "friction.csv"
-    model = parse_model("viscous+karnopp")
+    path = tmp_path_factory.mktemp("finding") / "hose.csv"
+    model = resolve_model("variable_viscosity+hose_spring", [HOSE])
     values = {k: v for k, v in TRUE.items() if k in model.param_names}
     write_synthetic_log(path, model, values, [2.45, -4.9, 7.35], seed=2, duration_s=4)
-    result = fit([path], model="viscous")
+    result = fit([path], model="variable_viscosity", effects_files=[HOSE])
     diagnosis = diagnose(result)
     return result, diagnosis, improve(result, diagnosis=diagnosis, max_steps=1)
 
@@ -41,7 +44,7 @@ def test_the_report_leads_with_the_verdict_and_the_top_suggestion(diagnosed, tmp
     top = diagnosis.suggestions[0]
     assert top.label in html[first : html.index('id="s-summary"')]
     assert 'id="s-improving-the-model"' in html  # the ladder
-    assert "The error falling as effects are added" in html  # karnopp added: a figure
+    assert "The error falling as effects are added" in html  # the hose added: a figure
     assert "Residual analysis" in html
 
 

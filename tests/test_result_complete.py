@@ -44,7 +44,10 @@ ROBOT_MOVE = "trapezoid:distance=0.2,speed=0.1,accel=0.5"
     ("log", "extra"),
     [
         ("paper_balancer.csv", {"model": "viscous"}),
-        ("robot/robot_assist.csv", {"model": "viscous+servo", "trajectory": ROBOT_MOVE}),
+        (
+            "robot/robot_assist.csv",
+            {"model": "variable_viscosity+servo", "trajectory": ROBOT_MOVE},
+        ),
     ],
 )
 def test_the_library_result_is_the_commands_json(cli, log, extra):

@@ -12,6 +12,20 @@ from balancer_id.simulation import Thrust, Trapezoid, TrialInput, simulate
 
 M, T = 15.1, 0.33
 DT = 0.005
+#: The paper's viscosity held off: its force ``-D0 exp(-A|h|) v`` is exactly zero, so a
+#: model with it simulates as the model without it, in a kernel the suite compiles anyway
+#: (the diagnosis candidates ``variable_viscosity+EFFECT``) instead of one more of its own.
+NO_VISCOSITY = {"D0": 0.0, "A": 0.0}
+
+
+def without_viscosity(name: str = "base"):
+    """The model of effect ``name`` alone (``base``: none), as the paper's model with its
+    viscosity held off by :data:`NO_VISCOSITY`."""
+    if name in ("base", "variable_viscosity"):
+        return parse_model("variable_viscosity")
+    if name == "viscous":
+        return parse_model("viscous")
+    return parse_model(f"variable_viscosity+{name}")
 
 
 def grid(seconds: float) -> np.ndarray:
@@ -21,7 +35,8 @@ def grid(seconds: float) -> np.ndarray:
 def test_first_order_step_without_viscosity():
     t = grid(5.0)
     t0, f_in = 0.5023, 2.45  # onset between two samples
-    sim = simulate(parse_model("base"), {"m_a": M, "T_a": T}, t, Thrust.step(t0, f_in))
+    params = {"m_a": M, "T_a": T, **NO_VISCOSITY}
+    sim = simulate(without_viscosity(), params, t, Thrust.step(t0, f_in))
     a_zc = f_in / M
     exact = np.where(t >= t0, a_zc * (1.0 - np.exp(-(t - t0) / T)), 0.0)
     assert np.max(np.abs(sim.accel - exact)) < 1e-4 * a_zc
@@ -59,9 +74,8 @@ def test_paper_fig11(A, peak, half_time):
 
 def test_stuck_below_the_friction_threshold():
     t = grid(5.0)
-    sim = simulate(
-        parse_model("karnopp"), {"m_a": M, "T_a": T, "f_s": 0.98}, t, Thrust.step(0.5, 0.9)
-    )
+    params = {"m_a": M, "T_a": T, "f_s": 0.98, **NO_VISCOSITY}
+    sim = simulate(without_viscosity("karnopp"), params, t, Thrust.step(0.5, 0.9))
     assert np.all(sim.velocity == 0.0)
     assert np.all(sim.accel == 0.0)
 
@@ -85,9 +99,8 @@ def test_speed_plateau_at_v_max():
     from balancer_id.simulation.kernel import SPEED_LIMIT_TAU
 
     t = grid(6.0)
-    sim = simulate(
-        parse_model("speed_limit"), {"m_a": M, "T_a": T, "v_max": 0.5}, t, Thrust.step(0.0, 7.35)
-    )
+    params = {"m_a": M, "T_a": T, "v_max": 0.5, **NO_VISCOSITY}
+    sim = simulate(without_viscosity("speed_limit"), params, t, Thrust.step(0.0, 7.35))
     assert np.all(sim.velocity <= 0.5 + 1e-12)
     t_hit = t[np.argmax(sim.velocity >= 0.99 * 0.5)]
     assert t_hit == pytest.approx(1.4, abs=0.1)  # MODEL.md: about 1.4 s at 7.35 N
@@ -103,16 +116,17 @@ def test_speed_plateau_at_v_max():
 def test_dead_time_is_exact_to_the_sample():
     t = grid(4.0)
     tau = 0.0173  # not a multiple of the sample interval
+    params = {"m_a": M, "T_a": T, **NO_VISCOSITY}
     delayed = simulate(
-        parse_model("dead_time"), {"m_a": M, "T_a": T, "tau_d": tau}, t, Thrust.step(0.5, 4.9)
+        without_viscosity("dead_time"), {**params, "tau_d": tau}, t, Thrust.step(0.5, 4.9)
     )
-    shifted = simulate(parse_model("base"), {"m_a": M, "T_a": T}, t, Thrust.step(0.5 + tau, 4.9))
+    shifted = simulate(without_viscosity(), params, t, Thrust.step(0.5 + tau, 4.9))
     assert np.max(np.abs(delayed.accel - shifted.accel)) < 1e-12
 
 
 def _scenario(name: str) -> tuple[dict[str, float], TrialInput]:
     cls = BUILTIN_EFFECTS[name]
-    params = {"m_a": M, "T_a": T, **cls.example}
+    params = {"m_a": M, "T_a": T, **NO_VISCOSITY, **cls.example}
     t = grid(6.0)
     if name == "servo":
         z_ref, v_ref = Trapezoid(0.2, 0.1, 0.5, start=1.0).evaluate(t)
@@ -122,7 +136,7 @@ def _scenario(name: str) -> tuple[dict[str, float], TrialInput]:
 
 @pytest.mark.parametrize("name", sorted(BUILTIN_EFFECTS))
 def test_agrees_with_solve_ivp(name):
-    model = parse_model(name)
+    model = without_viscosity(name)
     params, trial = _scenario(name)
     params = {k: v for k, v in params.items() if k in model.param_names}
     fast = simulate(model, params, trial.time, trial.thrust, z_ref=trial.z_ref, v_ref=trial.v_ref)
@@ -132,7 +146,7 @@ def test_agrees_with_solve_ivp(name):
 
 
 @pytest.mark.parametrize(
-    "spec", ["variable_viscosity+karnopp+speed_limit+dead_time", "servo+variable_viscosity"]
+    "spec", ["variable_viscosity+karnopp+speed_limit+dead_time", "variable_viscosity+servo"]
 )
 def test_halving_the_internal_step_changes_little(spec):
     model = parse_model(spec)
