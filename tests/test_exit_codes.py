@@ -167,16 +167,20 @@ def test_quiet_is_taken_before_or_after_the_command(tmp_path, where):
     assert "2 identified, 0 failed" in res.stderr  # the outcome is still said
 
 
+#: A model name rich cuts at 80 columns (test_simulate_physics simulates it: no kernel more).
+LONG_NAME = "variable_viscosity+karnopp+speed_limit+dead_time"
+
+
 def test_without_a_terminal_no_name_is_cut():
     env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
     res = subprocess.run(
         [sys.executable, "-m", "balancer_id", "compare", str(SAMPLE_LOGS / "hose_walkthrough.csv"),
-         "-m", "viscous,variable_viscosity+dead_time+karnopp"],
+         "-m", f"viscous,{LONG_NAME}"],
         capture_output=True, text=True, env=env, timeout=300,
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
     assert "…" not in res.stdout  # rich cut names to fit 80 columns when stdout is a pipe
-    assert "variable_viscosity+dead_time+karnopp" in res.stdout
+    assert LONG_NAME in res.stdout
 
 
 def test_one_data_row_is_called_one_row_not_blank_cells(cli, tmp_path):

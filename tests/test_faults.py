@@ -244,8 +244,8 @@ def _descendants(pid: int) -> list[int]:
 def test_a_stopped_batch_leaves_no_process_and_resumes(tmp_path, how):
     folder = tmp_path / "logs"
     folder.mkdir()
-    for k in range(12):
-        shutil.copy(SAMPLE_LOGS / "hose_walkthrough.csv", folder / f"h{k:02d}.csv")
+    for k in range(12):  # the paper's log: a fit of a second or so, a dozen still to do
+        shutil.copy(LOG, folder / f"h{k:02d}.csv")
     out = tmp_path / "out"
     proc = subprocess.Popen(
         _batch_cmd(folder, out, "--jobs", "2"),
