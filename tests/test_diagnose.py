@@ -24,15 +24,24 @@ from balancer_id.trials import LoadedLog, TrialSet
 
 
 def trials_with(
-    spec: str, extra: dict[str, float], seed: int, registry=None, rho: float = 0.0
+    spec: str,
+    extra: dict[str, float],
+    seed: int,
+    registry=None,
+    rho: float = 0.0,
+    thrusts=PAPER_THRUSTS,
+    duration_s: float = 8.0,
 ) -> TrialSet:
-    """Six paper trials of a balancer with ``spec`` hidden, read back through segmentation."""
+    """Paper trials (six of 8 s) of a balancer with ``spec`` hidden, read back through
+    segmentation."""
     model = parse_model(spec, registry) if registry else parse_model(spec)
     truth = {k: v for k, v in {**PAPER, **extra}.items() if k in model.param_names}
     sensor = SensorSettings(
         tilt_deg=15.0, accel_noise=0.03, force_noise=0.03, noise_correlation=rho
     )
-    recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
+    recs = synthetic_recordings(
+        model, truth, thrusts, sensor=sensor, seed=seed, duration_s=duration_s
+    )
     log = Log(Path(f"{spec}.csv"), "pasco-capstone", recs)
     return TrialSet([LoadedLog(log, find_trials(log))])
 
@@ -136,7 +145,12 @@ def test_failing_user_effects_are_reported_by_name_and_the_rest_go_on():
 def test_improve_walks_the_hose_example_to_the_noise_floor():
     registry = Registry()
     registry.load_file(EXAMPLES / "effects" / "hose_spring.py")
-    trials = trials_with("variable_viscosity+hose_spring", {"k_h": 4.0}, seed=14, registry=registry)
+    # three steps of 6 s (not six of 8: a fifth of the time): over seeds 14-16 the error
+    # still fell to 0.21 of the start's, k_h came within 1 % and the end was adequate
+    trials = trials_with(
+        "variable_viscosity+hose_spring", {"k_h": 4.0}, seed=14, registry=registry,
+        thrusts=(2.45, -4.9, 7.35), duration_s=6.0,
+    )  # fmt: skip
     start = fit_paper_model(trials, registry)
     result = improve(start, max_steps=2)
     models = [s.model for s in result.steps]
