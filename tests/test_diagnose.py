@@ -161,7 +161,16 @@ def test_improve_walks_the_hose_example_to_the_noise_floor():
     assert result.final.verdict == "adequate"
 
 
-@pytest.mark.parametrize("log", sorted(p.name for p in SAMPLE_LOGS.glob("*.csv")))
+#: The hose walk-through's log is diagnosed by the README's commands, run as written in
+#: test_readme_commands (``diagnose`` on it: exit 0, effect missing, the hose's stiffness;
+#: ``batch logs/ --diagnose`` on every sample log: each verdict and a finite error, as
+#: here); a third diagnosis of it here (27 s, its force discovery) would check nothing more.
+WALKED = {"hose_walkthrough.csv"}
+
+
+@pytest.mark.parametrize(
+    "log", sorted(p.name for p in SAMPLE_LOGS.glob("*.csv") if p.name not in WALKED)
+)
 def test_diagnose_never_fails_on_a_sample_log(cli, log):
     code, out, err = cli("diagnose", SAMPLE_LOGS / log, "--json")
     assert code == 0, err
@@ -218,6 +227,7 @@ def test_parallel_refits_equal_one_by_one_and_tell_each_candidate(monkeypatch):
     assert {s.effect for s in serial.suggestions} <= names
 
 
+@pytest.mark.slow
 def test_a_payload_change_is_a_parameter_change_not_an_effect():
     # m_a grows by a quarter after the third run, karnopp friction is present throughout:
     # the verdict names the mass change (the effect alone does not explain it)

@@ -10,6 +10,7 @@ command named in prose without its logs, and
 from __future__ import annotations
 
 import json
+import math
 import re
 import shlex
 import shutil
@@ -17,6 +18,10 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO
+
+#: The commands build on each other and take minutes: one worker runs them all (their
+#: module-scoped work folder groups them, conftest.py), started first.
+pytestmark = pytest.mark.slow
 
 README = (REPO / "README.md").read_text(encoding="utf-8")
 LOG_COMMANDS = {"inspect", "fit", "compare", "diagnose", "improve", "batch", "report"}
@@ -115,6 +120,14 @@ def test_a_readme_command_runs_and_says_what_the_readme_says(cli, workdir, monke
         rows = (out_dir / "summary.csv").read_text(encoding="utf-8").splitlines()
         logs = [w for w in words[2:] if w.endswith(".csv") or w.endswith("/")]
         assert len(rows) - 1 >= len(logs) and all(",ok," in r for r in rows[1:]), rows
+        if "--diagnose" in words:
+            # every sample log diagnosed without failing (the hose walk-through's is not
+            # diagnosed again in test_diagnose_never_fails_on_a_sample_log)
+            docs = [json.loads(p.read_text(encoding="utf-8")) for p in out_dir.glob("*.json")]
+            assert len(docs) == len(rows) - 1
+            for doc in docs:
+                assert doc["diagnosis"]["verdict"] in ("adequate", "effect missing"), doc
+                assert math.isfinite(doc["metrics"]["rmse"]), doc
     if words[1] == "diagnose" and "--effects-file" not in words:
         # walk-through step 1: a missing effect that no built-in explains; the position;
         # the force discovered with the hose's stiffness (truth 4 N/m)
