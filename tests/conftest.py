@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,54 @@ SAMPLE_LOGS = REPO / "sample_logs"
 #: The paper's balancer (MODEL.md reference values).
 PAPER = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 PAPER_THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
+
+
+def _shared_fixture_modules() -> set[str]:
+    """The test modules defining a module-scoped fixture (a costly fit, the README's work
+    folder whose commands build on each other)."""
+    here = Path(__file__).parent
+    return {
+        p.name for p in here.glob("test_*.py") if 'scope="module"' in p.read_text("utf-8")
+    }
+
+
+def _unit(nodeid: str, shared: set[str]) -> str:
+    """The unit of work ``nodeid`` is handed out in: its module when the module has a
+    module-scoped fixture (built once, on one worker), else the test alone."""
+    module = nodeid.split("::")[0]
+    return module if Path(module).name in shared else nodeid
+
+
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Under ``-n`` (xdist's ``--dist load``): each test goes to whichever worker is free,
+    except that a module with a module-scoped fixture goes whole to one worker, so its
+    fixture is built once (xdist's ``load`` hands out runs of consecutive tests, which
+    split such a module, the README's commands included, across both workers: each built
+    the fixture, and ran the README's earlier commands again). The units go out in the
+    order of pytest_collection_modifyitems below: slow ones first."""
+    if config.getoption("dist") != "load":
+        return None  # a --dist the user chose
+    from xdist.scheduler import LoadScopeScheduling
+
+    shared = _shared_fixture_modules()
+
+    class SharedFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _unit(nodeid, shared)
+
+    config.option.loadscopereorder = False  # in collection order, not largest unit first
+    return SharedFixtureScheduling(config, log)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The units (see pytest_xdist_make_scheduler) holding tests marked ``slow`` first, the
+    one with the most of them first (the README's commands), so that none of them is the
+    run's tail while the other worker idles; otherwise as collected. A unit stays whole."""
+    shared = _shared_fixture_modules()
+    units = {item: _unit(item.nodeid, shared) for item in items}
+    slow = Counter(units[item] for item in items if item.get_closest_marker("slow"))
+    items.sort(key=lambda item: -slow[units[item]])
 
 
 @pytest.fixture(scope="session", autouse=True)

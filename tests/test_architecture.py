@@ -317,6 +317,7 @@ class BadGuess(GuessedOffset):
         return k_b
 
 
+@pytest.mark.slow
 def test_an_effects_guess_hook_starts_its_refit_and_a_failing_one_is_named(small_log):
     from balancer_id.diagnostics.diagnosis import diagnose
     from balancer_id.identify.api import fit

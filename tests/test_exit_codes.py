@@ -171,6 +171,7 @@ def test_quiet_is_taken_before_or_after_the_command(tmp_path, where):
 LONG_NAME = "variable_viscosity+karnopp+speed_limit+dead_time"
 
 
+@pytest.mark.slow
 def test_without_a_terminal_no_name_is_cut():
     env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
     res = subprocess.run(

@@ -127,6 +127,7 @@ def test_measured_thrust_is_not_shifted_and_drops_spikes():
     assert np.max(np.abs(th.values[:195])) == 0.0
 
 
+@pytest.mark.slow
 def test_payload_change_between_runs_is_the_finding(model):
     sensor = SensorSettings(tilt_deg=12.0)
     a = synthetic_recordings(model, PAPER, PAPER_THRUSTS[:3], sensor=sensor, seed=1)
