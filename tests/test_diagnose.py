@@ -236,7 +236,11 @@ def test_a_payload_change_is_a_parameter_change_not_an_effect():
     recs = []
     for k, u in enumerate(PAPER_THRUSTS):
         truth = {**PAPER, "f_s": 0.7, "m_a": PAPER["m_a"] * (1.25 if k >= 3 else 1.0)}
-        (rec,) = synthetic_recordings(model, truth, [u], sensor=sensor, seed=40 + k)
+        # runs of 4 s (not 8: half the time); the fitted change came out the same,
+        # 1.17-1.18 with seeds 40, 50 and 60 as 1.175 with runs of 8 s
+        (rec,) = synthetic_recordings(
+            model, truth, [u], sensor=sensor, seed=40 + k, duration_s=4.0
+        )
         rec.name = f"Run #{k + 1}"
         recs.append(rec)
     log = Log(Path("payload.csv"), "pasco-capstone", recs)
