@@ -213,3 +213,24 @@ def test_discovered_dry_friction_sticks_below_its_static_level_in_the_written_fi
     v_end = float(above.velocity[-1])
     # v = (u - f_c - f_s exp(-v/v_s)) / D0; at v ~ 0.5 m/s the Stribeck part is e^-10
     assert v_end == pytest.approx((2.5 - f_c) / 4.0, rel=1e-3)
+
+
+def test_the_sparse_selection_finds_a_known_support_and_resamples_by_gram_sums():
+    """A linear problem with nuisance parameter columns and a sparse truth: the residual
+    is 3 q2 - 2 q5 plus parameter columns plus unit noise (4 trials x 500 rows). The
+    selection projects the parameters out and finds {2, 5}; a resample naming a trial
+    twice equals the rows stacked twice."""
+    rng = np.random.default_rng(5)
+    r, p, q = [], [], []
+    for _ in range(4):
+        pi = rng.normal(size=(500, 3))
+        qi = rng.normal(size=(500, 8)) + 0.3 * pi[:, :1]  # terms correlated with a parameter
+        r.append(3.0 * qi[:, 2] - 2.0 * qi[:, 5] + pi @ [1.0, -4.0, 2.0] + rng.normal(size=500))
+        p.append(pi)
+        q.append(qi)
+    lin = discovery._Linear(r, p, q)
+    assert sorted(discovery.select(lin, range(4), range(8))) == [2, 5]
+    g, n = lin.gram([0, 1, 1, 3])
+    a = np.vstack([np.hstack([p[i], q[i], r[i][:, None]]) for i in (0, 1, 1, 3)])
+    assert n == 2000
+    assert np.allclose(g, a.T @ a)

@@ -585,14 +585,6 @@ def _whiten(x: np.ndarray, ar: tuple[float, float]) -> np.ndarray:
     return x[2:] - p1 * x[1:-1] - p2 * x[:-2]
 
 
-def _ols_rss(x: np.ndarray, y: np.ndarray) -> float:
-    if x.shape[1] == 0:
-        return float(y @ y)
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    r = y - x @ coef
-    return float(r @ r)
-
-
 def _project(base: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``x`` with its part along the columns of ``base`` removed."""
     if base.shape[1] == 0:
@@ -608,6 +600,21 @@ class _Linear:
     r: list[np.ndarray]
     p: list[np.ndarray]
     q: list[np.ndarray]
+    #: Per trial, the Gram matrix of ``[p, q, r]`` (filled on first use).
+    grams: list[np.ndarray] = field(default_factory=list, repr=False)
+
+    def gram(self, trials: Sequence[int]) -> tuple[np.ndarray, int]:
+        """The Gram matrix of ``[p, q, r]`` over ``trials`` (repeats allowed) and its rows.
+
+        A bootstrap resample of the trials is a sum of the trials' own Gram matrices, so
+        the sparse regression never touches the rows again.
+        """
+        if not self.grams:
+            for r, p, q in zip(self.r, self.p, self.q, strict=True):
+                a = np.hstack([p, q, r[:, None]])
+                self.grams.append(a.T @ a)
+        g = np.sum([self.grams[i] for i in trials], axis=0)
+        return g, int(sum(self.r[i].size for i in trials))
 
     def rows(self, trials: Sequence[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return (
@@ -619,6 +626,10 @@ class _Linear:
 
 def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[int]:
     """The sparse support: the pursuit path's lowest BIC, then each term must pay.
+
+    The model's parameter columns are projected out (the Schur complement of their block
+    of the Gram matrix), the term columns normalized, and scikit-learn's orthogonal
+    matching pursuit runs on the Gram matrix.
 
     Parameters
     ----------
@@ -634,41 +645,52 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
     list of int
         The chosen term columns, in the order the path took them.
     """
-    from sklearn.linear_model import orthogonal_mp  # type: ignore[import-untyped]
+    from sklearn.linear_model import orthogonal_mp_gram  # type: ignore[import-untyped]
 
-    r, p, q = lin.rows(trials)
-    n = r.size
+    g, n = lin.gram(trials)
     if n < 20 or not usable:
         return []
-    qp = _project(p, q[:, list(usable)])
-    rp = _project(p, r[:, None])[:, 0]
-    norms = np.linalg.norm(qp, axis=0)
+    npar = lin.p[0].shape[1]
+    idx = [npar + c for c in usable] + [g.shape[0] - 1]
+    s = g[np.ix_(idx, idx)]
+    if npar:
+        gpx = g[:npar, idx]
+        s = s - gpx.T @ np.linalg.lstsq(g[:npar, :npar], gpx, rcond=1e-12)[0]
+    k = len(usable)
+    norms = np.sqrt(np.maximum(np.diag(s)[:k], 0.0))
     ok = norms > 1e-9 * max(float(norms.max()), 1e-300)
     cols = [c for c, good in zip(usable, ok, strict=True) if good]
-    x = qp[:, ok] / norms[ok]
-    if x.shape[1] == 0:
+    if not cols:
         return []
-    kmax = min(MAX_TERMS, x.shape[1])
+    scale = norms[ok]
+    xx = s[:k, :k][np.ix_(ok, ok)] / np.outer(scale, scale)
+    xy = s[:k, k][ok] / scale
+    yy = float(s[k, k])
+
+    def rss(support: list[int]) -> float:
+        if not support:
+            return max(yy, 1e-300)
+        b = np.linalg.lstsq(xx[np.ix_(support, support)], xy[support], rcond=1e-12)[0]
+        return max(yy - float(xy[support] @ b), 1e-300)
+
+    kmax = min(MAX_TERMS, len(cols))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        path = orthogonal_mp(x, rp, n_nonzero_coefs=kmax, return_path=True)
+        path = orthogonal_mp_gram(xx, xy, n_nonzero_coefs=kmax, return_path=True)
     path = np.atleast_2d(path.T) if path.ndim == 2 else path[:, None].T
-    best, best_bic = [], n * np.log(max(float(rp @ rp), 1e-300) / n)
+    best: list[int] = []
+    best_bic = n * np.log(max(yy, 1e-300) / n)
     for coefs in path:
-        support = [j for j in np.flatnonzero(np.abs(coefs) > 0)]
-        rss = _ols_rss(x[:, support], rp)
-        b = n * np.log(max(rss, 1e-300) / n) + len(support) * np.log(n)
+        support = [int(j) for j in np.flatnonzero(np.abs(coefs) > 0)]
+        b = n * np.log(rss(support) / n) + len(support) * np.log(n)
         if b < best_bic - 1e-9:
             best, best_bic = support, b
     # each term must pay: removing it costs more than TERM_BIC
     changed = True
     while changed and best:
         changed = False
-        full = _ols_rss(x[:, best], rp)
-        costs = []
-        for j in best:
-            rest = [k for k in best if k != j]
-            costs.append(n * np.log(_ols_rss(x[:, rest], rp) / full) - np.log(n))
+        full = rss(best)
+        costs = [n * np.log(rss([k for k in best if k != j]) / full) - np.log(n) for j in best]
         worst = int(np.argmin(costs))
         if costs[worst] < TERM_BIC:
             best = [k for k in best if k != best[worst]]
