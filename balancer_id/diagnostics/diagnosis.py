@@ -267,7 +267,7 @@ class Diagnosis(Displayable):
                 se = f" +/- {t.stderr:.2g}" if t.stderr is not None else ""
                 lines.append(
                     f"    {t.expression}: {t.coefficient:.4g}{se} {t.term.unit},"
-                    f" chosen in {t.inclusion:.0%} of the bootstrap resamples"
+                    f" kept in {t.inclusion:.0%} of the bootstrap resamples"
                 )
             lines.append(f"    {d.command}")
         return lines

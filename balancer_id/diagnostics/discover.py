@@ -22,7 +22,9 @@ How
 3. The sparse regression is scikit-learn's orthogonal matching pursuit path; the support
    with the lowest BIC wins, and a term stays only when removing it costs more than
    :data:`TERM_BIC` and it lowers the error on held-out trials (K-fold over trials).
-   Bootstrap resamples of the trials give each term's inclusion probability.
+   Bootstrap resamples of the trials give each kept term's inclusion probability (the
+   share in which removing it from the model linearized at the refit still costs more
+   than :data:`TERM_BIC`).
 4. The whole model is refitted (nonlinear, simulation matching) with the chosen terms free
    and the others held at 0, scored by the arena's criterion (:func:`arena.score`): the
    discovery stands only when it beats the arena's best explanation on the same BIC.
@@ -233,6 +235,8 @@ def friction_hook(coefficients: Sequence[str], magnitudes: Sequence[str], args: 
         f"        if abs(v) <= {KARNOPP_EPS!r}:\n"
         "            if abs(F) <= -slide:\n"
         "                return -F  # stuck: friction holds the other forces\n"
+        "            if F == 0.0:\n"
+        "                return 0.0  # nothing pushes: nothing to break away from\n"
         "            return slide if F > 0.0 else -slide  # break-away\n"
         "        return slide if v > 0.0 else -slide\n"
     )
@@ -505,7 +509,7 @@ class Discovery:
                 body.append(_product(t.term.name, e))
             doc.append(
                 f"    {t.term.name} = {c:.4g}{se} {t.term.unit} (term {e}),\n"
-                f"    chosen in {t.inclusion:.0%} of the bootstrap resamples of the trials."
+                f"    kept in {t.inclusion:.0%} of the bootstrap resamples of the trials."
             )
         dry = [t for t in self.terms if self.stick and t.term.is_friction]
         sliding = " + ".join(_product(t.term.name, t.expression) for t in dry)
@@ -1052,6 +1056,8 @@ def _search(
     d_bic, rmse = arena.score(inp, parts, len(support) + len(freed))
     if d_bic <= TERM_BIC or (rival is not None and d_bic <= rival.delta_bic + margin):
         return None
+    final = _final_inclusion(model, inp, refit, hold, freed, terms, support, seed)
+    inclusion = final if final is not None else inclusion
     found = []
     for j in support:
         est = refit.parameters[q_names[j]]
@@ -1164,6 +1170,54 @@ def _linearize(
         lin.p.append(_whiten(sens[sl, :k], ar))
         lin.q.append(_whiten(sens[sl, k:], ar))
     return lin
+
+
+def _final_inclusion(
+    model: Model,
+    inp: ArenaInput,
+    refit: MatchResult,
+    hold: dict[str, float],
+    freed: dict[str, float],
+    terms: Sequence[Term],
+    support: Sequence[int],
+    seed: int,
+) -> np.ndarray | None:
+    """Inclusion probabilities of the final terms: over bootstrap resamples of the trials,
+    how often each still pays (removing it from the model linearized at the refit raises
+    BIC by more than :data:`TERM_BIC`). The first round's selection speaks only of a term
+    chosen then; a term chosen later, or one acting through the stick band of dry
+    friction (which the linear step at zero cannot see), is judged where it was fitted."""
+    q_names = [f"q{j}" for j in range(len(terms))]
+    held = {**hold, **freed}
+    lin = _linearize(model, inp.match.data, refit.values(), held, q_names, support, [], inp.ar)
+    if lin is None or not lin.r:
+        return None
+    chosen = {q_names[j] for j in support}
+    free = [n for n in model.param_names if n not in held and (n not in q_names or n in chosen)]
+    cols = {j: free.index(q_names[j]) for j in support}  # the columns _linearize made
+    values = refit.values()
+    rng = np.random.default_rng(seed)
+    counts = np.zeros(len(terms))
+    n_trials = len(lin.r)
+    for _ in range(BOOTSTRAP):
+        g, n = lin.gram(list(rng.integers(0, n_trials, n_trials)))
+        k = g.shape[0] - 1
+        every = list(range(k))
+
+        def rss(keep: list[int], gy: np.ndarray, yy: float, g: np.ndarray = g) -> float:
+            b = np.linalg.lstsq(g[np.ix_(keep, keep)], gy[keep], rcond=1e-12)[0]
+            return max(yy - float(gy[keep] @ b), 1e-300)
+
+        full = rss(every, g[:k, k], float(g[k, k]))
+        for j, c in cols.items():
+            # the residual with term j taken out of the model (its linear contribution
+            # added back), refitted by every other column
+            q = float(values[q_names[j]])
+            gy = g[:k, k] + q * g[:k, c]
+            yy = float(g[k, k] + 2.0 * q * g[c, k] + q * q * g[c, c])
+            cost = n * np.log(rss([i for i in every if i != c], gy, yy) / full) - np.log(n)
+            counts[j] += cost > TERM_BIC
+    return counts / BOOTSTRAP
 
 
 def _bootstrap(lin: _Linear, usable: Sequence[int], n_terms: int, seed: int) -> np.ndarray:
