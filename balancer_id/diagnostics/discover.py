@@ -79,6 +79,8 @@ LEFT_OVER = 0.5
 #: Explanations a missing force can mimic (a parameter that seems to change between runs
 #: when it depends on the speed or the thrust): the search competes with them on BIC.
 MIMICS = ("split", "drift", "pair")
+#: Samples (at most, by a regular stride) of the residual force's spectrum over position.
+PERIOD_SAMPLES = 3000
 #: The Coulomb term, and the prefix of the Stribeck terms (tried with it as a pair).
 COULOMB, STRIBECK = "f_c", "f_st"
 #: Terms tried only when the residual's spectrum over position has a period.
@@ -799,6 +801,9 @@ def position_period(ctx_trials: Sequence[TrialView], m_a: float) -> float | None
     if span <= 0 or z.size < 50:
         return None
     periods = np.geomspace(span / 20.0, span / 1.5, 200)
+    # the shortest period searched spans hundreds of samples: every few is enough
+    stride = max(1, z.size // PERIOD_SAMPLES)
+    z, r = z[::stride], r[::stride]
     power = lombscargle(z, r - r.mean(), 2 * np.pi / periods)
     k = int(np.argmax(power))
     if not power[k] > 8.0 * float(np.median(power)):
