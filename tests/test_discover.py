@@ -166,3 +166,71 @@ def test_improve_discover_options_are_checked_before_any_work(cli, tmp_path):
     assert mine.read_text() == "# my effect\n"
     code, _, err = cli("improve", log, "--discover", "--effects-out", tmp_path / "x.txt")
     assert code == 2 and ".py" in err
+
+
+def test_discovered_dry_friction_sticks_below_its_static_level_in_the_written_file(tmp_path):
+    """Coulomb and Stribeck terms, written for a model without a friction effect, act as
+    dry friction: a thrust below the level at v = 0 (F_c + F_s) moves nothing; above it
+    the load slides to the speed where the thrust balances viscosity plus the sliding
+    friction (first-order analytic steady state)."""
+    from balancer_id.model.registry import load_effects_file
+    from balancer_id.simulation.engine import simulate
+    from balancer_id.simulation.inputs import Thrust
+
+    terms = {t.name: t for t in discovery.default_terms(1.0, None)}
+    f_c, f_s = 0.5, 0.3
+    stribeck = discovery.Term(
+        "((v > 0.0) - (v < 0.0))*math.exp(-abs(v)/v_s1)",
+        "N",
+        "f_st1",
+        (("v_s1", 0.05),),
+        "math.exp(-abs(v)/v_s1)",
+    )
+    found = discovery.Discovery(
+        terms=[
+            discovery.DiscoveredTerm(terms["f_c"], -f_c, 0.01, 1.0),
+            discovery.DiscoveredTerm(stribeck, -f_s, 0.01, 1.0),
+        ],
+        delta_bic=100.0,
+        rmse=0.03,
+        command="",
+        refit=None,  # type: ignore[arg-type]
+        stick=True,
+    )
+    source = found.effect_source("dry")
+    assert "def friction(v, F, f_c, f_st1):" in source
+    path = tmp_path / "dry.py"
+    path.write_text(source, encoding="utf-8")
+    (cls,) = load_effects_file(path)
+    registry = Registry(list(default_registry()))
+    registry.add(cls)
+    model = parse_model("viscous+dry", registry)
+    values = {"m_a": 2.0, "T_a": 0.05, "D0": 4.0, "f_c": -f_c, "f_st1": -f_s}
+    t = np.arange(0.0, 8.0, 0.005)
+    below = simulate(model, values, t, Thrust.step(0.5, 0.9 * (f_c + f_s)))
+    assert np.max(np.abs(below.velocity)) == 0.0
+    above = simulate(model, values, t, Thrust.step(0.5, 2.5))
+    v_end = float(above.velocity[-1])
+    # v = (u - f_c - f_s exp(-v/v_s)) / D0; at v ~ 0.5 m/s the Stribeck part is e^-10
+    assert v_end == pytest.approx((2.5 - f_c) / 4.0, rel=1e-3)
+
+
+def test_the_sparse_selection_finds_a_known_support_and_resamples_by_gram_sums():
+    """A linear problem with nuisance parameter columns and a sparse truth: the residual
+    is 3 q2 - 2 q5 plus parameter columns plus unit noise (4 trials x 500 rows). The
+    selection projects the parameters out and finds {2, 5}; a resample naming a trial
+    twice equals the rows stacked twice."""
+    rng = np.random.default_rng(5)
+    r, p, q = [], [], []
+    for _ in range(4):
+        pi = rng.normal(size=(500, 3))
+        qi = rng.normal(size=(500, 8)) + 0.3 * pi[:, :1]  # terms correlated with a parameter
+        r.append(3.0 * qi[:, 2] - 2.0 * qi[:, 5] + pi @ [1.0, -4.0, 2.0] + rng.normal(size=500))
+        p.append(pi)
+        q.append(qi)
+    lin = discovery._Linear(r, p, q)
+    assert sorted(discovery.select(lin, range(4), range(8))) == [2, 5]
+    g, n = lin.gram([0, 1, 1, 3])
+    a = np.vstack([np.hstack([p[i], q[i], r[i][:, None]]) for i in (0, 1, 1, 3)])
+    assert n == 2000
+    assert np.allclose(g, a.T @ a)

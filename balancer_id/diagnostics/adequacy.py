@@ -23,7 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import chdtrc, erfc
 
-from balancer_id.diagnostics.context import DiagnosisContext
+from balancer_id.diagnostics.context import DiagnosisContext, correlation_time
 from balancer_id.diagnostics.groups import run_estimates
 from balancer_id.diagnostics.residual_tests import autocorrelation
 from balancer_id.notes import Note
@@ -119,6 +119,7 @@ def colour_test(ctx: DiagnosisContext) -> dict[str, object]:
         "residual_acf": [round(float(a), 4) for a in acf_res],
         "rest_acf": [round(float(a), 4) for a in acf_rest],
         "n_rest": n_rest,
+        "rest_tau": correlation_time(rest, removed=2) if rest else 1.0,
         "text": (
             f"the residual's autocorrelation exceeds the resting noise's by {excess:.2f} on "
             f"average over lags 1-{COLOUR_SHORT} (up to {max_diff:.2f}; p = {p:.1e})"
@@ -272,7 +273,8 @@ NOTE_OF = {
 
 
 def colour_inflation(colour: dict[str, object]) -> float:
-    """``(1 + r1) / (1 - r1)`` of the resting noise (1 without resting samples).
+    """The resting noise's correlation time (its long-run variance factor; ``(1 + r1) /
+    (1 - r1)`` for AR(1) noise, 1 for white noise or without resting samples).
 
     Parameters
     ----------
@@ -283,6 +285,9 @@ def colour_inflation(colour: dict[str, object]) -> float:
     -------
     float
     """
+    tau = colour.get("rest_tau")
+    if tau is not None:
+        return max(float(tau), 1.0)  # type: ignore[arg-type]
     acf = colour.get("rest_acf") or []
     r1 = min(max(float(acf[0]), 0.0), 0.95) if acf else 0.0  # type: ignore[index]
     return (1.0 + r1) / (1.0 - r1)

@@ -267,7 +267,7 @@ class Diagnosis(Displayable):
                 se = f" +/- {t.stderr:.2g}" if t.stderr is not None else ""
                 lines.append(
                     f"    {t.expression}: {t.coefficient:.4g}{se} {t.term.unit},"
-                    f" chosen in {t.inclusion:.0%} of the bootstrap resamples"
+                    f" kept in {t.inclusion:.0%} of the bootstrap resamples"
                 )
             lines.append(f"    {d.command}")
         return lines
@@ -469,15 +469,18 @@ def _discover(
     failed = [t for t in checks if not t["passed"]]
     standing = _standing(explanations, bool(failed))
     best = standing[0] if standing else None
+    margin = 0.0
     if not discovery_search.should_try(best, ctx.noise_floor, bool(failed)):
-        return None
+        if not (failed and discovery_search.challenges(best, inp.match.model.registry)):
+            return None
+        margin = discovery_search.TERM_BIC  # the library's law reached the floor
     if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
         return None
     command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
     try:
         with step("discovering the missing term"):
             found = discovery_search.discover(
-                inp, ctx, rival=best, command=command, extra_terms=extra_terms
+                inp, ctx, rival=best, command=command, extra_terms=extra_terms, margin=margin
             )
     except Exception as exc:  # the search must not stop the diagnosis
         failures.append(f"discovery failed: {exc!r}")

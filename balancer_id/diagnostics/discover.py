@@ -22,7 +22,9 @@ How
 3. The sparse regression is scikit-learn's orthogonal matching pursuit path; the support
    with the lowest BIC wins, and a term stays only when removing it costs more than
    :data:`TERM_BIC` and it lowers the error on held-out trials (K-fold over trials).
-   Bootstrap resamples of the trials give each term's inclusion probability.
+   Bootstrap resamples of the trials give each kept term's inclusion probability (the
+   share in which removing it from the model linearized at the refit still costs more
+   than :data:`TERM_BIC`).
 4. The whole model is refitted (nonlinear, simulation matching) with the chosen terms free
    and the others held at 0, scored by the arena's criterion (:func:`arena.score`): the
    discovery stands only when it beats the arena's best explanation on the same BIC.
@@ -39,11 +41,12 @@ import math
 import re
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from balancer_id.constants import KARNOPP_EPS
 from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
 from balancer_id.diagnostics.context import DiagnosisContext, TrialView
@@ -76,6 +79,8 @@ LEFT_OVER = 0.5
 #: Explanations a missing force can mimic (a parameter that seems to change between runs
 #: when it depends on the speed or the thrust): the search competes with them on BIC.
 MIMICS = ("split", "drift", "pair")
+#: Samples (at most, by a regular stride) of the residual force's spectrum over position.
+PERIOD_SAMPLES = 3000
 #: The Coulomb term, and the prefix of the Stribeck terms (tried with it as a pair).
 COULOMB, STRIBECK = "f_c", "f_st"
 #: Terms tried only when the residual's spectrum over position has a period.
@@ -99,6 +104,12 @@ class Term:
         Name of the coefficient in a written effect (a Python identifier).
     shapes : tuple of (str, float)
         Shape constants the expression names (``v_s``, ``p``) and their values.
+    magnitude : str
+        For a friction term (Coulomb, Stribeck): the expression is ``sign(v) *
+        magnitude``. In a model without a friction effect such terms act through the
+        ``friction`` hook with a stick band (a load at rest stays there while the other
+        forces are below the static level, the magnitudes at ``v = 0``), as real dry
+        friction does; elsewhere they are plain force terms. Empty for other terms.
 
     Examples
     --------
@@ -111,6 +122,12 @@ class Term:
     unit: str
     name: str
     shapes: tuple[tuple[str, float], ...] = ()
+    magnitude: str = ""
+
+    @property
+    def is_friction(self) -> bool:
+        """Whether the term is a sliding law ``sign(v) * magnitude``."""
+        return bool(self.magnitude)
 
     def concrete(self) -> str:
         """The expression with its shape constants written as numbers.
@@ -163,11 +180,14 @@ def default_terms(v_top: float, period: float | None) -> list[Term]:
         Term("v", "N s/m", "c_v"),
         Term("v*abs(v)", "N s^2/m^2", "c_vv"),
         Term("v**3", "N s^3/m^3", "c_v3"),
-        Term(sign, "N", "f_c"),
+        Term(sign, "N", COULOMB, magnitude="1.0"),
     ]
     for k, share in enumerate(STRIBECK_GRID, 1):
         vs = max(share * v_top, 1e-9)
-        terms.append(Term(f"{sign}*math.exp(-abs(v)/v_s{k})", "N", f"f_st{k}", ((f"v_s{k}", vs),)))
+        stribeck = f"math.exp(-abs(v)/v_s{k})"
+        terms.append(
+            Term(f"{sign}*{stribeck}", "N", f"{STRIBECK}{k}", ((f"v_s{k}", vs),), stribeck)
+        )
     # always in the library (one compiled kernel); without a period they are not tried
     p = (("p_z", float(period) if period else 1.0),)
     terms.append(Term("math.sin(2*math.pi*z/p_z)", "N", "a_sin", p))
@@ -187,7 +207,44 @@ def _py(x: float) -> str:
     return repr(float(x))
 
 
-def library_source(terms: Sequence[Term]) -> str:
+def friction_hook(coefficients: Sequence[str], magnitudes: Sequence[str], args: str) -> str:
+    """Source of a ``friction`` hook: sliding law ``sign(v) * sum c_j * magnitude_j``
+    with a stick band, as Karnopp's (paper eqs. 3-5) with the static level at ``v = 0``.
+
+    Parameters
+    ----------
+    coefficients : sequence of str
+        The coefficients' names (negative values oppose the motion).
+    magnitudes : sequence of str
+        The terms' magnitudes in ``v``.
+    args : str
+        The hook's parameter list after ``v, F``.
+
+    Returns
+    -------
+    str
+        Indented source of the static method (two lines of decorator and signature
+        included).
+    """
+    slide = " + ".join(
+        c if m == "1.0" else f"{c} * {m}" for c, m in zip(coefficients, magnitudes, strict=True)
+    )
+    return (
+        "    @staticmethod\n"
+        f"    def friction(v, F, {args}):\n"
+        "        # the sliding force while moving forward; at rest, the static level\n"
+        f"        slide = {slide}\n"
+        f"        if abs(v) <= {KARNOPP_EPS!r}:\n"
+        "            if abs(F) <= -slide:\n"
+        "                return -F  # stuck: friction holds the other forces\n"
+        "            if F == 0.0:\n"
+        "                return 0.0  # nothing pushes: nothing to break away from\n"
+        "            return slide if F > 0.0 else -slide  # break-away\n"
+        "        return slide if v > 0.0 else -slide\n"
+    )
+
+
+def library_source(terms: Sequence[Term], stick: bool = False) -> str:
     """Source of the library effect: ``sum q_j * term_j`` with the shapes as parameters.
 
     The source depends on the expressions only (not on the shape values, which are held
@@ -196,6 +253,10 @@ def library_source(terms: Sequence[Term]) -> str:
     Parameters
     ----------
     terms : sequence of Term
+    stick : bool
+        Put the friction terms (:attr:`Term.is_friction`) in a ``friction`` hook with a
+        stick band (for a model without a friction effect of its own); False keeps every
+        term a plain force.
 
     Returns
     -------
@@ -212,7 +273,15 @@ def library_source(terms: Sequence[Term]) -> str:
     ]
     params += [f'        Param("{s}", 1.0, 1e-12, 1e12, "", "shape constant"),' for s in shapes]
     args = ", ".join([*(f"q{j}" for j in range(len(terms))), *shapes])
-    body = " + ".join(f"q{j} * ({t.expression})" for j, t in enumerate(terms)) or "0.0"
+    dry = [j for j, t in enumerate(terms) if stick and t.is_friction]
+    body = (
+        " + ".join(f"q{j} * ({t.expression})" for j, t in enumerate(terms) if j not in dry) or "0.0"
+    )
+    friction = (
+        "\n" + friction_hook([f"q{j}" for j in dry], [terms[j].magnitude for j in dry], args)
+        if dry
+        else ""
+    )
     return (
         '"""Candidate terms of the discovery (generated by balancer_id.diagnostics.discover)."""\n'
         "import math\n\n"
@@ -224,23 +293,25 @@ def library_source(terms: Sequence[Term]) -> str:
         "    parameters = (\n" + "\n".join(params) + "\n    )\n\n"
         "    @staticmethod\n"
         f"    def force(f, v, z, h, {args}):\n"
-        f"        return {body}\n"
+        f"        return {body}\n" + friction
     )
 
 
-def library_effect(terms: Sequence[Term]) -> type[Effect]:
+def library_effect(terms: Sequence[Term], stick: bool = False) -> type[Effect]:
     """The library effect of ``terms``, written to the cache folder and loaded from there.
 
     Parameters
     ----------
     terms : sequence of Term
+    stick : bool
+        Friction terms with a stick band (:func:`library_source`).
 
     Returns
     -------
     type
         The :class:`~balancer_id.model.effect.Effect` subclass.
     """
-    text = library_source(terms)
+    text = library_source(terms, stick)
     digest = hashlib.sha1(text.encode()).hexdigest()[:12]
     folder = cache_root() / "discovery"
     folder.mkdir(parents=True, exist_ok=True)
@@ -336,6 +407,8 @@ class Discovery:
     #: ``{instead_of, expression, coefficient, bic_drop}``; the data cannot tell them apart.
     alternatives: list[dict[str, object]] = field(default_factory=list)
     states: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    #: Whether the friction terms act with a stick band (the model has no friction effect).
+    stick: bool = False
 
     @property
     def formula(self) -> str:
@@ -434,12 +507,35 @@ class Discovery:
                 + "        ),"
             )
             args.append(t.term.name)
-            body.append(_product(t.term.name, e))
+            if not (self.stick and t.term.is_friction):
+                body.append(_product(t.term.name, e))
             doc.append(
                 f"    {t.term.name} = {c:.4g}{se} {t.term.unit} (term {e}),\n"
-                f"    chosen in {t.inclusion:.0%} of the bootstrap resamples of the trials."
+                f"    kept in {t.inclusion:.0%} of the bootstrap resamples of the trials."
             )
-        formula = " + ".join(body)
+        dry = [t for t in self.terms if self.stick and t.term.is_friction]
+        sliding = " + ".join(_product(t.term.name, t.expression) for t in dry)
+        formula = " + ".join(body) or "0.0"
+        whole = " + ".join(x for x in (" + ".join(body), sliding) if x)
+        hooks = (
+            [
+                "    @staticmethod",
+                f"    def force(f, v, z, h, {', '.join(args)}):",
+                f"        return {formula}",
+            ]
+            if body
+            else []
+        )
+        if dry:
+            magnitudes = [t.term.magnitude for t in dry]
+            for key, value in (kv for t in dry for kv in t.term.shapes):
+                magnitudes = [re.sub(rf"\b{key}\b", f"{value:.4g}", m) for m in magnitudes]
+            hook = friction_hook([t.term.name for t in dry], magnitudes, ", ".join(args))
+            hooks += [*([""] if hooks else []), *hook.rstrip("\n").split("\n")]
+            doc.append(
+                "    The sign(v) terms are dry friction: a load at rest sticks while the other\n"
+                "    forces stay below their level at v = 0 (the friction hook)."
+            )
         rival = (
             f" (the best library explanation, {self.rival['label']}, by "
             f"{float(self.rival['delta_bic']):.0f})"  # type: ignore[arg-type]
@@ -448,7 +544,7 @@ class Discovery:
         )
         lines = [
             MARKER,
-            f'"""A force found by balancer-id (improve --discover): F = {formula} (N)."""',
+            f'"""A force found by balancer-id (improve --discover): F = {whole} (N)."""',
             "",
             "import math  # noqa: F401  (the terms may use it)",
             "",
@@ -456,7 +552,7 @@ class Discovery:
             "",
             "",
             f"class {_class_name(name)}(Effect):",
-            f'    """Discovered force ``F = {formula}`` (N).',
+            f'    """Discovered force ``F = {whole}`` (N).',
             "",
             f"    Fitted: {self.formula} (N).",
             *doc,
@@ -473,9 +569,7 @@ class Discovery:
             *params,
             "    )",
             "",
-            "    @staticmethod",
-            f"    def force(f, v, z, h, {', '.join(args)}):",
-            f"        return {formula}",
+            *hooks,
             "",
         ]
         return "\n".join(lines)
@@ -497,14 +591,6 @@ def _whiten(x: np.ndarray, ar: tuple[float, float]) -> np.ndarray:
     return x[2:] - p1 * x[1:-1] - p2 * x[:-2]
 
 
-def _ols_rss(x: np.ndarray, y: np.ndarray) -> float:
-    if x.shape[1] == 0:
-        return float(y @ y)
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    r = y - x @ coef
-    return float(r @ r)
-
-
 def _project(base: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``x`` with its part along the columns of ``base`` removed."""
     if base.shape[1] == 0:
@@ -520,6 +606,21 @@ class _Linear:
     r: list[np.ndarray]
     p: list[np.ndarray]
     q: list[np.ndarray]
+    #: Per trial, the Gram matrix of ``[p, q, r]`` (filled on first use).
+    grams: list[np.ndarray] = field(default_factory=list, repr=False)
+
+    def gram(self, trials: Sequence[int]) -> tuple[np.ndarray, int]:
+        """The Gram matrix of ``[p, q, r]`` over ``trials`` (repeats allowed) and its rows.
+
+        A bootstrap resample of the trials is a sum of the trials' own Gram matrices, so
+        the sparse regression never touches the rows again.
+        """
+        if not self.grams:
+            for r, p, q in zip(self.r, self.p, self.q, strict=True):
+                a = np.hstack([p, q, r[:, None]])
+                self.grams.append(a.T @ a)
+        g = np.sum([self.grams[i] for i in trials], axis=0)
+        return g, int(sum(self.r[i].size for i in trials))
 
     def rows(self, trials: Sequence[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return (
@@ -531,6 +632,10 @@ class _Linear:
 
 def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[int]:
     """The sparse support: the pursuit path's lowest BIC, then each term must pay.
+
+    The model's parameter columns are projected out (the Schur complement of their block
+    of the Gram matrix), the term columns normalized, and scikit-learn's orthogonal
+    matching pursuit runs on the Gram matrix.
 
     Parameters
     ----------
@@ -546,41 +651,52 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
     list of int
         The chosen term columns, in the order the path took them.
     """
-    from sklearn.linear_model import orthogonal_mp  # type: ignore[import-untyped]
+    from sklearn.linear_model import orthogonal_mp_gram  # type: ignore[import-untyped]
 
-    r, p, q = lin.rows(trials)
-    n = r.size
+    g, n = lin.gram(trials)
     if n < 20 or not usable:
         return []
-    qp = _project(p, q[:, list(usable)])
-    rp = _project(p, r[:, None])[:, 0]
-    norms = np.linalg.norm(qp, axis=0)
+    npar = lin.p[0].shape[1]
+    idx = [npar + c for c in usable] + [g.shape[0] - 1]
+    s = g[np.ix_(idx, idx)]
+    if npar:
+        gpx = g[:npar, idx]
+        s = s - gpx.T @ np.linalg.lstsq(g[:npar, :npar], gpx, rcond=1e-12)[0]
+    k = len(usable)
+    norms = np.sqrt(np.maximum(np.diag(s)[:k], 0.0))
     ok = norms > 1e-9 * max(float(norms.max()), 1e-300)
     cols = [c for c, good in zip(usable, ok, strict=True) if good]
-    x = qp[:, ok] / norms[ok]
-    if x.shape[1] == 0:
+    if not cols:
         return []
-    kmax = min(MAX_TERMS, x.shape[1])
+    scale = norms[ok]
+    xx = s[:k, :k][np.ix_(ok, ok)] / np.outer(scale, scale)
+    xy = s[:k, k][ok] / scale
+    yy = float(s[k, k])
+
+    def rss(support: list[int]) -> float:
+        if not support:
+            return max(yy, 1e-300)
+        b = np.linalg.lstsq(xx[np.ix_(support, support)], xy[support], rcond=1e-12)[0]
+        return max(yy - float(xy[support] @ b), 1e-300)
+
+    kmax = min(MAX_TERMS, len(cols))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        path = orthogonal_mp(x, rp, n_nonzero_coefs=kmax, return_path=True)
+        path = orthogonal_mp_gram(xx, xy, n_nonzero_coefs=kmax, return_path=True)
     path = np.atleast_2d(path.T) if path.ndim == 2 else path[:, None].T
-    best, best_bic = [], n * np.log(max(float(rp @ rp), 1e-300) / n)
+    best: list[int] = []
+    best_bic = n * np.log(max(yy, 1e-300) / n)
     for coefs in path:
-        support = [j for j in np.flatnonzero(np.abs(coefs) > 0)]
-        rss = _ols_rss(x[:, support], rp)
-        b = n * np.log(max(rss, 1e-300) / n) + len(support) * np.log(n)
+        support = [int(j) for j in np.flatnonzero(np.abs(coefs) > 0)]
+        b = n * np.log(rss(support) / n) + len(support) * np.log(n)
         if b < best_bic - 1e-9:
             best, best_bic = support, b
     # each term must pay: removing it costs more than TERM_BIC
     changed = True
     while changed and best:
         changed = False
-        full = _ols_rss(x[:, best], rp)
-        costs = []
-        for j in best:
-            rest = [k for k in best if k != j]
-            costs.append(n * np.log(_ols_rss(x[:, rest], rp) / full) - np.log(n))
+        full = rss(best)
+        costs = [n * np.log(rss([k for k in best if k != j]) / full) - np.log(n) for j in best]
         worst = int(np.argmin(costs))
         if costs[worst] < TERM_BIC:
             best = [k for k in best if k != best[worst]]
@@ -685,6 +801,9 @@ def position_period(ctx_trials: Sequence[TrialView], m_a: float) -> float | None
     if span <= 0 or z.size < 50:
         return None
     periods = np.geomspace(span / 20.0, span / 1.5, 200)
+    # the shortest period searched spans hundreds of samples: every few is enough
+    stride = max(1, z.size // PERIOD_SAMPLES)
+    z, r = z[::stride], r[::stride]
     power = lombscargle(z, r - r.mean(), 2 * np.pi / periods)
     k = int(np.argmax(power))
     if not power[k] > 8.0 * float(np.median(power)):
@@ -726,6 +845,31 @@ def should_try(best: Explanation | None, noise_floor: float, tests_failed: bool)
     return noise_floor <= 0 or left > LEFT_OVER * noise_floor
 
 
+def challenges(best: Explanation | None, registry: Registry) -> bool:
+    """Whether the arena's best is a library dry-friction law that the discovery's
+    friction terms generalize, so that the search challenges it even at the noise floor.
+
+    A constant friction level (Karnopp's) is the special case of Coulomb with Stribeck at
+    ``F_s = 0``; where the friction falls with the speed, it reaches the noise floor with
+    the viscosity bent to absorb the rest. The discovery must then beat it by
+    :data:`TERM_BIC` (the ``margin`` of :func:`discover`).
+
+    Parameters
+    ----------
+    best : Explanation or None
+        The arena's best standing explanation.
+    registry : Registry
+        Where its effects are found.
+
+    Returns
+    -------
+    bool
+    """
+    if best is None or best.kind != "effect":
+        return False
+    return any(name in registry and "friction" in registry[name].hooks() for name in best.effects)
+
+
 def discover(
     inp: ArenaInput,
     ctx: DiagnosisContext,
@@ -735,6 +879,7 @@ def discover(
     terms: Sequence[Term] | None = None,
     extra_terms: Sequence[Term] = (),
     seed: int = 0,
+    margin: float = 0.0,
 ) -> Discovery | None:
     """Search the missing force, refit the whole model with it, and score it.
 
@@ -754,18 +899,20 @@ def discover(
         The user's own terms, added to the library.
     seed : int
         Seed of the bootstrap.
+    margin : float
+        BIC by which the discovery must beat ``rival`` (0: any fall beyond it).
 
     Returns
     -------
     Discovery or None
         None when no term pays in BIC and on held-out trials, or when the refit does not
-        beat ``rival``.
+        beat ``rival`` by ``margin``.
     """
     # the refits wander through bad regions (overflow, 0/0) before they settle: the
     # optimizer handles those steps, so their floating-point warnings are not news
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
-        return _search(inp, ctx, rival, command, terms, extra_terms, seed)
+        return _search(inp, ctx, rival, command, terms, extra_terms, seed, margin)
 
 
 def _search(
@@ -776,6 +923,7 @@ def _search(
     terms: Sequence[Term] | None,
     extra_terms: Sequence[Term],
     seed: int,
+    margin: float,
 ) -> Discovery | None:
     """:func:`discover` without the floating-point warnings."""
     match = inp.match
@@ -792,7 +940,9 @@ def _search(
     else:
         skip = set()
     terms = [*terms, *extra_terms]
-    lib = library_effect(terms)
+    # dry friction with a stick band, unless the model has a friction effect already
+    stick = not any("friction" in e.hooks() for e in match.model.effects)
+    lib = library_effect(terms, stick)
     registry = Registry(list(match.model.registry))
     if lib.name not in registry:
         registry.add(lib, origin="discovery")
@@ -905,14 +1055,21 @@ def _search(
         support = [k for k in support if k != j]
         refit, d_best = fitted, d
         current = {**current, **fitted.values()}
+    hold = {**fixed, **{q_names[k]: 0.0 for k in range(len(terms)) if k not in support}}
+    refit, hold, freed, support = _settle_friction(inp, model, refit, hold, terms, support)
     parts = [refit.residual[sl] for sl in refit.data.slices()]
-    d_bic, rmse = arena.score(inp, parts, len(support))
-    if d_bic <= TERM_BIC or (rival is not None and d_bic <= rival.delta_bic):
+    d_bic, rmse = arena.score(inp, parts, len(support) + len(freed))
+    if d_bic <= TERM_BIC or (rival is not None and d_bic <= rival.delta_bic + margin):
         return None
+    final = _final_inclusion(model, inp, refit, hold, freed, terms, support, seed)
+    inclusion = final if final is not None else inclusion
     found = []
     for j in support:
         est = refit.parameters[q_names[j]]
-        found.append(DiscoveredTerm(terms[j], float(est.value), est.stderr, float(inclusion[j])))
+        term = terms[j]
+        if term.shapes and all(key in freed for key, _ in term.shapes):
+            term = replace(term, shapes=tuple((key, freed[key]) for key, _ in term.shapes))
+        found.append(DiscoveredTerm(term, float(est.value), est.stderr, float(inclusion[j])))
     return Discovery(
         terms=found,
         delta_bic=d_bic,
@@ -920,10 +1077,74 @@ def _search(
         command=command,
         refit=refit,
         rival={"label": rival.label, "delta_bic": rival.delta_bic} if rival is not None else None,
-        fixed={**fixed, **{q_names[k]: 0.0 for k in range(len(terms)) if k not in support}},
+        fixed=hold,
+        stick=stick and any(t.term.is_friction for t in found),
         alternatives=[a for a in alternatives if a["instead_of"] in {t.expression for t in found}],
         states=_states(refit, found),
     )
+
+
+def _settle_friction(
+    inp: ArenaInput,
+    model: Model,
+    refit: MatchResult,
+    hold: dict[str, float],
+    terms: Sequence[Term],
+    support: Sequence[int],
+) -> tuple[MatchResult, dict[str, float], dict[str, float], list[int]]:
+    """The chosen dry-friction terms settled: their Stribeck velocity fitted, the Coulomb
+    level beside a Stribeck term.
+
+    The grid of Stribeck velocities only starts the search: each chosen one is freed in a
+    whole refit, and a Stribeck term chosen alone is tried with its Coulomb level too
+    (Coulomb with Stribeck is the physical law). Each freed constant and the added level
+    is one more parameter, kept when the refit's BIC falls by more than :data:`TERM_BIC`
+    for each.
+
+    Returns
+    -------
+    refit : MatchResult
+    hold : dict
+        What the refit held (the freed constants and the added level left out).
+    freed : dict
+        The fitted shape constants.
+    support : list of int
+        The terms kept (the Coulomb level added or not).
+    """
+    chosen = [terms[j] for j in support]
+    keys = [key for t in chosen if t.is_friction for key, _ in t.shapes]
+    if not keys:
+        return refit, hold, {}, list(support)
+    coulomb = next((j for j, t in enumerate(terms) if t.name == COULOMB), None)
+    options: list[list[int]] = [list(support)]
+    if coulomb is not None and coulomb not in support:
+        options.append([*support, coulomb])
+    best = (
+        arena.score(inp, [refit.residual[sl] for sl in refit.data.slices()], len(support))[0],
+        refit,
+        hold,
+        {},
+        list(support),
+    )
+    base = best[0]
+    for option in options:
+        loose = {k: v for k, v in hold.items() if k not in keys and k != f"q{coulomb}"}
+        if coulomb not in option:
+            loose[f"q{coulomb}"] = 0.0
+        extra = len(keys) + len(option) - len(support)
+        try:
+            fitted = match_trials(
+                model, list(inp.trials), start=refit.values(), fixed=loose, max_nfev=200
+            )
+        except BalancerIdError:
+            continue
+        parts = [fitted.residual[sl] for sl in fitted.data.slices()]
+        d, _ = arena.score(inp, parts, len(option) + len(keys))
+        if d - base > TERM_BIC * extra and d > best[0]:
+            values = fitted.values()
+            best = (d, fitted, loose, {k: float(values[k]) for k in keys}, option)
+    _, refit, hold, freed, kept = best
+    return refit, hold, freed, kept
 
 
 def _linearize(
@@ -954,6 +1175,54 @@ def _linearize(
         lin.p.append(_whiten(sens[sl, :k], ar))
         lin.q.append(_whiten(sens[sl, k:], ar))
     return lin
+
+
+def _final_inclusion(
+    model: Model,
+    inp: ArenaInput,
+    refit: MatchResult,
+    hold: dict[str, float],
+    freed: dict[str, float],
+    terms: Sequence[Term],
+    support: Sequence[int],
+    seed: int,
+) -> np.ndarray | None:
+    """Inclusion probabilities of the final terms: over bootstrap resamples of the trials,
+    how often each still pays (removing it from the model linearized at the refit raises
+    BIC by more than :data:`TERM_BIC`). The first round's selection speaks only of a term
+    chosen then; a term chosen later, or one acting through the stick band of dry
+    friction (which the linear step at zero cannot see), is judged where it was fitted."""
+    q_names = [f"q{j}" for j in range(len(terms))]
+    held = {**hold, **freed}
+    lin = _linearize(model, inp.match.data, refit.values(), held, q_names, support, [], inp.ar)
+    if lin is None or not lin.r:
+        return None
+    chosen = {q_names[j] for j in support}
+    free = [n for n in model.param_names if n not in held and (n not in q_names or n in chosen)]
+    cols = {j: free.index(q_names[j]) for j in support}  # the columns _linearize made
+    values = refit.values()
+    rng = np.random.default_rng(seed)
+    counts = np.zeros(len(terms))
+    n_trials = len(lin.r)
+    for _ in range(BOOTSTRAP):
+        g, n = lin.gram(list(rng.integers(0, n_trials, n_trials)))
+        k = g.shape[0] - 1
+        every = list(range(k))
+
+        def rss(keep: list[int], gy: np.ndarray, yy: float, g: np.ndarray = g) -> float:
+            b = np.linalg.lstsq(g[np.ix_(keep, keep)], gy[keep], rcond=1e-12)[0]
+            return max(yy - float(gy[keep] @ b), 1e-300)
+
+        full = rss(every, g[:k, k], float(g[k, k]))
+        for j, c in cols.items():
+            # the residual with term j taken out of the model (its linear contribution
+            # added back), refitted by every other column
+            q = float(values[q_names[j]])
+            gy = g[:k, k] + q * g[:k, c]
+            yy = float(g[k, k] + 2.0 * q * g[c, k] + q * q * g[c, c])
+            cost = n * np.log(rss([i for i in every if i != c], gy, yy) / full) - np.log(n)
+            counts[j] += cost > TERM_BIC
+    return counts / BOOTSTRAP
 
 
 def _bootstrap(lin: _Linear, usable: Sequence[int], n_terms: int, seed: int) -> np.ndarray:
@@ -1089,6 +1358,7 @@ __all__ = [
     "DiscoveredTerm",
     "Discovery",
     "Term",
+    "challenges",
     "check_effects_out",
     "default_terms",
     "discover",

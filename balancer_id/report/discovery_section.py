@@ -123,7 +123,7 @@ def discovery_section(found: Discovery | None, written: str | None = None) -> Se
             plot_discovery(found),
             caption="The residual force (the refit's discrepancy plus the discovered force) "
             "against the state the term depends on, with the discovered force drawn over it. "
-            "Inclusion: share of bootstrap resamples of the trials that chose the term.",
+            "Inclusion: share of bootstrap resamples of the trials in which the term is kept.",
         ),
     ]
     if written:
