@@ -41,6 +41,7 @@ CODES: dict[str, str] = {
     # fitting
     "fit.at_bound": "a parameter ended at a bound the user did not set",
     "fit.not_identifiable": "a parameter is not determined by the data",
+    "fit.symptom": "a parameter the data cannot determine, read as a symptom of the missing effect",
     "fit.starts_disagree": "starts of a multi-start fit ended at different optima",
     "fit.start_contradicted": "the data contradict the start (negative m_a by the paper's method)",
     "fit.below_resolution": "a time constant below what the sample rate resolves",

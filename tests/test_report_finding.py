@@ -60,15 +60,32 @@ def test_a_ladder_that_adds_nothing_says_so_instead_of_drawing_one_bar(diagnosed
 
 
 def test_poorly_determined_parameters_are_a_symptom_not_a_reason_to_fix(diagnosed):
+    """A ``fit.not_identifiable`` note (a typed note, as the fit writes it: the report once
+    crashed splitting it as a string) becomes ``fit.symptom`` and leads the Finding."""
+    from balancer_id.notes import Note
+    from balancer_id.report.blocks import Paragraph
+    from balancer_id.report.sections import finding_section
+
     _, diagnosis, _ = diagnosed
-    warning = "the data cannot determine m_a (standard error ...); fix them with --fix NAME=VALUE"
-    diagnosis.fit.warnings.append(warning)
+    note = Note(
+        "fit.not_identifiable",
+        "the data cannot determine m_a (standard error ...); fix them with --fix NAME=VALUE",
+        "m_a",
+    )
+    diagnosis.fit.warnings.append(note)
     try:
-        (reworded,) = [w for w in diagnosis.fit_warnings() if "cannot determine m_a" in w]
+        (reworded,) = [
+            w
+            for w in diagnosis.fit_warnings()
+            if w.code == "fit.symptom" and "m_a (standard error ...)" in w.text
+        ]
+        said = [b.text for b in finding_section(diagnosis).blocks if isinstance(b, Paragraph)]
     finally:
-        diagnosis.fit.warnings.remove(warning)
-    assert "symptom of the missing effect" in reworded
-    assert "not a reason to hold it with --fix" in reworded
+        diagnosis.fit.warnings.remove(note)
+    assert reworded.subject == "m_a"
+    assert "symptom of the missing effect" in reworded.text
+    assert "not a reason to hold it with --fix" in reworded.text
+    assert "⚠ the data cannot determine m_a (standard error ...): a symptom" in " ".join(said)
 
 
 def test_residual_analysis_draws_the_bands_and_the_states(diagnosed):

@@ -29,7 +29,7 @@ from balancer_id.identify.data import TrialData
 from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
-from balancer_id.notes import Note
+from balancer_id.notes import Note, as_note, texts
 from balancer_id.simulation.kernel import compile_models, get_kernel
 from balancer_id.status import step, tell
 
@@ -201,18 +201,19 @@ class Diagnosis(Displayable):
         """The simulation-matching fit diagnosed."""
         return self.fit.match
 
-    def fit_warnings(self) -> list[str]:
+    def fit_warnings(self) -> list[Note]:
         """The fit's warnings, read in the light of the verdict.
 
-        When an effect is missing, a parameter the data "cannot determine" is a symptom
-        of the missing effect (the model bends its parameters to follow what it lacks):
-        the advice to hold it with ``--fix`` is replaced by the top suggestion.
+        When an effect is missing, a parameter the data cannot determine (note
+        ``fit.not_identifiable``) is a symptom of the missing effect (the model bends its
+        parameters to follow what it lacks): the note becomes ``fit.symptom``, its advice
+        to hold the parameter with ``--fix`` replaced by the top suggestion.
 
         Returns
         -------
-        list of str
+        list of Note
         """
-        warnings = [*self.fit.warnings, *self.fit.match.warnings]
+        warnings = [as_note(w) for w in (*self.fit.warnings, *self.fit.match.warnings)]
         if self.verdict == "adequate":
             return warnings
         missing = [s for s in self.suggestions if is_missing(s)]
@@ -223,11 +224,14 @@ class Diagnosis(Displayable):
         )
         out = []
         for w in warnings:
-            if "cannot determine" in w and "--fix" in w:
-                head = w.split(";")[0]
-                w = (
+            if w.code == "fit.not_identifiable":
+                head = w.text.split(";")[0]
+                w = Note(
+                    "fit.symptom",
                     f"{head}: a symptom of the missing effect, not a reason to hold it with "
-                    f"--fix; {first}"
+                    f"--fix; {first}",
+                    w.subject,
+                    w.severity,
                 )
             out.append(w)
         return out
@@ -240,7 +244,7 @@ class Diagnosis(Displayable):
         return f"{self.fit.model}: {self.verdict}{top}"
 
     def _summary_warnings(self) -> list[str]:
-        return self.fit_warnings()
+        return texts(self.fit_warnings())
 
     def _summary_extra(self) -> list[str]:
         lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]

@@ -21,7 +21,7 @@ from balancer_id.identify.display import Displayable
 from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
-from balancer_id.notes import Note
+from balancer_id.notes import Note, texts
 from balancer_id.status import step
 
 #: Folds of the cross-validation across trials.
@@ -99,7 +99,7 @@ class ImproveResult(Displayable):
         return f"{ladder}: final {self.final_model} ({self.final.verdict})"
 
     def _summary_warnings(self) -> list[str]:
-        return self.final.fit_warnings()
+        return texts(self.final.fit_warnings())
 
     def _summary_extra(self) -> list[str]:
         lines = ["[[Ladder]] (error and BIC as effects are added)"]

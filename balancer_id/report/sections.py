@@ -200,8 +200,8 @@ def finding_section(diagnosis: Diagnosis) -> Section:
             )
         )
     if diagnosis.verdict != "adequate":
-        symptoms = [w for w in diagnosis.fit_warnings() if "a symptom of the missing" in w]
-        blocks += [Paragraph(f"⚠ {w.split(';')[0]}.") for w in symptoms]
+        symptoms = [w for w in diagnosis.fit_warnings() if w.code == "fit.symptom"]
+        blocks += [Paragraph(f"⚠ {w.text.split(';')[0]}.") for w in symptoms]
     return Section("Finding", blocks=blocks)
 
 
