@@ -273,8 +273,9 @@ NOTE_OF = {
 
 
 def colour_inflation(colour: dict[str, object]) -> float:
-    """The resting noise's correlation time (its long-run variance factor; ``(1 + r1) /
-    (1 - r1)`` for AR(1) noise, 1 for white noise or without resting samples).
+    """The resting noise's correlation time (:func:`colour_test`'s ``rest_tau``: its
+    long-run variance factor; ``(1 + r1) / (1 - r1)`` for AR(1) noise, 1 for white noise
+    or without resting samples).
 
     Parameters
     ----------
@@ -285,12 +286,7 @@ def colour_inflation(colour: dict[str, object]) -> float:
     -------
     float
     """
-    tau = colour.get("rest_tau")
-    if tau is not None:
-        return max(float(tau), 1.0)  # type: ignore[arg-type]
-    acf = colour.get("rest_acf") or []
-    r1 = min(max(float(acf[0]), 0.0), 0.95) if acf else 0.0  # type: ignore[index]
-    return (1.0 + r1) / (1.0 - r1)
+    return max(float(colour.get("rest_tau", 1.0)), 1.0)  # type: ignore[arg-type]
 
 
 def failed_notes(tests: Sequence[dict[str, object]]) -> list[Note]:

@@ -591,6 +591,16 @@ def _whiten(x: np.ndarray, ar: tuple[float, float]) -> np.ndarray:
     return x[2:] - p1 * x[1:-1] - p2 * x[:-2]
 
 
+def _gram_rss(xx: np.ndarray, xy: np.ndarray, yy: float, keep: Sequence[int]) -> float:
+    """Residual sum of squares of ``y`` on the columns ``keep``, from the Gram matrix
+    ``xx`` of the columns, their products ``xy`` with ``y`` and ``yy = y.y``."""
+    keep = list(keep)
+    if not keep:
+        return max(yy, 1e-300)
+    b = np.linalg.lstsq(xx[np.ix_(keep, keep)], xy[keep], rcond=1e-12)[0]
+    return max(yy - float(xy[keep] @ b), 1e-300)
+
+
 def _project(base: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``x`` with its part along the columns of ``base`` removed."""
     if base.shape[1] == 0:
@@ -606,6 +616,8 @@ class _Linear:
     r: list[np.ndarray]
     p: list[np.ndarray]
     q: list[np.ndarray]
+    #: The model's parameters behind the columns of ``p``, in order.
+    free: list[str] = field(default_factory=list)
     #: Per trial, the Gram matrix of ``[p, q, r]`` (filled on first use).
     grams: list[np.ndarray] = field(default_factory=list, repr=False)
 
@@ -674,10 +686,7 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
     yy = float(s[k, k])
 
     def rss(support: list[int]) -> float:
-        if not support:
-            return max(yy, 1e-300)
-        b = np.linalg.lstsq(xx[np.ix_(support, support)], xy[support], rcond=1e-12)[0]
-        return max(yy - float(xy[support] @ b), 1e-300)
+        return _gram_rss(xx, xy, yy, support)
 
     kmax = min(MAX_TERMS, len(cols))
     with warnings.catch_warnings():
@@ -1128,9 +1137,11 @@ def _settle_friction(
     )
     base = best[0]
     for option in options:
-        loose = {k: v for k, v in hold.items() if k not in keys and k != f"q{coulomb}"}
-        if coulomb not in option:
-            loose[f"q{coulomb}"] = 0.0
+        loose = {k: v for k, v in hold.items() if k not in keys}
+        if coulomb is not None:
+            loose.pop(f"q{coulomb}", None)
+            if coulomb not in option:
+                loose[f"q{coulomb}"] = 0.0
         extra = len(keys) + len(option) - len(support)
         try:
             fitted = match_trials(
@@ -1169,7 +1180,7 @@ def _linearize(
         return None
     resid = data.y - out[:, 0]
     k = len(free)
-    lin = _Linear([], [], [])
+    lin = _Linear([], [], [], [names[i] for i in free])
     for sl in data.slices():
         lin.r.append(_whiten(resid[sl], ar))
         lin.p.append(_whiten(sens[sl, :k], ar))
@@ -1197,9 +1208,7 @@ def _final_inclusion(
     lin = _linearize(model, inp.match.data, refit.values(), held, q_names, support, [], inp.ar)
     if lin is None or not lin.r:
         return None
-    chosen = {q_names[j] for j in support}
-    free = [n for n in model.param_names if n not in held and (n not in q_names or n in chosen)]
-    cols = {j: free.index(q_names[j]) for j in support}  # the columns _linearize made
+    cols = {j: lin.free.index(q_names[j]) for j in support}
     values = refit.values()
     rng = np.random.default_rng(seed)
     counts = np.zeros(len(terms))
@@ -1207,20 +1216,17 @@ def _final_inclusion(
     for _ in range(BOOTSTRAP):
         g, n = lin.gram(list(rng.integers(0, n_trials, n_trials)))
         k = g.shape[0] - 1
+        xx = g[:k, :k]
         every = list(range(k))
-
-        def rss(keep: list[int], gy: np.ndarray, yy: float, g: np.ndarray = g) -> float:
-            b = np.linalg.lstsq(g[np.ix_(keep, keep)], gy[keep], rcond=1e-12)[0]
-            return max(yy - float(gy[keep] @ b), 1e-300)
-
-        full = rss(every, g[:k, k], float(g[k, k]))
+        full = _gram_rss(xx, g[:k, k], float(g[k, k]), every)
         for j, c in cols.items():
             # the residual with term j taken out of the model (its linear contribution
             # added back), refitted by every other column
             q = float(values[q_names[j]])
             gy = g[:k, k] + q * g[:k, c]
             yy = float(g[k, k] + 2.0 * q * g[c, k] + q * q * g[c, c])
-            cost = n * np.log(rss([i for i in every if i != c], gy, yy) / full) - np.log(n)
+            rest = [i for i in every if i != c]
+            cost = n * np.log(_gram_rss(xx, gy, yy, rest) / full) - np.log(n)
             counts[j] += cost > TERM_BIC
     return counts / BOOTSTRAP
 
