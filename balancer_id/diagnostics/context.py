@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from balancer_id.diagnostics.spectra import prominent_peaks, welch_psd
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
 
@@ -86,6 +87,94 @@ class DiagnosisContext:
         """
         rmse = self.match.metrics["rmse"] if rmse is None else rmse
         return float(np.sqrt(max(rmse**2 - self.noise_floor**2, 0.0)))
+
+    def input_correlation(self, max_lag_s: float = 1.5) -> dict[str, object]:
+        """Cross-correlation of the residual with the thrust step, as a function of lag.
+
+        For a step input this is the residual averaged over trials (sign-corrected by the
+        thrust) against the time since the onset: its peak says when after the step the
+        model is wrong, and a peak within the first lag with the model leading points to
+        dead time.
+
+        Parameters
+        ----------
+        max_lag_s : float
+            Latest time after the onset to look at (s); the lags start 0.3 s before the
+            onset.
+
+        Returns
+        -------
+        dict
+            ``lag_s`` and ``mean_residual`` (m/s^2) per lag, the Bonferroni-corrected 95 %
+            ``band``, ``peak_lag_s``, ``peak_value`` and whether the peak is
+            ``significant``.
+        """
+        dt = self.dt
+        n_lag = round(max_lag_s / dt)
+        lags = np.arange(-round(0.3 / dt), n_lag + 1)
+        acc = np.zeros(lags.size)
+        cnt = np.zeros(lags.size)
+        scale = []
+        for tv in self.trials:
+            k0 = int(np.searchsorted(tv.t, 0.0))
+            s = np.sign(tv.data.thrust_N) or 1.0
+            idx = k0 + lags
+            ok = (idx >= 0) & (idx < tv.residual.size)
+            acc[ok] += s * tv.residual[idx[ok]]
+            cnt[ok] += 1
+            scale.append(np.std(tv.residual))
+        mean = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 0)
+        from scipy.special import ndtri
+
+        sigma = float(np.mean(scale)) if scale else 1.0
+        # 95 % band for the largest of all lags (Bonferroni over the lags)
+        band = float(-ndtri(0.025 / lags.size)) * sigma / np.sqrt(max(len(self.trials), 1))
+        peak = int(np.argmax(np.abs(mean)))
+        return {
+            "lag_s": [round(float(x), 4) for x in lags * dt],
+            "mean_residual": [round(float(x), 5) for x in mean],
+            "band": float(band),
+            "peak_lag_s": float(lags[peak] * dt),
+            "peak_value": float(mean[peak]),
+            "significant": bool(abs(mean[peak]) > band),
+        }
+
+    def spectrum_peaks(self, factor: float = 8.0) -> dict[str, object]:
+        """Welch spectrum of the residual; narrow peaks above ``factor`` x the median level.
+
+        Parameters
+        ----------
+        factor : float
+            How far above the median spectral level a peak must rise to count; trials
+            shorter than 128 samples are left out.
+
+        Returns
+        -------
+        dict
+            ``peaks``: up to five ``{"frequency_hz", "ratio_to_median"}``, strongest first
+            (the three lowest bins are ignored); ``frequency_hz`` and ``psd``: the
+            spectrum averaged over trials.
+        """
+        fs = 1.0 / self.dt
+        psds = []
+        for tv in self.trials:
+            if tv.residual.size >= 128:
+                f, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))
+                if psds and p.size != psds[0].size:
+                    continue
+                psds.append(p)
+        if not psds:
+            return {"peaks": [], "frequency_hz": [], "psd": []}
+        psd = np.mean(psds, axis=0)
+        level = float(np.median(psd[1:]))
+        idx = prominent_peaks(psd, height=factor * level, prominence=factor * level / 2)
+        peaks = [
+            {"frequency_hz": float(f[i]), "ratio_to_median": float(psd[i] / level)}
+            for i in idx
+            if i >= 3  # leave out what a trend leaks into the lowest bins
+        ]
+        peaks.sort(key=lambda p: -p["ratio_to_median"])
+        return {"peaks": peaks[:5], "frequency_hz": f.tolist(), "psd": psd.tolist()}
 
 
 def regime_masks(

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from balancer_id.diagnostics.context import REGIMES, DiagnosisContext
-from balancer_id.diagnostics.spectra import prominent_peaks, welch_psd
 from balancer_id.identify.data import thrust_levels
 
 #: Lags of the whiteness tests (samples).
@@ -88,9 +87,9 @@ def whiteness(ctx: DiagnosisContext, max_lag: int = ACF_LAGS) -> dict[str, objec
 def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str, object]:
     """Cross-correlation of the residual with the thrust step, as a function of lag.
 
-    For a step input this is the residual averaged over trials (sign-corrected by the
-    thrust) against the time since the onset: its peak says when after the step the model
-    is wrong, and a peak within the first lag with the model leading points to dead time.
+    The same as :meth:`DiagnosisContext.input_correlation
+    <balancer_id.diagnostics.context.DiagnosisContext.input_correlation>` (a method there,
+    so that the signature checks of the effects can call it).
 
     Parameters
     ----------
@@ -105,75 +104,30 @@ def input_correlation(ctx: DiagnosisContext, max_lag_s: float = 1.5) -> dict[str
         ``lag_s`` and ``mean_residual`` (m/s^2) per lag, the Bonferroni-corrected 95 %
         ``band``, ``peak_lag_s``, ``peak_value`` and whether the peak is ``significant``.
     """
-    dt = ctx.dt
-    n_lag = round(max_lag_s / dt)
-    lags = np.arange(-round(0.3 / dt), n_lag + 1)
-    acc = np.zeros(lags.size)
-    cnt = np.zeros(lags.size)
-    scale = []
-    for tv in ctx.trials:
-        k0 = int(np.searchsorted(tv.t, 0.0))
-        s = np.sign(tv.data.thrust_N) or 1.0
-        idx = k0 + lags
-        ok = (idx >= 0) & (idx < tv.residual.size)
-        acc[ok] += s * tv.residual[idx[ok]]
-        cnt[ok] += 1
-        scale.append(np.std(tv.residual))
-    mean = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 0)
-    from scipy.special import ndtri
-
-    sigma = float(np.mean(scale)) if scale else 1.0
-    # 95 % band for the largest of all lags (Bonferroni over the lags)
-    band = float(-ndtri(0.025 / lags.size)) * sigma / np.sqrt(max(len(ctx.trials), 1))
-    peak = int(np.argmax(np.abs(mean)))
-    return {
-        "lag_s": [round(float(x), 4) for x in lags * dt],
-        "mean_residual": [round(float(x), 5) for x in mean],
-        "band": float(band),
-        "peak_lag_s": float(lags[peak] * dt),
-        "peak_value": float(mean[peak]),
-        "significant": bool(abs(mean[peak]) > band),
-    }
+    return ctx.input_correlation(max_lag_s)
 
 
 def spectrum_peaks(ctx: DiagnosisContext, factor: float = 8.0) -> dict[str, object]:
     """Welch spectrum of the residual; narrow peaks above ``factor`` x the median level.
 
+    The same as :meth:`DiagnosisContext.spectrum_peaks
+    <balancer_id.diagnostics.context.DiagnosisContext.spectrum_peaks>` (a method there, so
+    that the signature checks of the effects can call it).
+
     Parameters
     ----------
     ctx : DiagnosisContext
-        The fit and its residuals, trial by trial; trials shorter than 128 samples are
-        left out.
+        The fit and its residuals, trial by trial.
     factor : float
         How far above the median spectral level a peak must rise to count.
 
     Returns
     -------
     dict
-        ``peaks``: up to five ``{"frequency_hz", "ratio_to_median"}``, strongest first
-        (the three lowest bins are ignored); ``frequency_hz`` and ``psd``: the spectrum
-        averaged over trials.
+        ``peaks``: up to five ``{"frequency_hz", "ratio_to_median"}``, strongest first;
+        ``frequency_hz`` and ``psd``: the spectrum averaged over trials.
     """
-    fs = 1.0 / ctx.dt
-    psds = []
-    for tv in ctx.trials:
-        if tv.residual.size >= 128:
-            f, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))
-            if psds and p.size != psds[0].size:
-                continue
-            psds.append(p)
-    if not psds:
-        return {"peaks": [], "frequency_hz": [], "psd": []}
-    psd = np.mean(psds, axis=0)
-    level = float(np.median(psd[1:]))
-    idx = prominent_peaks(psd, height=factor * level, prominence=factor * level / 2)
-    peaks = [
-        {"frequency_hz": float(f[i]), "ratio_to_median": float(psd[i] / level)}
-        for i in idx
-        if i >= 3  # leave out what a trend leaks into the lowest bins
-    ]
-    peaks.sort(key=lambda p: -p["ratio_to_median"])
-    return {"peaks": peaks[:5], "frequency_hz": f.tolist(), "psd": psd.tolist()}
+    return ctx.spectrum_peaks(factor)
 
 
 def regime_table(ctx: DiagnosisContext) -> list[dict[str, object]]:

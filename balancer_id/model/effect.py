@@ -131,11 +131,17 @@ class Effect:
     ``signature(ctx) -> Signature``
         A ``classmethod``: how strongly the residual of a fit without the effect shows
         its footprint (``ctx`` is a
-        :class:`~balancer_id.diagnostics.context.DiagnosisContext`; return a
-        :class:`~balancer_id.diagnostics.signatures.Signature` with a strength in
-        [0, 1], one line of evidence and start values). Built-in effects have theirs in
-        :data:`balancer_id.diagnostics.signatures.SIGNATURES` (a test checks each has
-        one); a user effect without one is ranked by its refit alone.
+        :class:`~balancer_id.diagnostics.context.DiagnosisContext`, typed as the
+        :class:`~balancer_id.model.signature.SignatureContext` it satisfies; return a
+        :class:`~balancer_id.model.signature.Signature` with a strength in [0, 1], one
+        line of evidence and start values). Every built-in effect but ``viscous`` has
+        its own in its module (a test checks it); an effect without one is ranked by
+        its refit alone, the residual's correlation with the states as its evidence.
+
+    A new built-in effect is its module in ``balancer_id/model/effects/`` (the class,
+    its hooks and its ``signature``), one line in ``balancer_id/model/effects/__init__.py``
+    (:data:`~balancer_id.model.effects.BUILTIN_EFFECTS`) and a test (MODEL.md, "Residual
+    signatures").
     """
 
     name: ClassVar[str] = ""
@@ -148,7 +154,7 @@ class Effect:
     needs_reference: ClassVar[bool | None] = None
     #: Optional ``guess(trials, current)`` classmethod (see Notes); None: no guess.
     guess: ClassVar[Any] = None
-    #: Optional ``signature(ctx)`` classmethod (see Notes); None: the built-in check.
+    #: Optional ``signature(ctx)`` classmethod (see Notes); None: the generic check.
     signature: ClassVar[Any] = None
 
     @classmethod

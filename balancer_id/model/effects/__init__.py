@@ -1,4 +1,10 @@
-"""The built-in effects, one module each, listed once in :data:`BUILTIN_EFFECTS`."""
+"""The built-in effects, one module each, listed once in :data:`BUILTIN_EFFECTS`.
+
+A module holds the effect's class: its parameters, its hooks and the ``signature(ctx)``
+check that tells the diagnosis how the effect's absence shows in a residual. A new
+built-in effect is its module, one line here and a test (MODEL.md, "Residual
+signatures").
+"""
 
 from __future__ import annotations
 

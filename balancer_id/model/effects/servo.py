@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from balancer_id.model.effect import Effect, Param
+from balancer_id.model.signature import Signature, SignatureContext, clip01
 
 
 class Servo(Effect):
@@ -31,3 +32,27 @@ class Servo(Effect):
         t: float, u: float, z: float, v: float, z_ref: float, v_ref: float, k_r: float, c_r: float
     ) -> float:
         return u + k_r * (z_ref - z) + c_r * (v_ref - v)
+
+    @classmethod
+    def signature(cls, ctx: SignatureContext) -> Signature:
+        """A narrow peak in the residual spectrum: an oscillation a person's log does not show.
+
+        Parameters
+        ----------
+        ctx : SignatureContext
+            The fit and its residuals, trial by trial.
+
+        Returns
+        -------
+        Signature
+            Strength in [0, 1], the evidence in words and numbers; no start values.
+        """
+        peaks = ctx.spectrum_peaks()["peaks"]
+        if not peaks:
+            return Signature(0.0, "no narrow peak in the residual spectrum")
+        p = peaks[0]
+        return Signature(
+            clip01((p["ratio_to_median"] - 8) / 30),
+            f"narrow residual peak at {p['frequency_hz']:.2f} Hz, {p['ratio_to_median']:.0f}x "
+            "the median spectrum: an oscillation during motion",
+        )

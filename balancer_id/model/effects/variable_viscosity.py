@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 from balancer_id.model.effect import Effect, Param
+from balancer_id.model.signature import Signature, SignatureContext, clip01
 
 
 class VariableViscosity(Effect):
@@ -37,3 +38,38 @@ class VariableViscosity(Effect):
     @staticmethod
     def force(f: float, v: float, z: float, h: float, D0: float, A: float) -> float:
         return -D0 * math.exp(-A * abs(h)) * v
+
+    @classmethod
+    def signature(cls, ctx: SignatureContext) -> Signature:
+        """The decay rate depends on the thrust: a constant viscosity over- or under-damps.
+
+        Parameters
+        ----------
+        ctx : SignatureContext
+            The fit and its residuals, trial by trial.
+
+        Returns
+        -------
+        Signature
+            Strength in [0, 1], the evidence in words and numbers, and the start value
+            ``A = 0.2``.
+        """
+        import numpy as np
+
+        rows = []
+        for tv in ctx.trials:
+            m = tv.regimes["steady"]
+            if m.sum() >= 20:
+                rows.append(
+                    (abs(tv.data.thrust_N), float(np.mean(tv.residual[m] * np.sign(tv.v[m]))))
+                )
+        if len(rows) < 3 or len({round(r[0], 1) for r in rows}) < 2:
+            return Signature(0.0, "needs trials at two or more thrust levels")
+        h, r = np.array(rows).T
+        corr = float(np.corrcoef(h, r)[0, 1]) if np.std(r) > 0 else 0.0
+        return Signature(
+            clip01((corr - 0.5) / 0.4),
+            f"steady-motion residual along the motion rises with the thrust (r = {corr:+.2f}): "
+            "the viscosity falls with the operating force",
+            {"A": 0.2},
+        )
