@@ -240,10 +240,12 @@ def run_case(case: Case) -> Outcome:
             out.nrms, out.nrms_model = force_errors(truth_f, got, found.refit.values(), base, v, h)
             rmse = found.rmse
         elif d.verdict != "adequate" and d.explanations:
-            best = d.explanations[0]
-            rmse = min(rmse, best.rmse)
-            refit = next((x.refit for x in d.suggestions if x.effect == "karnopp"), None)
-            if best.kind == "effect" and best.effects == ["karnopp"] and refit is not None:
+            rmse = min(rmse, d.explanations[0].rmse)
+            # the verdict's first suggestion (a pair listed above it did not beat its
+            # parts by the threshold, so it is not the verdict)
+            first = d.suggestions[0] if d.suggestions else None
+            refit = first.refit if first is not None and first.effect == "karnopp" else None
+            if refit is not None:
                 # the library's Coulomb friction explains it: its force against the truth
                 values = refit.values()
                 pvec = np.array([values[n] for n in refit.model.param_names])

@@ -477,7 +477,7 @@ def _discover(
     if not discovery_search.should_try(best, ctx.noise_floor, bool(failed)):
         if not (failed and discovery_search.challenges(best, inp.match.model.registry)):
             return None
-        margin = discovery_search.TERM_BIC  # the library's law reached the floor
+        margin = discovery_search.CHALLENGE_BIC  # the library's law reached the floor
     if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
         return None
     command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"

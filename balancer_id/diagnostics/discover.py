@@ -61,6 +61,13 @@ from balancer_id.model.spec import Model
 #: A kept term must lower the BIC of the linear step by at least this (as the arena's
 #: :data:`~balancer_id.diagnostics.diagnosis.BIC_THRESHOLD`).
 TERM_BIC = 30.0
+#: BIC by which a discovered law must beat a library dry-friction law that reached the
+#: noise floor (:func:`challenges`). Both are dry friction: the choice is of its shape,
+#: and the discovered law's extra parameters are already counted in its BIC. 10 is
+#: "very strong" on Kass and Raftery's scale; where the library's law is the truth, the
+#: two extra parameters of Coulomb with Stribeck reach it by chance with a probability of
+#: about exp(-(10 + 2 ln n) / 2) (n the independent samples, thousands in a log).
+CHALLENGE_BIC = 10.0
 #: Terms tried at most along the pursuit path.
 MAX_TERMS = 4
 #: Terms the linear step ranks highest that are refitted whole in each round.
@@ -861,7 +868,7 @@ def challenges(best: Explanation | None, registry: Registry) -> bool:
     A constant friction level (Karnopp's) is the special case of Coulomb with Stribeck at
     ``F_s = 0``; where the friction falls with the speed, it reaches the noise floor with
     the viscosity bent to absorb the rest. The discovery must then beat it by
-    :data:`TERM_BIC` (the ``margin`` of :func:`discover`).
+    :data:`CHALLENGE_BIC` (the ``margin`` of :func:`discover`).
 
     Parameters
     ----------
@@ -1012,16 +1019,16 @@ def _search(
             except BalancerIdError:
                 continue
             parts = [fitted.residual[sl] for sl in fitted.data.slices()]
-            d_bic, _ = arena.score(inp, parts, len(trial_support))
-            # each term of the group must pay
-            gain = d_bic - TERM_BIC * (len(group) - 1)
+            # a group is one law (a term, or Coulomb with Stribeck): it pays TERM_BIC once,
+            # its second parameter counted in the BIC like any other
+            gain, _ = arena.score(inp, parts, len(trial_support))
             tried.append((gain, group, fitted))
             if best_try is None or gain > best_try[0]:
                 best_try = (gain, group, fitted)
         if best_try is None or best_try[0] - d_best <= TERM_BIC:
             break
         _, chosen_group, refit = best_try
-        d_best = best_try[0] + TERM_BIC * (len(chosen_group) - 1)
+        d_best = best_try[0]
         new = chosen_group[-1]
         # terms that fit about as well in this round: said with the discovery
         for d_alt, group, alt in tried:
@@ -1055,11 +1062,11 @@ def _search(
             except BalancerIdError:
                 continue
             d, _ = arena.score(inp, [fitted.residual[sl] for sl in fitted.data.slices()], len(keep))
-            drops.append((d_best - d, j, fitted, d))
+            drops.append((d_best - d - term_price(terms, support, j), j, fitted, d))
         if not drops:
             break
-        cost, j, fitted, d = min(drops, key=lambda x: x[0])
-        if cost > TERM_BIC:
+        excess, j, fitted, d = min(drops, key=lambda x: x[0])
+        if excess > 0:
             break
         support = [k for k in support if k != j]
         refit, d_best = fitted, d
@@ -1093,6 +1100,31 @@ def _search(
     )
 
 
+def term_price(terms: Sequence[Term], support: Sequence[int], j: int) -> float:
+    """The BIC fall term ``j`` must bring beyond BIC's own penalty to stay in ``support``.
+
+    A term pays :data:`TERM_BIC`; the Coulomb level beside a Stribeck term is a parameter
+    of one law (Coulomb with Stribeck), counted in the BIC like any other: 0.
+
+    Parameters
+    ----------
+    terms : sequence of Term
+        The candidate library.
+    support : sequence of int
+        The terms in the model.
+    j : int
+        The term judged (in ``support``).
+
+    Returns
+    -------
+    float
+    """
+    law = terms[j].name == COULOMB and any(
+        terms[k].name.startswith(STRIBECK) for k in support if k != j
+    )
+    return 0.0 if law else TERM_BIC
+
+
 def _settle_friction(
     inp: ArenaInput,
     model: Model,
@@ -1106,9 +1138,10 @@ def _settle_friction(
 
     The grid of Stribeck velocities only starts the search: each chosen one is freed in a
     whole refit, and a Stribeck term chosen alone is tried with its Coulomb level too
-    (Coulomb with Stribeck is the physical law). Each freed constant and the added level
-    is one more parameter, kept when the refit's BIC falls by more than :data:`TERM_BIC`
-    for each.
+    (Coulomb with Stribeck is the physical law). The chosen Stribeck term has paid
+    :data:`TERM_BIC` as a term; its law's other parameters (the velocity, whose grid value
+    is arbitrary, and the Coulomb level) are then fitted like any model's parameters: each
+    is counted in the BIC, and the settled law is kept when its BIC is the lowest.
 
     Returns
     -------
@@ -1135,14 +1168,12 @@ def _settle_friction(
         {},
         list(support),
     )
-    base = best[0]
     for option in options:
         loose = {k: v for k, v in hold.items() if k not in keys}
         if coulomb is not None:
             loose.pop(f"q{coulomb}", None)
             if coulomb not in option:
                 loose[f"q{coulomb}"] = 0.0
-        extra = len(keys) + len(option) - len(support)
         try:
             fitted = match_trials(
                 model, list(inp.trials), start=refit.values(), fixed=loose, max_nfev=200
@@ -1151,7 +1182,7 @@ def _settle_friction(
             continue
         parts = [fitted.residual[sl] for sl in fitted.data.slices()]
         d, _ = arena.score(inp, parts, len(option) + len(keys))
-        if d - base > TERM_BIC * extra and d > best[0]:
+        if d > best[0]:
             values = fitted.values()
             best = (d, fitted, loose, {k: float(values[k]) for k in keys}, option)
     _, refit, hold, freed, kept = best
@@ -1200,7 +1231,7 @@ def _final_inclusion(
 ) -> np.ndarray | None:
     """Inclusion probabilities of the final terms: over bootstrap resamples of the trials,
     how often each still pays (removing it from the model linearized at the refit raises
-    BIC by more than :data:`TERM_BIC`). The first round's selection speaks only of a term
+    BIC by more than its :func:`term_price`). The first round's selection speaks only of a term
     chosen then; a term chosen later, or one acting through the stick band of dry
     friction (which the linear step at zero cannot see), is judged where it was fitted."""
     q_names = [f"q{j}" for j in range(len(terms))]
@@ -1227,7 +1258,7 @@ def _final_inclusion(
             yy = float(g[k, k] + 2.0 * q * g[c, k] + q * q * g[c, c])
             rest = [i for i in every if i != c]
             cost = n * np.log(_gram_rss(xx, gy, yy, rest) / full) - np.log(n)
-            counts[j] += cost > TERM_BIC
+            counts[j] += cost > term_price(terms, support, j)
     return counts / BOOTSTRAP
 
 
