@@ -45,6 +45,7 @@ CODES: dict[str, str] = {
     "fit.starts_disagree": "starts of a multi-start fit ended at different optima",
     "fit.start_contradicted": "the data contradict the start (negative m_a by the paper's method)",
     "fit.below_resolution": "a time constant below what the sample rate resolves",
+    "fit.correlated_residual": "standard errors widened for a residual correlated over samples",
     "fit.no_convergence": "the optimizer did not converge",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",

@@ -23,9 +23,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import chdtrc, erfc
 
-from balancer_id.diagnostics.context import DiagnosisContext, correlation_time
+from balancer_id.diagnostics.context import DiagnosisContext
 from balancer_id.diagnostics.groups import run_estimates
 from balancer_id.diagnostics.residual_tests import autocorrelation
+from balancer_id.identify.metrics import correlation_time
 from balancer_id.notes import Note
 
 #: Lags compared (samples): the resting parts are short, so few lags.

@@ -10,6 +10,7 @@ import numpy as np
 from balancer_id.diagnostics.spectra import prominent_peaks, welch_psd
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.metrics import correlation_time
 
 #: Regimes of a trial, in the order they occur (see :func:`regime_masks`).
 REGIMES = ("rest", "rise", "steady", "stuck")
@@ -234,58 +235,6 @@ def white_noise_level(diffs: np.ndarray, clip: float = 4.0) -> float:
             break
         sigma = float(np.std(kept))
     return sigma / float(np.sqrt(2.0))
-
-
-def correlation_time(segments: Sequence[np.ndarray], removed: int = 1, max_lag: int = 50) -> float:
-    """Integrated autocorrelation time ``tau = 1 + 2 sum(rho_k)`` of a noise (samples).
-
-    The long-run variance factor of a coloured noise: a mean of ``L`` samples varies as
-    ``tau / L`` times the variance (``(1 + r) / (1 - r)`` for AR(1) noise, 1 for white
-    noise). ``rho_k`` is the pooled autocorrelation of the segments, summed while it
-    stands above its white-noise band ``2/sqrt(N)`` (Geyer's initial positive sequence),
-    and never less than the AR(1) value of the first lag. Segments whose mean (and
-    slope) were removed have their autocorrelation pulled down by about
-    ``removed * tau / L``; a few fixed-point rounds undo it.
-
-    Parameters
-    ----------
-    segments : sequence of numpy.ndarray
-        Noise segments, each with its mean (``removed=1``) or its line (``2``) removed.
-    removed : int
-        Terms fitted and removed from each segment.
-    max_lag : int
-        Most lags summed.
-
-    Returns
-    -------
-    float
-        ``tau`` (1 for white noise or without samples).
-    """
-    segs = [np.asarray(x, float) for x in segments if np.size(x) >= 2]
-    n = int(sum(x.size for x in segs))
-    rss = float(sum(float(x @ x) for x in segs))
-    if n == 0 or rss <= 0:
-        return 1.0
-    band = 2.0 / np.sqrt(n)
-    acf = []
-    for k in range(1, max_lag + 1):
-        pairs = [x for x in segs if x.size > k]
-        if not pairs:
-            break
-        rho = float(sum(float(x[:-k] @ x[k:]) for x in pairs)) / rss
-        if rho <= band:
-            break
-        acf.append(rho)
-    length = n / len(segs)
-    tau = 1.0 + 2.0 * sum(acf)
-    for _ in range(5):
-        share = min(removed * tau / length, 0.5)
-        rho = [r * (1.0 - share) + share for r in acf]
-        # short segments cut the sum early; the AR(1) extrapolation of the first lag
-        # (a sensor's low-pass) keeps the tail the band hides
-        r1 = min(rho[0], 0.95) if rho else 0.0
-        tau = max(1.0 + 2.0 * sum(rho), (1.0 + r1) / (1.0 - r1))
-    return float(tau)
 
 
 def rest_noise_level(segments: Sequence[np.ndarray], removed: int = 1) -> float:

@@ -263,7 +263,7 @@ def match_html(match: ShownFit, heading: str = "") -> str:
         f"fit {m.get('nrmse_fit_percent', float('nan')):.1f} %, "
         f"BIC {m.get('bic', float('nan')):.1f}, {len(match.data.trials)} trials"
     )
-    warn = "".join(f"<li>{html.escape(w)}</li>" for w in match.warnings)
+    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in match.warnings)
     return (
         "<div>"
         + (f"<p><b>{html.escape(heading)}</b></p>" if heading else "")

@@ -6,10 +6,11 @@ optimum. Where a parameter is poorly determined it can cross a physical bound (a
 trial value, refit all the others, and keep the values whose cost stays within the
 chi-square threshold of the optimum,
 
-    S(theta) - S_min <= sigma^2 * chi2_1(level),   sigma^2 = S_min / (n - k)
+    S(theta) - S_min <= sigma^2 * chi2_1(level),   sigma^2 = tau * S_min / (n - k)
 
 (the likelihood-ratio interval of least squares with the noise variance estimated from
-the fit). An end that reaches a bound before the cost crosses the threshold *is* the
+the fit; ``tau`` the residual's correlation time, ``metrics["residual_tau"]``, 1 for
+independent samples). An end that reaches a bound before the cost crosses the threshold *is* the
 bound: the data cannot exclude it, and the interval says so.
 """
 
@@ -137,7 +138,9 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     n = match.y.size
     k = sum(1 for p in match.parameters.values() if p.vary)
     s_min = float(np.sum(match.residual**2))
-    sigma2 = s_min / max(n - k, 1)
+    # a residual correlated over tau samples: each sample counts 1/tau (as the Wald
+    # standard errors, matching._covariance)
+    sigma2 = s_min / max(n - k, 1) * max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     threshold = s_min + sigma2 * chi2_quantile_1dof(level)
     held = {p.name: p.value for p in match.parameters.values() if not p.vary}
     start = match.values()

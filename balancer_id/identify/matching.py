@@ -12,7 +12,7 @@ import numpy as np
 from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.display import Displayable
-from balancer_id.identify.metrics import error_metrics
+from balancer_id.identify.metrics import correlation_time, error_metrics
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note
@@ -790,8 +790,17 @@ def _unresolved_lag_note(name: str, value: float, floor: float) -> Note:
     )
 
 
-def _covariance(out: _Outcome) -> np.ndarray | None:
-    """Parameter covariance ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it)."""
+def _covariance(out: _Outcome, tau: float = 1.0) -> np.ndarray | None:
+    """Parameter covariance ``inv(J^T J) * chisqr / (n - k) * tau``.
+
+    ``inv(J^T J) * chisqr / (n - k)`` (as lmfit computes it) holds for independent
+    samples. A residual correlated over ``tau`` samples (its integrated autocorrelation
+    time: a sensor's low-pass, a phone's filtering, or a force the model lacks) carries
+    about ``1 / tau`` of the information per sample for parameters whose sensitivities
+    vary slowly against it (a step response's, over T_a): the covariance is the
+    long-run-variance sandwich, which for such sensitivities is ``tau`` times the white
+    one (never less).
+    """
     n, k = out.residual.size, out.jtj.shape[0]
     if k == 0 or n <= k:
         return None
@@ -799,8 +808,23 @@ def _covariance(out: _Outcome) -> np.ndarray | None:
         cov = np.linalg.inv(out.jtj)
     except np.linalg.LinAlgError:
         return None
-    cov *= out.chisqr / (n - k)
+    cov *= out.chisqr / (n - k) * max(tau, 1.0)
     return cov
+
+
+#: A residual correlation time (samples) above which the widening is said in a note.
+TAU_NOTE = 1.5
+
+
+def _correlated_note(tau: float) -> Note:
+    """Standard errors widened for a correlated residual."""
+    return Note(
+        "fit.correlated_residual",
+        f"the residual is correlated over {tau:.1f} samples (a sensor's filter, or a force "
+        f"the model lacks): standard errors are widened {np.sqrt(tau):.1f}x, as "
+        "independent samples would overstate what the log tells",
+        severity="info",
+    )
 
 
 def _collect(
@@ -811,7 +835,11 @@ def _collect(
     free_names = [model.param_names[i] for i in problem.free]
     n_free = len(free_names)
     metrics = error_metrics(data.y, y_model, n_free)
-    cov = _covariance(out)
+    tau = correlation_time([out.residual[sl] for sl in data.slices()], removed=0)
+    metrics["residual_tau"] = tau
+    if tau > TAU_NOTE and n_free:
+        notes.append(_correlated_note(tau))
+    cov = _covariance(out, tau)
     sd = np.sqrt(np.abs(np.diag(cov))) if cov is not None else None
     estimates: dict[str, ParameterEstimate] = {}
     correlations: dict[str, dict[str, float]] = {}
