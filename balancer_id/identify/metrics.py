@@ -98,9 +98,9 @@ def correlation_time(segments: Sequence[np.ndarray], removed: int = 1, max_lag: 
     tau = 1.0 + 2.0 * sum(acf)
     for _ in range(5):
         share = min(removed * tau / length, 0.5)
-        rho = [r * (1.0 - share) + share for r in acf]
+        corrected = [r * (1.0 - share) + share for r in acf]
         # short segments cut the sum early; the AR(1) extrapolation of the first lag
         # (a sensor's low-pass) keeps the tail the band hides
-        r1 = min(rho[0], 0.95) if rho else 0.0
-        tau = max(1.0 + 2.0 * sum(rho), (1.0 + r1) / (1.0 - r1))
+        r1 = min(corrected[0], 0.95) if corrected else 0.0
+        tau = max(1.0 + 2.0 * sum(corrected), (1.0 + r1) / (1.0 - r1))
     return float(tau)
