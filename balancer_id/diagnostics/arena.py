@@ -18,7 +18,9 @@ appending itself.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -458,12 +460,20 @@ def _split_and_drift(
         e.refine = lambda: fit_one(name, k, base, c, REFINE_NFEV)
         return e
 
-    out = []
-    for name in free:
-        for k in range(2, n_runs - 1):
-            out.append(fit_one(name, k, start, None, 60))
-        out.append(fit_one(name, None, start, None, 60))
-    return out
+    jobs: list[tuple[str, int | None]] = [
+        (name, k) for name in free for k in [*range(2, n_runs - 1), None]
+    ]
+    if not jobs:
+        return []
+    # the first in this thread (it loads the kernel), the rest in threads: the kernels
+    # release the GIL, and each fit allocates its own outputs (results in the jobs' order)
+    first = fit_one(*jobs[0], start, None, 60)
+    threads = min(len(jobs) - 1, os.cpu_count() or 1)
+    if threads <= 1:
+        return [first, *(fit_one(name, k, start, None, 60) for name, k in jobs[1:])]
+    with ThreadPoolExecutor(threads, thread_name_prefix="balancer-id-arena") as pool:
+        rest = list(pool.map(lambda job: fit_one(*job, start, None, 60), jobs[1:]))
+    return [first, *rest]
 
 
 def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
