@@ -202,18 +202,32 @@ def test_a_check_without_data_finds_nothing_and_warns_nothing():
 def test_parallel_refits_equal_one_by_one_and_tell_each_candidate(monkeypatch):
     # the candidates are refitted in threads; the ranking must not depend on it, and each
     # finished refit is told to the status listener ("candidate 3/5: karnopp refitted")
+    from balancer_id.diagnostics import arena
     from balancer_id.diagnostics import diagnosis as diagnosis_module
     from balancer_id.status import listening
 
     fit = fit_paper_model(trials_with("variable_viscosity+bias", {"b": 0.06}, seed=21))
+    pools: list[int] = []  # the arena's thread pools, by size: none when threads=1 (batch)
+    real_pool = arena.ThreadPoolExecutor
+
+    def counted_pool(n, **kw):
+        pools.append(n)
+        return real_pool(n, **kw)
+
+    monkeypatch.setattr(arena, "ThreadPoolExecutor", counted_pool)
     told: list[str] = []
     with listening(told.append):
         serial = diagnose(fit, threads=1)
+    assert pools == []
     monkeypatch.setattr(diagnosis_module, "REFIT_THREADS", 3)  # the default, on 3 cores
     with listening(told.append):
         threaded = diagnose(fit)
+    assert pools and max(pools) <= 3
     assert [(s.effect, s.delta_bic, s.rmse) for s in threaded.suggestions] == [
         (s.effect, s.delta_bic, s.rmse) for s in serial.suggestions
+    ]
+    assert [(e.label, e.delta_bic) for e in threaded.explanations] == [
+        (e.label, e.delta_bic) for e in serial.explanations
     ]
     assert threaded.suggestions[0].effect == "bias"
     # every candidate is told, beneficial or not (only those with a benefit are listed)

@@ -136,6 +136,8 @@ class ArenaInput:
     ar : tuple of float
         AR(2) coefficients of the resting noise: every residual is prewhitened with them
         before its BIC (the likelihood of coloured noise); ``(0, 0)`` for white noise.
+    threads : int or None
+        Fits run at once (the splits and drifts); None: one per core.
     """
 
     match: MatchResult
@@ -148,6 +150,7 @@ class ArenaInput:
     ar: tuple[float, float] = (0.0, 0.0)
     #: Mean square of the resting noise prewhitened alike: what a perfect model leaves.
     rest_innovation: float | None = None
+    threads: int | None = None
 
     def available(self) -> float | None:
         """The BIC fall a perfect model would bring (the current whitened excess), or None."""
@@ -468,7 +471,7 @@ def _split_and_drift(
     # the first in this thread (it loads the kernel), the rest in threads: the kernels
     # release the GIL, and each fit allocates its own outputs (results in the jobs' order)
     first = fit_one(*jobs[0], start, None, 60)
-    threads = min(len(jobs) - 1, os.cpu_count() or 1)
+    threads = min(len(jobs) - 1, inp.threads or os.cpu_count() or 1)
     if threads <= 1:
         return [first, *(fit_one(name, k, start, None, 60) for name, k in jobs[1:])]
     with ThreadPoolExecutor(threads, thread_name_prefix="balancer-id-arena") as pool:

@@ -322,8 +322,9 @@ def diagnose(
         A fit over all trials, with what it was computed from (trials, fixed values,
         effect files, reference move: the suggested commands carry them all).
     threads : int, optional
-        Candidates refitted at once; None uses :data:`REFIT_THREADS` (one per core).
-        A batch's workers pass 1: their processes already share the cores.
+        Fits run at once (the candidates' refits, the arena's splits and drifts); None
+        uses :data:`REFIT_THREADS` (one per core). A batch's workers pass 1: their
+        processes already share the cores.
     discover : bool
         When the tests fail and no explanation of the arena brings the residual to the
         noise floor, search the missing force as a sparse sum of candidate terms
@@ -419,6 +420,7 @@ def diagnose(
         effect_fits=[(s.effect, s.refit) for s in suggestions if s.refit is not None],
         rest_cutoff_hz=arena.rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
         ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
+        threads=threads or REFIT_THREADS,
     )
     rest_rss, rest_n = arena.whitened_rss(adequacy.rest_noise(ctx), inp.ar)
     inp.rest_innovation = rest_rss / rest_n if rest_n >= 50 else None
@@ -917,7 +919,8 @@ def _groups_record(best: Explanation, per: list, runs_of_per: list[str]) -> dict
 #: A candidate, its signature, its refit and why its signature check failed (or None).
 Refitted = tuple[Candidate, Signature, Refit, str | None]
 
-#: Threads refitting candidates at once (the kernels release the GIL); None: one per core.
+#: Threads running the diagnosis's fits at once (candidate refits, the arena's splits and
+#: drifts; the kernels release the GIL); None: one per core.
 REFIT_THREADS: int | None = None
 
 
