@@ -3,17 +3,26 @@
 Each command runs as a fresh process with ``BALANCER_ID_CACHE`` pointing at a new empty
 folder, so every simulation kernel it needs is generated and compiled by numba (the
 package's own cached numba functions, e.g. the filters, stay warm: they are compiled once
-per install). Measured, each as the median of ``--runs`` runs, wall and CPU seconds
-(CPU: user + system of the process and its compiling helpers, from ``wait4``):
+per install). Each row is run under both kernel policies (``BALANCER_ID_KERNELS``):
 
-* ``improve sample_logs/paper_balancer.csv --start viscous`` cold: 12 kernels, in two
-  rounds of candidates (target: under 20 s);
+* ``shared``: every model of built-in effects runs on the one kernel they share, compiled
+  once. This is what a first command does by default (``auto``), minus the background
+  process that then compiles each model's own kernel for the next command (left out here
+  so that it does not take the cores from the next run);
+* ``own``: each model compiles its own kernel before its first use (the behaviour before
+  the shared kernel; ``auto`` once the own kernels are cached).
+
+Measured, each as the median of ``--runs`` runs, wall and CPU seconds (CPU: user + system
+of the process and its compiling helpers, from ``wait4``):
+
+* ``improve sample_logs/paper_balancer.csv --start viscous`` cold (target: under 20 s);
 * ``fit sample_logs/paper_balancer.csv --model variable_viscosity+karnopp --no-cache``
   cold: one new model's first fit (its candidates' kernels are compiled too, as the
-  command does before fitting: ``--no-diagnose`` is not an option of ``fit``);
-* one kernel compiled in-process (``variable_viscosity+karnopp``, state and sensitivity
-  kernels) after numba's own warm-up, the per-model cost;
-* the same ``improve`` with the cache warm, the floor the cold run tends to.
+  command does before fitting);
+* one kernel compiled in-process (``variable_viscosity+karnopp``'s own, and the shared
+  one), state and sensitivity kernels, after numba's own warm-up;
+* the same ``improve`` with the cache warm, the floor the cold run tends to (``own``: the
+  own kernels, what ``auto`` uses once they are compiled).
 
 Run: ``python benchmarks/bench_first_use.py [--runs N] [--only improve,fit,kernel,warm]``.
 The machine should be otherwise idle: compilation is CPU-bound and uses every core.
@@ -39,7 +48,7 @@ FIT = [PY, "-m", "balancer_id", "fit", str(LOG), "--model", "variable_viscosity+
 FIT += ["--no-cache"]
 
 _ONE_KERNEL = """
-import sys, time
+import os, sys, time
 import numpy as np
 from balancer_id.model.spec import resolve_model
 from balancer_id.simulation import kernel as K
@@ -47,20 +56,24 @@ from balancer_id.simulation import kernel as K
 def compile_one(spec):
     m = resolve_model(spec)
     k = K._build(m)
-    p = np.array([q.value for q in m.params])
+    p = k.parameters([q.value for q in m.params])
     t0, c0 = time.perf_counter(), time.process_time()
     K._run_tiny(k.simulate_batch, p)
     K._run_tiny_sens(k.simulate_batch_sens, p)
     return time.perf_counter() - t0, time.process_time() - c0
 
+policy = os.environ["BALANCER_ID_KERNELS"]
+os.environ["BALANCER_ID_KERNELS"] = "own"
 compile_one("viscous+bias")  # numba's own first-use work (overloads, typing context)
+os.environ["BALANCER_ID_KERNELS"] = policy
+K._CHOSEN.clear()
 print(*compile_one(sys.argv[1]))
 """
 
 
-def run(cmd: list[str], cache: str | None) -> tuple[float, float]:
+def run(cmd: list[str], cache: str | None, policy: str) -> tuple[float, float]:
     """Wall and CPU seconds of one finished process (and the helpers it waited for)."""
-    env = dict(os.environ, BALANCER_ID_QUIET="1")
+    env = dict(os.environ, BALANCER_ID_QUIET="1", BALANCER_ID_KERNELS=policy)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
     if cache is not None:
         env["BALANCER_ID_CACHE"] = cache
@@ -75,20 +88,22 @@ def run(cmd: list[str], cache: str | None) -> tuple[float, float]:
     return wall, usage.ru_utime + usage.ru_stime
 
 
-def cold(cmd: list[str]) -> tuple[float, float]:
+def cold(cmd: list[str], policy: str) -> tuple[float, float]:
     """``cmd`` with a new, empty kernel cache."""
     folder = tempfile.mkdtemp(prefix="bid-cold-")
     try:
-        return run(cmd, folder)
+        return run(cmd, folder, policy)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def one_kernel(spec: str) -> tuple[float, float]:
+def one_kernel(spec: str, policy: str) -> tuple[float, float]:
     """Wall and CPU seconds compiling one model's two kernels in a warmed-up process."""
     folder = tempfile.mkdtemp(prefix="bid-cold-")
     try:
-        env = dict(os.environ, BALANCER_ID_CACHE=folder, BALANCER_ID_QUIET="1")
+        env = dict(
+            os.environ, BALANCER_ID_CACHE=folder, BALANCER_ID_QUIET="1", BALANCER_ID_KERNELS=policy
+        )
         env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
         out = subprocess.run(
             [PY, "-c", _ONE_KERNEL, spec], env=env, cwd=ROOT, capture_output=True, text=True
@@ -117,24 +132,24 @@ def main() -> None:
     args = ap.parse_args()
     only = set(args.only.split(","))
     print(f"{os.cpu_count()} CPUs; median of {args.runs} runs, each with an empty kernel cache")
-    if "improve" in only:
-        report("improve --start viscous, cold", [cold(IMPROVE) for _ in range(args.runs)])
-    if "fit" in only:
-        report(
-            "fit --model variable_viscosity+karnopp, cold", [cold(FIT) for _ in range(args.runs)]
-        )
-    if "kernel" in only:
-        samples = [one_kernel("variable_viscosity+karnopp") for _ in range(args.runs)]
-        report("one kernel (variable_viscosity+karnopp)", samples)
-    if "warm" in only:
-        folder = tempfile.mkdtemp(prefix="bid-warm-")
-        try:
-            run(IMPROVE, folder)  # fills the cache
-            report(
-                "improve --start viscous, warm", [run(IMPROVE, folder) for _ in range(args.runs)]
-            )
-        finally:
-            shutil.rmtree(folder, ignore_errors=True)
+    for policy in ("shared", "own"):
+        if "improve" in only:
+            samples = [cold(IMPROVE, policy) for _ in range(args.runs)]
+            report(f"improve --start viscous, cold, {policy}", samples)
+        if "fit" in only:
+            samples = [cold(FIT, policy) for _ in range(args.runs)]
+            report(f"fit --model variable_viscosity+karnopp, cold, {policy}", samples)
+        if "kernel" in only:
+            samples = [one_kernel("variable_viscosity+karnopp", policy) for _ in range(args.runs)]
+            report(f"one kernel (variable_viscosity+karnopp), {policy}", samples)
+        if "warm" in only:
+            folder = tempfile.mkdtemp(prefix="bid-warm-")
+            try:
+                run(IMPROVE, folder, policy)  # fills the cache
+                samples = [run(IMPROVE, folder, policy) for _ in range(args.runs)]
+                report(f"improve --start viscous, warm, {policy}", samples)
+            finally:
+                shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":

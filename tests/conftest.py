@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import os
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+# Models of built-in effects run on the shared kernels (the default, stated here so that
+# a user's own setting does not change what the tests run); test_shared_kernel.py checks
+# them against each model's own kernel.
+os.environ["BALANCER_ID_KERNELS"] = "shared"
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
@@ -69,7 +75,8 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session", autouse=True)
 def _kernels_compiled_once():
-    """The kernels most tests use, compiled before the first test, once per session.
+    """The kernels most tests use (the shared kernels of the built-in effects), compiled
+    before the first test, once per session.
 
     Missing ones go into the disk cache at once, in several processes, and once for all
     xdist workers (the others wait on the cache's lock, then find them): no test pays

@@ -18,6 +18,16 @@ PARAMS = {"m_a": 15.1, "T_a": 0.33}
 
 
 @pytest.fixture(scope="module", autouse=True)
+def _own_kernels():
+    """The tests here are about a model's own kernel file (test_shared_kernel.py: the
+    shared one)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("BALANCER_ID_KERNELS", "own")
+        mp.setattr(K, "_CHOSEN", {})
+        yield
+
+
+@pytest.fixture(scope="module", autouse=True)
 def _process_kernels_kept():
     """The tests here forget the process's kernel modules (what a new process sees); the
     kernels memoized before them (``K._KERNELS``, restored after each test) get their
@@ -73,6 +83,7 @@ def _accel() -> np.ndarray:
 def _forget() -> None:
     """What a new process would see: nothing memoized, nothing imported."""
     K._KERNELS.clear()
+    K._CHOSEN.clear()
     for name in [n for n in sys.modules if n.startswith("bid_kernel_")]:
         del sys.modules[name]
 

@@ -221,7 +221,8 @@ class PackedTrials:
             (m/s^2), velocity (m/s), position (m), drive force (N), operating force (N).
         """
         out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
-        get_kernel(model).simulate_batch(
+        kernel = get_kernel(model)
+        kernel.simulate_batch(
             self.t_all,
             self.offsets,
             self.bt_all,
@@ -230,7 +231,7 @@ class PackedTrials:
             self.zr_all,
             self.vr_all,
             self.x0_all,
-            pvec,
+            kernel.parameters(pvec),
             substeps,
             out,
         )
@@ -292,7 +293,8 @@ class PackedTrials:
         out = np.empty((self.t_all.size, len(OUT_COLUMNS)))
         sens = np.empty((self.t_all.size, cols.size))
         s_out = np.empty_like(s_in)
-        get_kernel(model).simulate_batch_sens(
+        kernel = get_kernel(model)
+        kernel.simulate_batch_sens(
             self.t_all,
             self.offsets,
             self.bt_all,
@@ -301,9 +303,9 @@ class PackedTrials:
             self.zr_all,
             self.vr_all,
             self.x0_all,
-            pvec,
+            kernel.parameters(pvec),
             substeps,
-            cols,
+            kernel.columns(cols),
             out,
             sens,
             s_in,

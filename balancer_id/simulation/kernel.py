@@ -16,6 +16,7 @@ without chattering. The speed limit is approached with a short time constant
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import inspect
@@ -23,7 +24,7 @@ import os
 import re
 import stat
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,7 +65,7 @@ def rhs(t, f, v, z, u, zr, vr, p):
     F = f
 {force_lines}
 {friction_line}
-    a = F / p[{i_m}]
+    a = F / {m_expr}
 {limit_lines}
     return df, a, h
 
@@ -188,7 +189,7 @@ S|    nc = cols.shape[0]
 def {trial}(t_out, bt, bu, zref, vref, p, n_sub, out, f0, v0, z0{trial_args}):
     n = t_out.shape[0]
     delay = {delay_expr}
-S|    npar = p.shape[0]
+S|    npar = p.shape[0]{config_size}
 S|    nc = cols.shape[0]
 S|    pp = p.copy()
 S|    S = np.zeros((3, nc))
@@ -408,6 +409,10 @@ class Kernel:
         The generated source.
     path : Path or None
         Where the source was written (None when compiled in memory).
+    shared : SharedPlaces or None
+        Where the model's parameters sit when the kernel is one the built-in effects
+        share (None: the model's own kernel). Call the functions with
+        :meth:`parameters` and :meth:`columns`.
     """
 
     simulate_trial: Any
@@ -416,6 +421,39 @@ class Kernel:
     source: str
     path: Path | None
     simulate_batch_sens: Any = None
+    shared: SharedPlaces | None = None
+
+    def parameters(self, values: Any) -> Any:
+        """The kernel's parameter vector for a model's parameters.
+
+        Parameters
+        ----------
+        values : array_like
+            The model's parameters, in ``model.param_names`` order.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``values`` for a model's own kernel; the shared vector for a shared kernel.
+        """
+        import numpy as np
+
+        values = np.ascontiguousarray(values, dtype=np.float64)
+        return values if self.shared is None else self.shared.parameters(values)
+
+    def columns(self, cols: Any) -> Any:
+        """The kernel's sensitivity columns for the model's.
+
+        Parameters
+        ----------
+        cols : numpy.ndarray
+            Columns of the model (see :meth:`SharedPlaces.columns`).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        return cols if self.shared is None else self.shared.columns(cols)
 
 
 def cache_dir() -> Path:
@@ -479,39 +517,88 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
         hook.
     """
     index = {n: i for i, n in enumerate(model.param_names)}
+    layout = _Layout(
+        spec=model.spec,
+        effects=model.effects,
+        args={cls: _args(model, cls) for cls in model.effects},
+        switches={},
+        mass=f"p[{index['m_a']}]",
+        lag=f"p[{index['T_a']}]" if "T_a" in index else None,
+        config_size=0,
+    )
+    return _assemble(layout, cache=cache)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """How a kernel's source reaches its effects: which effects, each hook's parameter
+    arguments, the switch that turns an effect on (1.0) or off (0.0; none: always on), the
+    mass and the lag.
+    """
+
+    spec: str
+    effects: tuple[type[Effect], ...]
+    args: dict[type[Effect], str]
+    switches: dict[type[Effect], str]
+    mass: str
+    lag: str | None
+    config_size: int
+
+
+def _guarded(text: str, guard: str | None) -> str:
+    """``text`` (lines indented by 4) run only where ``guard`` holds (None: always)."""
+    if guard is None or not text:
+        return text
+    body = "\n".join("    " + line if line.strip() else line for line in text.splitlines())
+    return f"    if {guard}:\n{body}"
+
+
+def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effect]]]:
+    """The kernel module's source for ``layout`` (see :func:`generate_source`)."""
     aliases: dict[str, type[Effect]] = {}
     imports: list[str] = []
     hook_defs: list[str] = []
-    h_line = ""
-    t_line = f"    T = p[{index['T_a']}]" if "T_a" in index else ""
+    h_lines: list[str] = []
+    t_lines = [f"    T = {layout.lag}"] if layout.lag else []
     force_lines: list[str] = []
-    friction_line = ""
-    limit_lines = ""
-    event_lines: list[str] = []
+    friction_lines: list[str] = []
+    limit_lines: list[str] = []
+    events: list[tuple[str, str | None]] = []
+    friction_guard: str | None = None
+    has_friction = False
     vmax_of_expr = "0.0"
     delay_expr = "0.0"
     output_expr = "a"
-    for j, cls in enumerate(model.effects):
+    for j, cls in enumerate(layout.effects):
         alias = f"_E{j}"
         aliases[alias] = cls
         line = _import_line(alias, cls) if cache else None
         imports.append(line or f"# {alias} = {cls.__module__}.{cls.__qualname__} (in memory)")
         for hook in cls.hooks():
             hook_defs.append(f"{alias}_{hook} = jit({alias}.{hook})")
-        a = _args(model, cls)
+        a = layout.args[cls]
+        # a switched hook chooses its value without a branch around the call (a branch
+        # there keeps the compiler from folding the right-hand side into RK4: 4x slower)
+        switch = layout.switches.get(cls)
+        guard = None if switch is None else f"{switch} > 0.5"
+        on = "" if switch is None else f"{switch} * "
         hooks = cls.hooks()
         if "operating_force" in hooks:
-            h_line = f"    h = {alias}_operating_force(t, u, z, v, zr, vr{a})"
+            call = f"{alias}_operating_force(t, u, z, v, zr, vr{a})"
+            h_lines.append(f"    h = {call}" + ("" if guard is None else f" if {guard} else h"))
         if "time_constant" in hooks:
-            t_line = f"    T = {alias}_time_constant(h, f{a})"
+            call = f"{alias}_time_constant(h, f{a})"
+            t_lines.append(f"    T = {call}" + ("" if guard is None else f" if {guard} else T"))
         if "force" in hooks:
-            force_lines.append(f"    F += {alias}_force(f, v, z, h{a})")
+            force_lines.append(f"    F += {on}{alias}_force(f, v, z, h{a})")
         if "friction" in hooks:
-            friction_line = f"    F += {alias}_friction(v, F{a})"
-            event_lines.append(_FRICTION_EVENT)
+            friction_lines.append(f"    F += {on}{alias}_friction(v, F{a})")
+            events.append((_FRICTION_EVENT, guard))
+            friction_guard = guard
+            has_friction = True
         if "speed_limit" in hooks:
             vmax = f"{alias}_speed_limit({a[2:]})"
-            limit_lines = (
+            limit = (
                 f"    vm = {vmax}\n"
                 "    if a * v > 0.0:\n"
                 "        gap = vm - abs(v)\n"
@@ -523,60 +610,216 @@ def generate_source(model: Model, *, cache: bool) -> tuple[str, dict[str, type[E
                 "                x = gap / band\n"
                 "                a = a * x * (2.0 - x)"
             )
-            event_lines.append(_LIMIT_CLAMP)
-            vmax_of_expr = vmax
+            limit_lines.append(_guarded(limit, guard))
+            events.append((_LIMIT_CLAMP, guard))
+            vmax_of_expr = vmax if guard is None else f"({vmax} if {guard} else {vmax_of_expr})"
         if "input_delay" in hooks:
-            delay_expr = f"{alias}_input_delay({a[2:]})"
+            delay = f"{alias}_input_delay({a[2:]})"
+            delay_expr = delay if guard is None else f"({delay} if {guard} else {delay_expr})"
         if "output" in hooks:
-            output_expr = f"{alias}_output({output_expr}, v, z{a})"
-    if not t_line:
-        raise ValueError(f"model '{model.spec}' replaces T_a but no effect sets the time constant")
+            out = f"{alias}_output({output_expr}, v, z{a})"
+            output_expr = out if guard is None else f"({out} if {guard} else {output_expr})"
+    if not t_lines:
+        raise ValueError(
+            f"model '{layout.spec}' replaces T_a but no effect sets the time constant"
+        )
     fields: dict[str, Any] = {
         "cache": "True" if cache else "False",
         "delay_expr": delay_expr,
         "output_expr": output_expr,
+        "config_size": f" - {layout.config_size}" if layout.config_size else "",
         "ref_slopes": (
             "            szr = (zref[i] - zref[i - 1]) / (t - t0)\n"
             "            svr = (vref[i] - vref[i - 1]) / (t - t0)"
-            if h_line
+            if h_lines
             else "            szr = 0.0\n            svr = 0.0"
         ),
     }
     integrators = {}
     for sens, names in _VARIANTS.items():
-        events = "\n".join(
-            _variant(e, sens).format(vmax_expr=vmax_of_expr, **names) for e in event_lines
+        event_text = "\n".join(
+            _guarded(_variant(e, sens).format(vmax_expr=vmax_of_expr, **names), g)
+            for e, g in events
         )
-        save = sens and bool(friction_line)  # the step's start, for a friction event
+        save = (
+            "    for r in range(3):\n"
+            "        for c in range(nc):\n"
+            "            S0[r, c] = S[r, c]"
+        )
         integrators[sens] = _variant(_INTEGRATOR, sens).format(
             **fields,
             **names,
-            event_lines=events,
-            save_sens=(
-                "    for r in range(3):\n"
-                "        for c in range(nc):\n"
-                "            S0[r, c] = S[r, c]"
-                if save
-                else ""
-            ),
+            event_lines=event_text,
+            # the step's start, for a friction event
+            save_sens=_guarded(save, friction_guard) if sens and has_friction else "",
         )
     source = _TEMPLATE.format(
         **fields,
-        spec=model.spec,
+        spec=layout.spec,
         imports="\n".join(imports),
         hook_defs="\n".join(hook_defs),
-        h_line=h_line,
-        t_line=t_line,
+        h_line="\n".join(h_lines),
+        t_line="\n".join(t_lines),
         force_lines="\n".join(force_lines),
-        friction_line=friction_line,
-        i_m=index["m_a"],
-        limit_lines=limit_lines,
+        friction_line="\n".join(friction_lines),
+        m_expr=layout.mass,
+        limit_lines="\n".join(limit_lines),
         vmax_of_expr=vmax_of_expr,
         rel_step=REL_STEP,
         integrator=integrators[False],
         integrator_sens=integrators[True],
     )
     return source, aliases
+
+
+def _shared_effects() -> tuple[type[Effect], ...]:
+    """The built-in effects, in the order of the kernels they share (the base first)."""
+    from balancer_id.model.effects import BUILTIN_EFFECTS, Base
+
+    return (Base, *BUILTIN_EFFECTS.values())
+
+
+#: Hooks that cannot be switched off without a branch in every evaluation of the
+#: right-hand side or every step (a shared kernel holding one of them switched off runs
+#: 2-8x slower): an effect with one of them is compiled, always on, into the shared
+#: kernels of the models that have it.
+_STRUCTURAL_HOOKS = ("operating_force", "time_constant", "friction", "speed_limit")
+
+
+def _is_structural(cls: type[Effect]) -> bool:
+    return any(h in _STRUCTURAL_HOOKS for h in cls.hooks())
+
+
+@functools.cache
+def _shared_names() -> tuple[str, ...]:
+    """Every parameter name of the built-in effects, in the shared kernels' order."""
+    return tuple(dict.fromkeys(q.name for cls in _shared_effects() for q in cls.parameters))
+
+
+def _switched_effects() -> tuple[type[Effect], ...]:
+    """The built-in effects every shared kernel holds, each behind its switch."""
+    return tuple(c for c in _shared_effects()[1:] if not _is_structural(c))
+
+
+@functools.cache
+def _shared_layout(structural: tuple[type[Effect], ...]) -> _Layout:
+    """The layout of the kernel shared by every model of built-in effects whose effects
+    with a structural hook are ``structural``.
+
+    Its parameter vector holds every parameter name of the built-in effects (one place
+    per name: a name means one thing in any model), then one switch (1.0 on, 0.0 off) per
+    effect without a structural hook. A switched force counts times its switch and a
+    switched output or delay is chosen by it, without a branch, so one compiled kernel
+    serves every combination of them as fast as a model's own kernel; ``structural`` are
+    always on.
+    """
+    names = _shared_names()
+    place = {name: i for i, name in enumerate(names)}
+    switched = _switched_effects()
+    effects = tuple(c for c in _shared_effects()[1:] if c in switched or c in structural)
+    return _Layout(
+        spec="+".join(c.name for c in effects) + " (shared; switched: "
+        + ", ".join(c.name for c in switched) + ")",
+        effects=effects,
+        args={
+            cls: "".join(f", p[{place[q.name]}]" for q in cls.parameters) for cls in effects
+        },
+        switches={cls: f"p[{len(names) + j}]" for j, cls in enumerate(switched)},
+        mass=f"p[{place['m_a']}]",
+        lag=f"p[{place['T_a']}]",
+        config_size=len(switched),
+    )
+
+
+@dataclass(frozen=True)
+class SharedPlaces:
+    """Where a model's parameters sit in the parameter vector of its shared kernel.
+
+    Attributes
+    ----------
+    template : numpy.ndarray
+        The shared vector: the model's effects switched on, every parameter at its start
+        value (an effect switched off stays finite).
+    places : numpy.ndarray
+        The place of each of the model's parameters (``model.param_names`` order).
+    n_names : int
+        How many parameter places the vector has before its switches.
+    structural : tuple of Effect subclasses
+        The model's effects with a structural hook: which shared kernel it runs on.
+    """
+
+    template: Any
+    places: Any
+    n_names: int
+    structural: tuple[type[Effect], ...]
+
+    def parameters(self, values: Any) -> Any:
+        """The shared vector holding the model's parameters.
+
+        Parameters
+        ----------
+        values : numpy.ndarray
+            The model's parameters, in ``model.param_names`` order.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        out = self.template.copy()
+        out[self.places] = values
+        return out
+
+    def columns(self, cols: Any) -> Any:
+        """The shared kernel's sensitivity columns for the model's.
+
+        Parameters
+        ----------
+        cols : numpy.ndarray
+            Columns of the model: its parameters, then ``n + 0, 1, 2`` for the initial
+            state (``n`` parameters).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        import numpy as np
+
+        cols = np.asarray(cols, dtype=np.int64)
+        n = self.places.size
+        return np.where(cols < n, self.places[np.minimum(cols, n - 1)], cols - n + self.n_names)
+
+
+def shared_places(model: Model) -> SharedPlaces | None:
+    """Where ``model``'s parameters sit in its shared kernel, or None when the model has an
+    effect outside the built-in ones (it then gets a kernel of its own).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    SharedPlaces or None
+    """
+    import numpy as np
+
+    effects = _shared_effects()
+    if any(cls not in effects for cls in model.effects):
+        return None
+    names = _shared_names()
+    place = {name: i for i, name in enumerate(names)}
+    switched = _switched_effects()
+    template = np.zeros(len(names) + len(switched))
+    for cls in reversed(effects):  # an effect that is off sees its start values
+        for q in cls.parameters:
+            template[place[q.name]] = q.value
+    for cls in model.effects:
+        if cls in switched:
+            template[len(names) + switched.index(cls)] = 1.0
+    places = np.array([place[name] for name in model.param_names], dtype=np.int64)
+    structural = tuple(c for c in effects if c in model.effects and _is_structural(c))
+    return SharedPlaces(template, places, len(names), structural)
 
 
 _KERNELS: dict[tuple[object, ...], Kernel] = {}
@@ -673,15 +916,33 @@ def compile_models(models: Sequence[Model], *, sensitivities: bool = True) -> No
     """
     unique = {(m.effects, m.param_names): m for m in models}  # a model named twice: once
     todo = [m for key, m in unique.items() if key not in _KERNELS]
-    need = [m for m in todo if not _is_cached(m)]
+    need = list(_one_per_file(m for m in todo if not _is_cached(m)).values())
     if not need:
         return
     with _compile_lock():  # one process compiles; the others wait, then load
         need = [m for m in need if not _is_cached(m)]
         if _VERBOSE_COMPILE:
             for k, m in enumerate(need, 1):
-                note(f"compiling the simulation kernel of '{m.spec}' ({k}/{len(need)}; once)")
+                name = _kernel_name(m)
+                note(f"compiling the simulation kernel of {name} ({k}/{len(need)}; once)")
         _compile_shared(need, sensitivities)
+
+
+def _one_per_file(models: Iterable[Model]) -> dict[object, Model]:
+    """One model per kernel file (the models of built-in effects share one)."""
+    chosen: dict[object, Model] = {}
+    for m in models:
+        path, _ = _kernel_path(m)
+        chosen.setdefault(path or (m.effects, m.param_names), m)
+    return chosen
+
+
+def _kernel_name(model: Model) -> str:
+    places = shared_places(model) if _uses_shared(model) else None
+    if places is None:
+        return f"'{model.spec}'"
+    with_ = " with " + "+".join(c.name for c in places.structural) if places.structural else ""
+    return f"the built-in effects{with_} (shared by their models)"
 
 
 def _compile_here(models: Sequence[Model], sensitivities: bool) -> None:
@@ -730,11 +991,7 @@ def _compile_shared(models: Sequence[Model], sensitivities: bool) -> None:
         return
     shares = [list(models[i::jobs]) for i in range(jobs)]
     commands = [c for c in (_compile_command(s, sensitivities) for s in shares[1:]) if c]
-    package_root = str(Path(__file__).resolve().parents[2])
-    env = dict(os.environ, BALANCER_ID_QUIET="1")
-    env["PYTHONPATH"] = os.pathsep.join(
-        [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
-    )
+    env = _helper_env()
 
     def run(command: list[str]) -> None:
         try:
@@ -759,6 +1016,16 @@ def _compile_shared(models: Sequence[Model], sensitivities: bool) -> None:
     _compile_here([m for share in shares[1:] for m in share], sensitivities)
 
 
+def _helper_env() -> dict[str, str]:
+    """The environment of a compiling helper process: quiet, importing this package."""
+    package_root = str(Path(__file__).resolve().parents[2])
+    env = dict(os.environ, BALANCER_ID_QUIET="1")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
+    )
+    return env
+
+
 def _compile_command(models: Sequence[Model], sensitivities: bool) -> list[str] | None:
     """The command of a helper process compiling ``models``' kernel files (None: none of
     them has a file, e.g. effects defined inside a function)."""
@@ -772,7 +1039,8 @@ def _compile_command(models: Sequence[Model], sensitivities: bool) -> list[str] 
             continue
         if kernel.path is None:  # compiled in memory: nothing another process can share
             continue
-        kernels.append([str(kernel.path), len(model.params)])
+        values = kernel.parameters([q.value for q in model.params])
+        kernels.append([str(kernel.path), [float(x) for x in values]])
         files += [
             str(getattr(sys.modules.get(c.__module__), "__file__", ""))
             for c in model.effects
@@ -798,14 +1066,16 @@ def _cpus() -> int:
 
 
 def compile_files(
-    kernels: Sequence[tuple[str, int]], sensitivities: bool, effects_files: Sequence[str]
+    kernels: Sequence[tuple[str, Sequence[float]]],
+    sensitivities: bool,
+    effects_files: Sequence[str],
 ) -> None:
     """Compile kernel files into numba's disk cache (what a helper process runs).
 
     Parameters
     ----------
-    kernels : sequence of (str, int)
-        Each kernel file written by this module and its model's number of parameters.
+    kernels : sequence of (str, sequence of float)
+        Each kernel file written by this module and a parameter vector to run it with.
     sensitivities : bool
         Also compile the sensitivity kernels.
     effects_files : sequence of str
@@ -817,11 +1087,11 @@ def compile_files(
 
     for file in dict.fromkeys(effects_files):
         import_file_module(Path(file))
-    for path, n_params in kernels:
+    for path, values in kernels:
         kernel_path = Path(path)
         try:
             module = _import_path(kernel_path.stem, kernel_path)
-            pvec = np.ones(int(n_params))
+            pvec = np.asarray(values, dtype=np.float64)
             _run_tiny(module.simulate_batch, pvec)
             if sensitivities:
                 _run_tiny_sens(module.simulate_batch_sens, pvec)
@@ -873,25 +1143,23 @@ def _run_tiny_sens(simulate_batch_sens: Any, pvec: Any) -> None:
 
 def _warm(model: Model, kernel: Kernel, sensitivities: bool) -> None:
     """Run the sensitivity kernel once on a tiny input (compiles or loads it)."""
-    import numpy as np
 
     if not sensitivities:
         return
-    _run_tiny_sens(kernel.simulate_batch_sens, np.array([p.value for p in model.params]))
+    _run_tiny_sens(kernel.simulate_batch_sens, kernel.parameters([p.value for p in model.params]))
 
 
 def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
     """Run the kernel once on a tiny input, so compile errors name the model's effects."""
-    import numpy as np
 
     fresh = kernel.path is not None and not _is_cached_path(kernel.path)
     if fresh and not quiet and _VERBOSE_COMPILE and kernel.path is not None:
         note(
-            f"compiling the simulation kernel of '{model.spec}' (once; cached in "
+            f"compiling the simulation kernel of {_kernel_name(model)} (once; cached in "
             f"{kernel.path.parent})"
         )
     try:
-        _run_tiny(kernel.simulate_batch, np.array([p.value for p in model.params]))
+        _run_tiny(kernel.simulate_batch, kernel.parameters([p.value for p in model.params]))
         if fresh:  # the fit's kernel too, under the same note, into the same cache
             _warm(model, kernel, True)
     except Exception as exc:
@@ -956,7 +1224,42 @@ def _private_dir(folder: Path) -> str | None:
 
 
 def _kernel_path(model: Model) -> tuple[Path | None, str]:
-    """Where the model's kernel is cached (None: compiled in memory) and its source.
+    """Where the kernel this process uses for ``model`` is cached (None: compiled in
+    memory) and its source: see :func:`_uses_shared`."""
+    places = shared_places(model) if _uses_shared(model) else None
+    if places is not None:
+        name, source = _shared_source(places.structural)
+        return cache_dir() / name, source
+    return _own_kernel_path(model)
+
+
+#: Which kernel a model of built-in effects runs on (``$BALANCER_ID_KERNELS``): ``shared``
+#: (the default) the shared kernel of its structural effects, ``own`` a kernel of its own.
+KERNEL_CHOICES = ("shared", "own")
+
+_CHOSEN: dict[tuple[object, ...], bool] = {}
+
+
+def _uses_shared(model: Model) -> bool:
+    """Whether ``model`` runs on a shared kernel of the built-in effects in this process.
+
+    A model of built-in effects runs as fast on the shared kernel of its structural
+    effects (:func:`_shared_layout`) as on its own (within 10 %), and a handful of shared
+    kernels, compiled once per machine, serve every combination, where each model's own
+    kernel costs 2-6 s to compile. ``BALANCER_ID_KERNELS=own`` gives each its own kernel.
+    The choice is made once per process and model.
+    """
+    key = (model.effects, model.param_names)
+    chosen = _CHOSEN.get(key)
+    if chosen is None:
+        policy = os.environ.get("BALANCER_ID_KERNELS", "shared").strip().lower()
+        chosen = HAVE_NUMBA and policy != "own" and shared_places(model) is not None
+        _CHOSEN[key] = chosen
+    return chosen
+
+
+def _own_kernel_path(model: Model) -> tuple[Path | None, str]:
+    """Where ``model``'s own kernel is cached (None: compiled in memory) and its source.
 
     The name carries a SHA-256 of the source, the effects' code and the numba version;
     the file is only imported when its content equals the source generated now.
@@ -964,11 +1267,22 @@ def _kernel_path(model: Model) -> tuple[Path | None, str]:
     source, _ = generate_source(model, cache=True)
     if any("(in memory)" in line for line in source.splitlines()[:40]):
         return None, source
-    fingerprint = "\n".join(_effect_fingerprint(c) for c in model.effects)
-    digest = hashlib.sha256(
+    return cache_dir() / f"bid_kernel_{_digest(source, model.effects)}.py", source
+
+
+def _digest(source: str, effects: Sequence[type[Effect]]) -> str:
+    fingerprint = "\n".join(_effect_fingerprint(c) for c in effects)
+    return hashlib.sha256(
         (KERNEL_VERSION + source + fingerprint + _numba_version()).encode()
     ).hexdigest()[:24]
-    return cache_dir() / f"bid_kernel_{digest}.py", source
+
+
+@functools.cache
+def _shared_source(structural: tuple[type[Effect], ...]) -> tuple[str, str]:
+    """The file name and source of the shared kernel with the effects ``structural``."""
+    layout = _shared_layout(structural)
+    source, _ = _assemble(layout, cache=True)
+    return f"bid_kernel_builtin_{_digest(source, layout.effects)}.py", source
 
 
 _REFUSED: set[str] = set()
@@ -980,6 +1294,19 @@ def _write_private(path: Path, text: str) -> None:
     with os.fdopen(fd, "w", encoding="utf-8") as fh:
         fh.write(text)
     os.replace(tmp, path)
+
+
+def _write_kernel_file(path: Path, source: str) -> None:
+    """Write ``source`` to ``path`` unless it is there already (a stale file is purged)."""
+    try:
+        current = path.read_text(encoding="utf-8")
+    except (FileNotFoundError, UnicodeDecodeError):
+        current = None
+    if current != source:
+        if path.exists():
+            note(f"cached kernel {path.name} did not match its model; rewriting it")
+            _purge(path)
+        _write_private(path, source)
 
 
 def _build(model: Model) -> Kernel:
@@ -995,15 +1322,7 @@ def _build(model: Model) -> Kernel:
             note(f"kernel cache not used: {problem}; compiling in memory (slower start)")
         return _exec_in_memory(*generate_source(model, cache=False))
     try:
-        try:
-            current = path.read_text(encoding="utf-8")
-        except (FileNotFoundError, UnicodeDecodeError):
-            current = None
-        if current != source:
-            if path.exists():
-                note(f"cached kernel {path.name} did not match its model; rewriting it")
-                _purge(path)
-            _write_private(path, source)
+        _write_kernel_file(path, source)
     except OSError as exc:
         note(f"kernel cache not used ({exc.strerror or exc}); compiling in memory")
         return _exec_in_memory(*generate_source(model, cache=False))
@@ -1025,6 +1344,7 @@ def _build(model: Model) -> Kernel:
         source,
         path,
         module.simulate_batch_sens,
+        shared_places(model) if _uses_shared(model) else None,
     )
 
 
