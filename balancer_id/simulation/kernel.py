@@ -702,21 +702,24 @@ def _switched_effects() -> tuple[type[Effect], ...]:
 
 
 @functools.cache
-def _shared_layout(structural: tuple[type[Effect], ...]) -> _Layout:
-    """The layout of the kernel shared by every model of built-in effects whose effects
-    with a structural hook are ``structural``.
+def _shared_layout(fixed: tuple[type[Effect], ...]) -> _Layout:
+    """The layout of the kernel shared by every model whose effects that cannot be
+    switched are ``fixed``: its built-in effects with a structural hook and its user
+    effects.
 
     Its parameter vector holds every parameter name of the built-in effects (one place
-    per name: a name means one thing in any model), then one switch (1.0 on, 0.0 off) per
-    effect without a structural hook. A switched force counts times its switch and a
-    switched output or delay is chosen by it, without a branch, so one compiled kernel
-    serves every combination of them as fast as a model's own kernel; ``structural`` are
-    always on.
+    per name: a name means one thing in any model), those of the user effects in
+    ``fixed``, then one switch (1.0 on, 0.0 off) per built-in effect without a structural
+    hook. A switched force counts times its switch and a switched output or delay is
+    chosen by it, without a branch, so one compiled kernel serves every combination of
+    them as fast as a model's own kernel; ``fixed`` are always on.
     """
-    names = _shared_names()
+    names = _layout_names(fixed)
     place = {name: i for i, name in enumerate(names)}
     switched = _switched_effects()
-    effects = tuple(c for c in _shared_effects()[1:] if c in switched or c in structural)
+    built_in = _shared_effects()[1:]
+    effects = tuple(c for c in built_in if c in switched or c in fixed)
+    effects += tuple(c for c in fixed if c not in built_in)
     return _Layout(
         spec="+".join(c.name for c in effects) + " (shared; switched: "
         + ", ".join(c.name for c in switched) + ")",
@@ -729,6 +732,12 @@ def _shared_layout(structural: tuple[type[Effect], ...]) -> _Layout:
         lag=f"p[{place['T_a']}]",
         config_size=len(switched),
     )
+
+
+def _layout_names(fixed: tuple[type[Effect], ...]) -> tuple[str, ...]:
+    """The parameter places of the shared kernel with the effects ``fixed``."""
+    user = [q.name for c in fixed if c not in _shared_effects() for q in c.parameters]
+    return tuple(dict.fromkeys([*_shared_names(), *user]))
 
 
 @dataclass(frozen=True)
@@ -744,14 +753,15 @@ class SharedPlaces:
         The place of each of the model's parameters (``model.param_names`` order).
     n_names : int
         How many parameter places the vector has before its switches.
-    structural : tuple of Effect subclasses
-        The model's effects with a structural hook: which shared kernel it runs on.
+    fixed : tuple of Effect subclasses
+        The model's effects that cannot be switched (built-in ones with a structural
+        hook, user ones): which shared kernel it runs on.
     """
 
     template: Any
     places: Any
     n_names: int
-    structural: tuple[type[Effect], ...]
+    fixed: tuple[type[Effect], ...]
 
     def parameters(self, values: Any) -> Any:
         """The shared vector holding the model's parameters.
@@ -790,8 +800,14 @@ class SharedPlaces:
 
 
 def shared_places(model: Model) -> SharedPlaces | None:
-    """Where ``model``'s parameters sit in its shared kernel, or None when the model has an
-    effect outside the built-in ones (it then gets a kernel of its own).
+    """Where ``model``'s parameters sit in its shared kernel, or None when it cannot share
+    one and gets a kernel of its own.
+
+    A model shares the kernel of its effects that cannot be switched (its built-in effects
+    with a structural hook, and its user effects) with every model that has the same ones.
+    A user effect that cannot be imported by name (defined inside a function), has an
+    ``output`` hook (the order of outputs matters) or names a parameter as a built-in
+    effect that can be switched does not share.
 
     Parameters
     ----------
@@ -805,21 +821,30 @@ def shared_places(model: Model) -> SharedPlaces | None:
     import numpy as np
 
     effects = _shared_effects()
-    if any(cls not in effects for cls in model.effects):
-        return None
-    names = _shared_names()
-    place = {name: i for i, name in enumerate(names)}
     switched = _switched_effects()
+    switched_names = {q.name for c in switched for q in c.parameters}
+    for cls in model.effects:
+        if cls in effects:
+            continue
+        if (
+            "output" in cls.hooks()
+            or any(q.name in switched_names for q in cls.parameters)
+            or _import_line("_E", cls) is None
+        ):
+            return None
+    fixed = tuple(c for c in effects if c in model.effects and _is_structural(c))
+    fixed += tuple(c for c in model.effects if c not in effects)
+    names = _layout_names(fixed)
+    place = {name: i for i, name in enumerate(names)}
     template = np.zeros(len(names) + len(switched))
-    for cls in reversed(effects):  # an effect that is off sees its start values
+    for cls in reversed((*effects, *fixed)):  # an effect that is off sees its start values
         for q in cls.parameters:
             template[place[q.name]] = q.value
     for cls in model.effects:
         if cls in switched:
             template[len(names) + switched.index(cls)] = 1.0
     places = np.array([place[name] for name in model.param_names], dtype=np.int64)
-    structural = tuple(c for c in effects if c in model.effects and _is_structural(c))
-    return SharedPlaces(template, places, len(names), structural)
+    return SharedPlaces(template, places, len(names), fixed)
 
 
 _KERNELS: dict[tuple[object, ...], Kernel] = {}
@@ -941,7 +966,7 @@ def _kernel_name(model: Model) -> str:
     places = shared_places(model) if _uses_shared(model) else None
     if places is None:
         return f"'{model.spec}'"
-    with_ = " with " + "+".join(c.name for c in places.structural) if places.structural else ""
+    with_ = " with " + "+".join(c.name for c in places.fixed) if places.fixed else ""
     return f"the built-in effects{with_} (shared by their models)"
 
 
@@ -1228,26 +1253,27 @@ def _kernel_path(model: Model) -> tuple[Path | None, str]:
     memory) and its source: see :func:`_uses_shared`."""
     places = shared_places(model) if _uses_shared(model) else None
     if places is not None:
-        name, source = _shared_source(places.structural)
+        name, source = _shared_source(places.fixed)
         return cache_dir() / name, source
     return _own_kernel_path(model)
 
 
-#: Which kernel a model of built-in effects runs on (``$BALANCER_ID_KERNELS``): ``shared``
-#: (the default) the shared kernel of its structural effects, ``own`` a kernel of its own.
+#: Which kernel a model runs on (``$BALANCER_ID_KERNELS``): ``shared`` (the default) the
+#: kernel it shares with the models of the same fixed effects, ``own`` a kernel of its own.
 KERNEL_CHOICES = ("shared", "own")
 
 _CHOSEN: dict[tuple[object, ...], bool] = {}
 
 
 def _uses_shared(model: Model) -> bool:
-    """Whether ``model`` runs on a shared kernel of the built-in effects in this process.
+    """Whether ``model`` runs on a shared kernel in this process.
 
-    A model of built-in effects runs as fast on the shared kernel of its structural
+    A model runs as fast on the kernel it shares with the models of the same fixed
     effects (:func:`_shared_layout`) as on its own (within 10 %), and a handful of shared
-    kernels, compiled once per machine, serve every combination, where each model's own
-    kernel costs 2-6 s to compile. ``BALANCER_ID_KERNELS=own`` gives each its own kernel.
-    The choice is made once per process and model.
+    kernels, compiled once per machine, serve every combination of the built-in effects
+    that can be switched, where each model's own kernel costs 2-6 s to compile.
+    ``BALANCER_ID_KERNELS=own`` gives each its own kernel. The choice is made once per
+    process and model.
     """
     key = (model.effects, model.param_names)
     chosen = _CHOSEN.get(key)
@@ -1278,9 +1304,9 @@ def _digest(source: str, effects: Sequence[type[Effect]]) -> str:
 
 
 @functools.cache
-def _shared_source(structural: tuple[type[Effect], ...]) -> tuple[str, str]:
-    """The file name and source of the shared kernel with the effects ``structural``."""
-    layout = _shared_layout(structural)
+def _shared_source(fixed: tuple[type[Effect], ...]) -> tuple[str, str]:
+    """The file name and source of the shared kernel with the effects ``fixed``."""
+    layout = _shared_layout(fixed)
     source, _ = _assemble(layout, cache=True)
     return f"bid_kernel_builtin_{_digest(source, layout.effects)}.py", source
 
