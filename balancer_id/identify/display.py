@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from balancer_id.metric_fields import metric_cells, metric_line
 from balancer_id.numbers import format_with_uncertainty
 
 if TYPE_CHECKING:
@@ -211,14 +212,8 @@ def match_report(match: ShownFit, *, warnings: list[str] | None = None) -> str:
         f"    # function evals   = {match.nfev}",
         f"    converged          = {match.success}",
     ]
-    for key, label in (
-        ("rmse", "RMSE (m/s²)"),
-        ("nrmse_fit_percent", "fit (NRMSE %)"),
-        ("aic", "AIC"),
-        ("bic", "BIC"),
-    ):
-        if key in m and m[key] is not None:
-            lines.append(f"    {label:<18} = {m[key]:.6g}")
+    for field, text in metric_cells(m):
+        lines.append(f"    {field.heading:<18} = {text}")
     lines += ["[[Variables]]", *_parameter_lines(match)]
     corr = _correlation_lines(match)
     if corr:
@@ -258,11 +253,7 @@ def match_html(match: ShownFit, heading: str = "") -> str:
             )
             + "</tr>"
         )
-    stats = (
-        f"RMSE {m.get('rmse', float('nan')):.4g} m/s², "
-        f"fit {m.get('nrmse_fit_percent', float('nan')):.1f} %, "
-        f"BIC {m.get('bic', float('nan')):.1f}, {len(match.data.trials)} trials"
-    )
+    stats = f"{metric_line(m)}, {len(match.data.trials)} trials"
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in match.warnings)
     return (
         "<div>"

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from balancer_id.metric_fields import metric_cells
 from balancer_id.numbers import format_estimate, format_interval, format_number
 from balancer_id.report.blocks import (
     Block,
@@ -156,15 +157,12 @@ def _summary_section(result: FitResult) -> Section:
         if n_warn
         else ""
     )
+    cells = metric_cells(m)
     errors = Table(
-        ["RMSE (m/s²)", "fit (%)", "AIC", "BIC", "samples", "free parameters", "optimizer"],
+        [*(f.heading for f, _ in cells), "free parameters", "optimizer"],
         [
             [
-                format_number(m["rmse"]),
-                format_number(m["nrmse_fit_percent"], 4),
-                f"{m['aic']:.1f}",
-                f"{m['bic']:.1f}",
-                str(int(m["n_samples"])),
+                *(text for _, text in cells),
                 str(n_free),
                 Cell(f"{status} ({match.nfev} evaluations)", "" if match.success else "bad"),
             ]

@@ -7,6 +7,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
 
 
@@ -162,11 +163,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         f"paper's method: m_a = {_fmt(c['m_a'])} kg (± {_fmt(c.get('m_a_stderr'), 2)}), "
         f"T_a = {_fmt(c['T_a'])} s, free-line intercept = {_fmt(c.get('intercept_N'), 3)} N"
     )
-    m = result["metrics"]
-    console.print(
-        f"errors: RMSE = {_fmt(m['rmse'])} m/s^2, fit = {_fmt(m['nrmse_fit_percent'], 4)} %, "
-        f"AIC = {m['aic']:.1f}, BIC = {m['bic']:.1f}, samples = {m['n_samples']}"
-    )
+    console.print(f"errors: {metric_line(result['metrics'])}")
     trials = Table(title="per trial")
     for col in ("#", "thrust (N)", "direction", "RMSE (m/s^2)"):
         trials.add_column(col)
@@ -253,17 +250,18 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
 
         for line in vibration_lines(result["vibration"]):
             console.print(line)
-    table = Table(title="models compared on the same trials")
-    for col in ("model", "RMSE (m/s^2)", "fit %", "AIC", "BIC", "worst window"):
+    # the same trials: one count of samples, in the title
+    first = models[0]["metrics"] if models else {}
+    samples = f" ({first['n_samples']} samples)" if "n_samples" in first else ""
+    table = Table(title=f"models compared on the same trials{samples}")
+    fields = [f for f in FIT_METRICS if f.key in first and f.key != "n_samples"]
+    for col in ("model", *(f.heading for f in fields), "worst window"):
         table.add_column(col)
     for m in models:
         w = m["worst"][0] if m["worst"] else None
         table.add_row(
             m["model"],
-            _fmt(m["metrics"]["rmse"]),
-            _fmt(m["metrics"]["nrmse_fit_percent"], 4),
-            f"{m['metrics']['aic']:.1f}",
-            f"{m['metrics']['bic']:.1f}",
+            *(f.format(m["metrics"].get(f.key)) for f in fields),
             f"trial {w['trial']} {w['t_start']:.2f}-{w['t_end']:.2f} s" if w else "-",
         )
     console.print(table)
