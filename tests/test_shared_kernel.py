@@ -97,7 +97,7 @@ def test_a_model_outside_the_built_in_effects_gets_its_own_kernel(fresh_choice, 
     model = Model((*viscous.effects, Spring), viscous.registry)
     monkeypatch.setenv("BALANCER_ID_KERNELS", "shared")
     assert K.shared_places(model) is None
-    assert not K._uses_shared(model)
+    assert K._shared_choice(model) is None
     assert K.shared_places(parse_model("viscous+bias")) is not None
 
 

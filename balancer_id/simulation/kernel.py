@@ -545,14 +545,6 @@ class _Layout:
     config_size: int
 
 
-def _guarded(text: str, guard: str | None) -> str:
-    """``text`` (lines indented by 4) run only where ``guard`` holds (None: always)."""
-    if guard is None or not text:
-        return text
-    body = "\n".join("    " + line if line.strip() else line for line in text.splitlines())
-    return f"    if {guard}:\n{body}"
-
-
 def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effect]]]:
     """The kernel module's source for ``layout`` (see :func:`generate_source`)."""
     aliases: dict[str, type[Effect]] = {}
@@ -562,10 +554,8 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
     t_lines = [f"    T = {layout.lag}"] if layout.lag else []
     force_lines: list[str] = []
     friction_lines: list[str] = []
-    limit_lines: list[str] = []
-    events: list[tuple[str, str | None]] = []
-    friction_guard: str | None = None
-    has_friction = False
+    limit_lines = ""
+    event_lines: list[str] = []
     vmax_of_expr = "0.0"
     delay_expr = "0.0"
     output_expr = "a"
@@ -577,28 +567,27 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
         for hook in cls.hooks():
             hook_defs.append(f"{alias}_{hook} = jit({alias}.{hook})")
         a = layout.args[cls]
-        # a switched hook chooses its value without a branch around the call (a branch
-        # there keeps the compiler from folding the right-hand side into RK4: 4x slower)
+        # a switched hook's value is chosen without a branch around the call (a branch
+        # there keeps the compiler from folding the right-hand side into RK4: 4x slower);
+        # structural hooks cannot be switched so (see _STRUCTURAL_HOOKS)
         switch = layout.switches.get(cls)
+        hooks = cls.hooks()
+        if switch is not None and _is_structural(cls):
+            raise ValueError(f"effect '{cls.name}' has a structural hook: it cannot be switched")
         guard = None if switch is None else f"{switch} > 0.5"
         on = "" if switch is None else f"{switch} * "
-        hooks = cls.hooks()
         if "operating_force" in hooks:
-            call = f"{alias}_operating_force(t, u, z, v, zr, vr{a})"
-            h_lines.append(f"    h = {call}" + ("" if guard is None else f" if {guard} else h"))
+            h_lines.append(f"    h = {alias}_operating_force(t, u, z, v, zr, vr{a})")
         if "time_constant" in hooks:
-            call = f"{alias}_time_constant(h, f{a})"
-            t_lines.append(f"    T = {call}" + ("" if guard is None else f" if {guard} else T"))
+            t_lines.append(f"    T = {alias}_time_constant(h, f{a})")
         if "force" in hooks:
             force_lines.append(f"    F += {on}{alias}_force(f, v, z, h{a})")
         if "friction" in hooks:
-            friction_lines.append(f"    F += {on}{alias}_friction(v, F{a})")
-            events.append((_FRICTION_EVENT, guard))
-            friction_guard = guard
-            has_friction = True
+            friction_lines.append(f"    F += {alias}_friction(v, F{a})")
+            event_lines.append(_FRICTION_EVENT)
         if "speed_limit" in hooks:
             vmax = f"{alias}_speed_limit({a[2:]})"
-            limit = (
+            limit_lines = (
                 f"    vm = {vmax}\n"
                 "    if a * v > 0.0:\n"
                 "        gap = vm - abs(v)\n"
@@ -610,9 +599,8 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
                 "                x = gap / band\n"
                 "                a = a * x * (2.0 - x)"
             )
-            limit_lines.append(_guarded(limit, guard))
-            events.append((_LIMIT_CLAMP, guard))
-            vmax_of_expr = vmax if guard is None else f"({vmax} if {guard} else {vmax_of_expr})"
+            event_lines.append(_LIMIT_CLAMP)
+            vmax_of_expr = vmax
         if "input_delay" in hooks:
             delay = f"{alias}_input_delay({a[2:]})"
             delay_expr = delay if guard is None else f"({delay} if {guard} else {delay_expr})"
@@ -637,21 +625,21 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
     }
     integrators = {}
     for sens, names in _VARIANTS.items():
-        event_text = "\n".join(
-            _guarded(_variant(e, sens).format(vmax_expr=vmax_of_expr, **names), g)
-            for e, g in events
+        events = "\n".join(
+            _variant(e, sens).format(vmax_expr=vmax_of_expr, **names) for e in event_lines
         )
-        save = (
-            "    for r in range(3):\n"
-            "        for c in range(nc):\n"
-            "            S0[r, c] = S[r, c]"
-        )
+        save = sens and bool(friction_lines)  # the step's start, for a friction event
         integrators[sens] = _variant(_INTEGRATOR, sens).format(
             **fields,
             **names,
-            event_lines=event_text,
-            # the step's start, for a friction event
-            save_sens=_guarded(save, friction_guard) if sens and has_friction else "",
+            event_lines=events,
+            save_sens=(
+                "    for r in range(3):\n"
+                "        for c in range(nc):\n"
+                "            S0[r, c] = S[r, c]"
+                if save
+                else ""
+            ),
         )
     source = _TEMPLATE.format(
         **fields,
@@ -663,7 +651,7 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
         force_lines="\n".join(force_lines),
         friction_line="\n".join(friction_lines),
         m_expr=layout.mass,
-        limit_lines="\n".join(limit_lines),
+        limit_lines=limit_lines,
         vmax_of_expr=vmax_of_expr,
         rel_step=REL_STEP,
         integrator=integrators[False],
@@ -963,7 +951,7 @@ def _one_per_file(models: Iterable[Model]) -> dict[object, Model]:
 
 
 def _kernel_name(model: Model) -> str:
-    places = shared_places(model) if _uses_shared(model) else None
+    places = _shared_choice(model)
     if places is None:
         return f"'{model.spec}'"
     with_ = " with " + "+".join(c.name for c in places.fixed) if places.fixed else ""
@@ -1250,38 +1238,36 @@ def _private_dir(folder: Path) -> str | None:
 
 def _kernel_path(model: Model) -> tuple[Path | None, str]:
     """Where the kernel this process uses for ``model`` is cached (None: compiled in
-    memory) and its source: see :func:`_uses_shared`."""
-    places = shared_places(model) if _uses_shared(model) else None
+    memory) and its source: see :func:`_shared_choice`."""
+    places = _shared_choice(model)
     if places is not None:
         name, source = _shared_source(places.fixed)
         return cache_dir() / name, source
     return _own_kernel_path(model)
 
 
-#: Which kernel a model runs on (``$BALANCER_ID_KERNELS``): ``shared`` (the default) the
-#: kernel it shares with the models of the same fixed effects, ``own`` a kernel of its own.
-KERNEL_CHOICES = ("shared", "own")
-
-_CHOSEN: dict[tuple[object, ...], bool] = {}
+#: The kernel chosen for each model in this process: where its parameters sit in its
+#: shared kernel, or None for a kernel of its own.
+_CHOSEN: dict[tuple[object, ...], SharedPlaces | None] = {}
 
 
-def _uses_shared(model: Model) -> bool:
-    """Whether ``model`` runs on a shared kernel in this process.
+def _shared_choice(model: Model) -> SharedPlaces | None:
+    """Where ``model``'s parameters sit in the shared kernel it runs on in this process,
+    or None when it runs on a kernel of its own.
 
     A model runs as fast on the kernel it shares with the models of the same fixed
     effects (:func:`_shared_layout`) as on its own (within 10 %), and a handful of shared
     kernels, compiled once per machine, serve every combination of the built-in effects
     that can be switched, where each model's own kernel costs 2-6 s to compile.
-    ``BALANCER_ID_KERNELS=own`` gives each its own kernel. The choice is made once per
-    process and model.
+    ``BALANCER_ID_KERNELS=own`` (the other value being ``shared``, the default) gives each
+    its own kernel. The choice is made once per process and model.
     """
     key = (model.effects, model.param_names)
-    chosen = _CHOSEN.get(key)
-    if chosen is None:
+    if key not in _CHOSEN:
         policy = os.environ.get("BALANCER_ID_KERNELS", "shared").strip().lower()
-        chosen = HAVE_NUMBA and policy != "own" and shared_places(model) is not None
-        _CHOSEN[key] = chosen
-    return chosen
+        own = not HAVE_NUMBA or policy == "own"
+        _CHOSEN[key] = None if own else shared_places(model)
+    return _CHOSEN[key]
 
 
 def _own_kernel_path(model: Model) -> tuple[Path | None, str]:
@@ -1370,7 +1356,7 @@ def _build(model: Model) -> Kernel:
         source,
         path,
         module.simulate_batch_sens,
-        shared_places(model) if _uses_shared(model) else None,
+        _shared_choice(model),
     )
 
 
