@@ -21,13 +21,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' simlib
 
-from balancer_id.identify.data import TrialData
-from balancer_id.identify.matching import match_trials
-from balancer_id.model import parse_model
-from balancer_id.read.recording import Log
-from balancer_id.segment import find_trials
-from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
+from simlib.noisy_fits import fit_noisy_logs
 
 TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
 THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
@@ -35,20 +31,8 @@ THRUSTS = (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)
 
 def run(rho: float, seeds: int) -> tuple[np.ndarray, np.ndarray, list[float]]:
     """Estimates, standard errors and residual correlation times over the seeds."""
-    model = parse_model("variable_viscosity")
     est, se, taus = [], [], []
-    for seed in range(seeds):
-        rng = np.random.default_rng(seed)
-        sensor = SensorSettings(
-            tilt_deg=float(rng.uniform(5, 25)),
-            accel_noise=0.03,
-            force_noise=0.03,
-            noise_correlation=rho,
-        )
-        recs = synthetic_recordings(model, TRUTH, THRUSTS, sensor=sensor, seed=seed)
-        log = Log(Path(f"seed{seed}.csv"), "pasco-capstone", recs)
-        trials = [TrialData.from_trial(t) for t in find_trials(log)]
-        m = match_trials(model, trials, start={"m_a": 14.0, "T_a": 0.3})
+    for m in fit_noisy_logs(TRUTH, THRUSTS, rho, seeds):
         est.append([m.parameters[k].value for k in TRUTH])
         se.append([m.parameters[k].stderr for k in TRUTH])
         taus.append(float(m.metrics["residual_tau"]))

@@ -13,39 +13,20 @@ interval is a little narrow: the segmentation's own errors are not in the Jacobi
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from conftest import PAPER, PAPER_THRUSTS
+from simlib.noisy_fits import fit_noisy_logs
 
-from balancer_id.identify.data import TrialData
-from balancer_id.identify.matching import match_trials
 from balancer_id.identify.metrics import correlation_time
-from balancer_id.model import parse_model
-from balancer_id.read.recording import Log
-from balancer_id.segment import find_trials
-from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 
 SEEDS = 16
 
 
 def standardized_errors(rho: float) -> tuple[np.ndarray, list[float]]:
     """(estimate - truth) / stderr for every parameter of every seed, and the fits' tau."""
-    model = parse_model("variable_viscosity")
     z, taus = [], []
-    for seed in range(SEEDS):
-        rng = np.random.default_rng(seed)
-        sensor = SensorSettings(
-            tilt_deg=float(rng.uniform(5, 25)),
-            accel_noise=0.03,
-            force_noise=0.03,
-            noise_correlation=rho,
-        )
-        recs = synthetic_recordings(model, PAPER, PAPER_THRUSTS, sensor=sensor, seed=seed)
-        log = Log(Path(f"se{seed}.csv"), "pasco-capstone", recs)
-        trials = [TrialData.from_trial(t) for t in find_trials(log)]
-        m = match_trials(model, trials, start={"m_a": 14.0, "T_a": 0.3})
+    for m in fit_noisy_logs(PAPER, PAPER_THRUSTS, rho, SEEDS):
         z.extend((m.parameters[k].value - PAPER[k]) / m.parameters[k].stderr for k in PAPER)
         taus.append(m.metrics["residual_tau"])
     return np.array(z), taus
