@@ -181,7 +181,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         from balancer_id.identify.tracking import tracking_lines
 
         for line in tracking_lines(result["tracking"]):
-            console.print(line, markup=False)
+            console.print(line, markup=False, soft_wrap=True)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
