@@ -6,6 +6,12 @@ trend against the time each log was recorded (the export's own clock when it has
 else the file's time: the report says which), and the logs whose diagnosis says an
 effect is missing, each with its top suggestion (``batch --diagnose``).
 
+Only what the view trusts is counted (issue 33): a log whose fit is not trusted (a
+parameter at a bound the data did not choose, starts that disagree, ...) or whose own
+diagnosis says an effect is missing is listed apart, with its reason, and kept out of
+the statistics, the outlier rule and the trends; its values stay in the table of logs,
+marked.
+
 Outliers follow a robust rule: a value more than 3.5 scaled median absolute deviations
 from the fleet's median (the modified z-score of Iglewicz and Hoaglin), and more than 3
 of its own standard errors from it; it needs at least five logs. A trend is a Theil-Sen
@@ -133,6 +139,36 @@ def _when(doc: dict[str, Any]) -> tuple[datetime | None, str | None]:
     return stamp, rec.get("source")
 
 
+def not_counted(row: BatchRow, doc: dict[str, Any]) -> str | None:
+    """Why an identified log is kept out of the fleet's statistics, or None to count it.
+
+    Parameters
+    ----------
+    row : BatchRow
+        An identified log's row.
+    doc : dict
+        Its JSON (``trusted``, ``untrusted_because``, ``diagnosis``).
+
+    Returns
+    -------
+    str or None
+        The reason: the fit is not trusted (and why), or its diagnosis says an effect is
+        missing (its values describe a model the log contradicts).
+    """
+    if not row.trusted or doc.get("trusted") is False:
+        why = doc.get("untrusted_because") or []
+        first = str(why[0]) if isinstance(why, list) and why else ""
+        return "fit not trusted" + (f": {first}" if first else "")
+    diagnosis = doc.get("diagnosis")
+    verdict = diagnosis.get("verdict") if isinstance(diagnosis, dict) else None
+    if (verdict or row.diagnosis_verdict) == _MISSING:
+        return (
+            "its diagnosis says an effect is missing: the values are those of a model the "
+            "log contradicts"
+        )
+    return None
+
+
 def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     """The sections of the fleet report of a batch's rows.
 
@@ -147,9 +183,11 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     list of Section
     """
     docs = [_load(r) for r in rows]
-    ok = [k for k, r in enumerate(rows) if r.ok]
+    identified = [k for k, r in enumerate(rows) if r.ok]
+    apart = {k: why for k in identified if (why := not_counted(rows[k], docs[k])) is not None}
+    ok = [k for k in identified if k not in apart]  # counted: trusted, nothing missing
     names: list[str] = []
-    for k in ok:
+    for k in identified:
         names += [n for n in rows[k].parameters if n not in names]
     values = {
         n: np.array(
@@ -169,11 +207,13 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     units = {n: _unit(docs, ok, n) for n in names}
     times = [_when(docs[k]) for k in ok]
     sources = {s for _, s in times if s}
-    diagnosed = [k for k in ok if isinstance(docs[k].get("diagnosis"), dict)]
+    diagnosed = [k for k in identified if isinstance(docs[k].get("diagnosis"), dict)]
 
-    failed = len(rows) - len(ok)
+    failed = len(rows) - len(identified)
     lead = (
-        f"{len(rows)} log(s): {len(ok)} identified, {failed} failed. "
+        f"{len(rows)} log(s): {len(identified)} identified, {failed} failed; "
+        f"{len(ok)} counted in the statistics below"
+        + (f", {len(apart)} listed apart (not trusted or an effect missing). " if apart else ". ")
         + (
             f"{len(diagnosed)} diagnosed; "
             f"{sum(docs[k]['diagnosis'].get('verdict') == _MISSING for k in diagnosed)} "
@@ -185,7 +225,11 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
         f"fleet's median (modified z-score), flagged from {MIN_LOGS_FOR_OUTLIERS} logs on."
     )
     sections = [Section("Fleet", blocks=[Paragraph(lead), _summary_table(names, values, flagged)])]
-    sections.append(Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged)]))
+    sections.append(
+        Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged, apart)])
+    )
+    if apart:
+        sections.append(Section("Not counted", blocks=_apart_blocks(rows, apart)))
     if names and ok:
         sections.append(
             Section(
@@ -235,16 +279,39 @@ def _summary_table(
     )
 
 
+def _apart_blocks(rows: Sequence[BatchRow], apart: dict[int, str]) -> list[Any]:
+    body: list[list[str | Cell]] = [[rows[k].file, Cell(why, "warn")] for k, why in apart.items()]
+    return [
+        Paragraph(
+            f"{len(apart)} identified log(s) kept out of the statistics, the outlier rule and "
+            "the trends: their values are no measurement of the balancer as the model "
+            "describes it."
+        ),
+        Table(["log", "why not counted"], body),
+    ]
+
+
 def _log_table(
     rows: Sequence[BatchRow],
     ok: list[int],
     names: list[str],
     values: dict[str, np.ndarray],
     flagged: dict[str, np.ndarray],
+    apart: dict[int, str] | None = None,
 ) -> Table:
     pos = {k: j for j, k in enumerate(ok)}
+    apart = apart or {}
     body: list[list[str | Cell]] = []
     for k, row in enumerate(rows):
+        if k in apart:
+            cells_apart: list[str | Cell] = [row.file, Cell("not counted", "warn")]
+            for n in names:
+                x = row.parameters.get(n, {}).get("value")
+                cells_apart.append(
+                    format_number(float(x)) + " (not counted)" if x is not None else "-"
+                )
+            body.append(cells_apart)
+            continue
         if k not in pos:
             body.append([row.file, Cell("failed", "bad"), *["-"] * len(names)])
             continue
@@ -255,7 +322,12 @@ def _log_table(
             text = format_number(float(x)) if np.isfinite(x) else "-"
             cells.append(Cell(text + " (outlier)", "warn") if flagged[n][j] else text)
         body.append(cells)
-    return Table(["log", "status", *names], body, caption="Values flagged as outliers are marked.")
+    return Table(
+        ["log", "status", *names],
+        body,
+        caption="Values flagged as outliers are marked; logs not counted (see below) are "
+        "marked and left out of every statistic.",
+    )
 
 
 def _plots(
