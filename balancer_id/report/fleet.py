@@ -169,7 +169,9 @@ def not_counted(row: BatchRow, doc: dict[str, Any]) -> str | None:
     return None
 
 
-def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
+def fleet_sections(
+    rows: Sequence[BatchRow], shared: dict[str, Any] | None = None
+) -> list[Section]:
     """The sections of the fleet report of a batch's rows.
 
     Parameters
@@ -177,6 +179,9 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     rows : sequence of BatchRow
         A batch's rows (:attr:`balancer_id.batch.BatchResult.rows`); their per-log JSON
         supply the recording times and the diagnoses.
+    shared : dict, optional
+        The fleet's shared fit (``batch --per-log``: ``shared_fit.json``), shown as a
+        section of its own.
 
     Returns
     -------
@@ -239,7 +244,120 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
         )
     if diagnosed:
         sections.append(Section("Effect missing", blocks=_missing_blocks(rows, docs, diagnosed)))
+    if shared is not None:
+        sections.insert(1, Section("Shared over the fleet", blocks=shared_blocks(shared)))
     return sections
+
+
+def _ci(p: dict[str, Any]) -> str:
+    ci = p.get("ci95")
+    if not ci:
+        return "held" if p.get("vary") is False else "-"
+    return f"{format_number(float(ci[0]))} .. {format_number(float(ci[1]))}"
+
+
+def shared_blocks(shared: dict[str, Any]) -> list[Any]:
+    """The fleet's shared fit: verdict, the shared values (their intervals beside the
+    median interval of the logs fitted alone) and each log's own values.
+
+    Parameters
+    ----------
+    shared : dict
+        ``shared_fit.json`` (the ``fit --per-log`` JSON plus ``left_out``).
+
+    Returns
+    -------
+    list of blocks
+    """
+    blocks: list[Any] = []
+    left = shared.get("left_out") or []
+    if "error" in shared:
+        blocks.append(Paragraph(str(shared["error"])))
+    else:
+        own_names = list(shared.get("per_log") or [])
+        logs = shared.get("logs") or []
+        blocks.append(
+            Paragraph(
+                f"The {len(logs)} counted logs fitted together: {', '.join(own_names)} each "
+                f"log's own, the rest shared. Verdict: {shared.get('verdict', '-')}."
+            )
+        )
+        body: list[list[str | Cell]] = []
+        for name, p in (shared.get("shared") or {}).items():
+            alone = [
+                float(row["alone"][name]["ci95"][1] - row["alone"][name]["ci95"][0])
+                for row in logs
+                if (row.get("alone") or {}).get(name, {}).get("ci95")
+            ]
+            width = (
+                f"{format_number(float(np.median(alone)))}" if alone else "-"
+            )
+            ci = p.get("ci95")
+            body.append(
+                [
+                    name,
+                    format_number(float(p["value"])),
+                    _ci(p),
+                    format_number(float(ci[1] - ci[0])) if ci else "-",
+                    width,
+                    str(p.get("unit", "")),
+                ]
+            )
+        blocks.append(
+            Table(
+                ["parameter", "shared value", "95 % interval", "width", "width alone "
+                 "(median log)", "unit"],
+                body,
+                caption="Shared parameters, pinned by every counted log at once; beside them "
+                "the median width of the same interval from each log fitted alone.",
+            )
+        )
+        own_body: list[list[str | Cell]] = []
+        for row in logs:
+            cells: list[str | Cell] = [str(row.get("file", ""))]
+            for name in own_names:
+                p = (row.get("own") or {}).get(name, {})
+                a = (row.get("alone") or {}).get(name, {})
+                cells.append(
+                    f"{format_number(float(p['value']))} ({_ci(p)}); alone {_ci(a)}"
+                    if p else "-"
+                )
+            own_body.append(cells)
+        blocks.append(
+            Table(
+                ["log", *[f"{n} own (95 %); alone" for n in own_names]],
+                own_body,
+                caption="Each log's own values in the shared fit, and the log fitted alone.",
+            )
+        )
+        comparison = shared.get("comparison") or {}
+        blocks.append(
+            Table(
+                ["sharing", "BIC", "parameters", "held-out RMSE (m/s²)"],
+                [
+                    [
+                        name,
+                        format_number(float(s.get("bic"))) if s.get("bic") is not None else "-",
+                        str(s.get("n_free", "-")),
+                        format_number(float(s["held_out_rmse"]))
+                        if s.get("held_out_rmse") is not None
+                        else "-",
+                    ]
+                    for name, s in comparison.items()
+                ],
+                caption="All shared, partly shared and all separate compared: BIC on the "
+                "effective samples, and the error predicting held-out halves of logs.",
+            )
+        )
+    if left:
+        blocks.append(
+            Paragraph(
+                "Left out of the shared fit: "
+                + "; ".join(f"{x.get('file')} ({x.get('why')})" for x in left)
+                + "."
+            )
+        )
+    return blocks
 
 
 def _unit(docs: list[dict[str, Any]], ok: list[int], name: str) -> str:
@@ -454,7 +572,9 @@ def _helps(suggestion: dict[str, Any]) -> bool:
     return drop is None or (isinstance(drop, int | float) and drop > 0)
 
 
-def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
+def write_fleet_report(
+    rows: Sequence[BatchRow], path: str | Path, shared: dict[str, Any] | None = None
+) -> Path:
     """Write the fleet report of a batch as FILE.html (or FILE.pdf).
 
     Parameters
@@ -463,6 +583,8 @@ def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
         A batch's rows.
     path : str or Path
         The report file; written whole or not at all.
+    shared : dict, optional
+        The fleet's shared fit (``batch --per-log``).
 
     Returns
     -------
@@ -473,7 +595,7 @@ def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
 
     return write_report(
         "Fleet report",
-        fleet_sections(rows),
+        fleet_sections(rows, shared),
         path,
         inputs=[r.file for r in rows],
         subtitle=f"{len(rows)} log(s) identified one by one",
