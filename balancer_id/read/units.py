@@ -142,7 +142,12 @@ class Rest:
             if self.steady
             else f"no constant direction (coherence {self.coherence:.2f})"
         )
-        return f"resting magnitude {self.level:.4g} ± {self.spread:.2g}{tail}, {how}"
+        size = (
+            f"{self.level:.3f} ± {self.spread:.3f}"
+            if self.level < 100
+            else (f"{self.level:.4g} ± {self.spread:.2g}")
+        )
+        return f"resting magnitude {size}{tail}, {how}"
 
 
 #: A resting vector whose windows keep ``|mean| / mean |a|`` above this holds one direction.
