@@ -198,6 +198,11 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             f"{_fmt(cp['damping_ratio'], 3)}, stability margin {_fmt(cp['stability_margin'], 3)}"
         )
         _print_robot(console, result)
+    if result.get("tracking"):
+        from balancer_id.identify.tracking import tracking_lines
+
+        for line in tracking_lines(result["tracking"]):
+            console.print(line, markup=False)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
