@@ -9,7 +9,8 @@ import pytest
 
 from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
-from balancer_id.read import read_log
+from balancer_id.read import Log, read_log
+from balancer_id.read.inference import Inference
 from balancer_id.trials import describe_log
 
 
@@ -26,7 +27,7 @@ def _write(path: Path, header: list[str], rows: np.ndarray, sep: str = ",") -> P
     return path
 
 
-def _inference(log, what: str):  # noqa: ANN001, ANN202
+def _inference(log: Log, what: str) -> Inference:
     (found,) = [i for i in log.inferences if i.what == what]
     return found
 
