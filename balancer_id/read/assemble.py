@@ -14,7 +14,7 @@ warning says so.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,11 +23,12 @@ from balancer_id.constants import FORCE_RANGE_N
 from balancer_id.errors import LogReadError
 from balancer_id.notes import Note
 from balancer_id.read.header import TIME_UNITS
+from balancer_id.read.inference import Inference
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
-from balancer_id.read.timebase import TimeBase, to_seconds
+from balancer_id.read.timebase import TimeBase, time_inference, to_seconds
 from balancer_id.read.units import UnitMismatch, resolve_accel
 from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
 
@@ -56,6 +57,7 @@ def build_recordings(
     *,
     accel_unit: str,
     g: float,
+    inferences: list[Inference] | None = None,
 ) -> tuple[list[Recording], list[str | Note]]:
     """Build the recordings of a log.
 
@@ -73,6 +75,9 @@ def build_recordings(
         ``"auto"``, ``"m/s^2"`` or ``"g"``.
     g : float
         Gravity (m/s^2).
+    inferences : list of Inference, optional
+        Filled with each run's decisions (time unit, acceleration unit, gravity) and
+        their evidence.
 
     Returns
     -------
@@ -89,6 +94,7 @@ def build_recordings(
     """
     recordings: list[Recording] = []
     warnings: list[str | Note] = []
+    said_list: list[Inference] = inferences if inferences is not None else []
     stated: set[str] = set()
     warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
@@ -121,6 +127,7 @@ def build_recordings(
             stated.add(said)
             subject = header[plan.time]
             warnings.append(Note("read.time_unit", said, subject=subject, severity="info"))
+        said_list.append(time_inference(base, header[plan.time], plan.name))
         force_time = time
         if plan.force_time is not None:
             force_time = table.columns[plan.force_time] * plan.force_time_scale
@@ -143,6 +150,7 @@ def build_recordings(
                 g=g,
                 force_time=force_time,
                 time_unit=base.unit,
+                inferences=said_list,
             )
             warnings.extend(rec_warnings)
             if rec is not None:
@@ -277,6 +285,7 @@ def _build_one(
     g: float,
     force_time: np.ndarray,
     time_unit: str = "s",
+    inferences: list[Inference] | None = None,
 ) -> tuple[Recording | None, list[str | Note]]:
     warnings: list[str | Note] = []
     count = int(np.count_nonzero(chosen.rows))
@@ -313,18 +322,21 @@ def _build_one(
     if chosen.accel and plan.accel:
         raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
         try:
-            accel, includes_gravity, said = resolve_accel(
+            accel, includes_gravity, said, decided = resolve_accel(
                 raw,
                 header_unit=plan.accel_unit,
                 includes_gravity=plan.includes_gravity,
                 accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
                 g=g,
+                gravity_given=plan.gravity_given,
             )
+            if inferences is not None:
+                inferences.extend(replace(d, run=name) for d in decided)
         except UnitMismatch as exc:
             hint = exc.hint
-            if exc.counts_per_g is not None:
+            if exc.spec:
                 hint = "give the scale in the column map: --columns " + _counts_map(
-                    plan, header, exc.counts_per_g
+                    plan, header, exc.spec, exc.counts_per_g is not None
                 )
             raise LogReadError(
                 path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
@@ -408,16 +420,15 @@ def _rate_note(name: str, rate: float, column: str, unit: str) -> Note:
     return Note("read.rate", text, subject=name)
 
 
-def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
-    """The ``--columns`` value that reads raw counts at ``per_g`` counts per g."""
+def _counts_map(plan: RunPlan, header: list[str], spec: str, counts: bool) -> str:
+    """The ``--columns`` value that reads the acceleration with the scale ``spec``."""
     roles = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
     parts = [f"time={header[plan.time]}"]
     if plan.force is not None:
         parts.append(f"force={header[plan.force]}")
-    parts += [
-        f"{role}={header[col]}:counts/{per_g}g" for role, col in zip(roles, plan.accel, strict=True)
-    ]
-    return ",".join(parts) + "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
+    parts += [f"{role}={header[col]}:{spec}" for role, col in zip(roles, plan.accel, strict=True)]
+    tail = "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
+    return ",".join(parts) + (tail if counts else "")
 
 
 def _force_onto_accel(

@@ -33,17 +33,15 @@ def looks_like_pasco(columns: list[Column]) -> str | None:
     str or None
         ``"pasco-sparkvue"``, ``"pasco-capstone"`` or None when the header is not PASCO's.
     """
-    kinds = {c.kind for c in columns}
-    if "datetime" in kinds and "time" in kinds:
-        return "pasco-sparkvue"
     runs = [c.run for c in columns if c.run]
+    dated = [c for c in columns if c.kind == "datetime"]
+    timed = any(c.kind == "time" and c.run for c in columns)
+    if dated and timed and any(c.run for c in dated):  # "Date and Time Run 1", "Time (s) Run 1"
+        return "pasco-sparkvue"
     if any(_CAPSTONE_RUN.match(r) for r in runs) or any(r.lower() == "auto" for r in runs):
         return "pasco-capstone"
     if any(_SPARKVUE_RUN.match(r) for r in runs):
         return "pasco-sparkvue"
-    units = " ".join(c.unit for c in columns)
-    if "²" in units and "time" in kinds:
-        return "pasco-capstone"
     return None
 
 

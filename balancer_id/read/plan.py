@@ -51,6 +51,9 @@ class RunPlan:
     accel_unit_given : bool
         True when the column map gave the acceleration's unit: it is then taken as
         forced (checked against the resting magnitude, never guessed).
+    gravity_given : bool
+        True when the column map said whether the acceleration includes gravity
+        (``gravity=yes|no``): never overruled by the data.
     scales : dict
         Column index -> ``(factor, offset)`` from the column map: value = raw * factor +
         offset, in the unit of ``time_unit``/``accel_unit`` (N for force).
@@ -80,6 +83,7 @@ class RunPlan:
     time_unit: str = ""
     time_unit_from: str = ""
     accel_unit_given: bool = False
+    gravity_given: bool = False
     scales: dict[int, tuple[float, float]] = field(default_factory=dict)
     clock: int | None = None
     clock_start: float | None = None
