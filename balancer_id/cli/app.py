@@ -145,6 +145,11 @@ def _write_series(frame, path: Path) -> None:
     typer.echo(f"wrote {path}", err=True)
 
 
+def _track_series_path(series: Path) -> Path:
+    """Where ``--series FILE`` puts the tracked parameters: ``FILE-track.csv`` beside it."""
+    return series.with_name(f"{series.stem}-track.csv")
+
+
 def _write_json(obj: object, path: Path) -> None:
     """``--save``: the command's JSON object to a file."""
     import json
@@ -295,6 +300,15 @@ def fit(
         ),
     ] = None,
     overwrite: OverwriteOpt = False,
+    track: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--track",
+            metavar="NAME...",
+            help="Track a parameter in time within the session, with a 95 % band "
+            "(repeatable, or NAME,NAME).",
+        ),
+    ] = None,
     group_by: Annotated[
         str | None,
         typer.Option(
@@ -332,7 +346,20 @@ def fit(
     ins = inputs_of(logs, effects_file, trajectory_text)
     if params is not None:
         ins.append(params)
-    check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
+    tracked = tuple(n.strip() for item in track or [] for n in item.split(",") if n.strip())
+    track_series = _track_series_path(series) if tracked and series is not None else None
+    check_outputs(
+        {
+            "--report": report,
+            "--save": save,
+            "--series": series,
+            "--series (tracked)": track_series,
+        },
+        ins,
+        overwrite,
+    )
+    if group_by is not None and tracked:
+        raise UsageError("--track follows one session's fit: not with --group-by")
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
             raise UsageError(
@@ -360,6 +387,7 @@ def fit(
         starts=starts,
         trajectory=trajectory_text,
         effects_files=tuple(str(p) for p in effects_file or ()),
+        track=tracked,
     )
     tuned = bool(user_start or user_bounds)
     key = None if (no_cache or tuned) else request.cache_key()
@@ -383,6 +411,7 @@ def fit(
                 n_starts=starts,
                 start=user_start,
                 bounds=user_bounds,
+                track=tracked,
             )
         out = result.to_dict()  # a robot pair's advice included (issue 9)
         cache.store(key, out)
@@ -394,6 +423,8 @@ def fit(
             typer.echo(f"wrote {report}", err=True)
         if series is not None:
             _write_series(result.to_frame(), series)
+        if track_series is not None and result.tracking is not None:
+            _write_series(result.tracking.to_frame(), track_series)
     if save is not None:
         _write_json(out, save)
     _render(out, json_out, "print_fit")

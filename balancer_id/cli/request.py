@@ -32,6 +32,8 @@ class FitRequest:
         ``--trajectory`` as given.
     effects_files : tuple of str
         ``--effects-file`` paths.
+    track : tuple of str
+        ``--track`` parameters.
     """
 
     logs: tuple[str, ...]
@@ -42,6 +44,7 @@ class FitRequest:
     starts: int | None = None
     trajectory: str | None = None
     effects_files: tuple[str, ...] = ()
+    track: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, JSON-ready (no field can be left out: they are walked)."""

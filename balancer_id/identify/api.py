@@ -129,6 +129,7 @@ def fit(
     start: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
+    track: Sequence[str] = (),
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -172,6 +173,10 @@ def fit(
         or a held value (``vary=False``), and its ``min``/``max`` bound the fit where
         they are narrower than the model's own. ``fixed``, ``start`` and ``bounds`` win
         over it. The result's :attr:`~FitResult.params` gives Parameters back.
+    track : sequence of str
+        Parameters to track in time within the session (``--track``): each as a function
+        of time with a 95 % band, in :attr:`FitResult.tracking`
+        (:func:`~balancer_id.identify.tracking.track_parameters`).
 
     Returns
     -------
@@ -188,6 +193,12 @@ def fit(
         fixed = {**held, **(fixed or {})}
         start = {**starts, **(start or {})}
         bounds = {**spans, **(bounds or {})}
+    if isinstance(track, str):
+        track = [track]
+    if track:
+        from balancer_id.identify.tracking import check_tracked
+
+        check_tracked(mdl, track, dict(fixed or {}))  # before any log is read
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
@@ -263,6 +274,11 @@ def fit(
                     "the model misfits; its standard error is no uncertainty)"
                 )
             notes.append(Note("fit.other", note, subject=name, severity="info"))
+    tracking = None
+    if track:
+        from balancer_id.identify.tracking import track_parameters
+
+        tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
     return fit_match(
         match,
         ts,
@@ -271,4 +287,5 @@ def fit(
         effects_files=effects_files,
         warnings=notes,
         per_trial=per_trial,
+        tracking=tracking,
     )

@@ -56,6 +56,8 @@ class FitResult(Displayable):
         Per-trial refits, once computed (:meth:`per_trial_fits`).
     include_per_trial : bool
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
+    tracking : Tracking or None
+        Parameters tracked in time within the session (``fit --track``, issue 33).
     warnings : list of Note
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
@@ -80,6 +82,7 @@ class FitResult(Displayable):
     per_trial: list[PerTrialFit] = field(default_factory=list)
     include_per_trial: bool = False
     warnings: list[Note | str] = field(default_factory=list)
+    tracking: Any = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
@@ -105,6 +108,9 @@ class FitResult(Displayable):
 
     def _summary_warnings(self) -> list[str]:
         return texts(self.all_notes)
+
+    def _summary_extra(self) -> list[str]:
+        return self.tracking.lines() if self.tracking is not None else []
 
     @property
     def all_notes(self) -> list[Note | str]:
@@ -325,6 +331,8 @@ class FitResult(Displayable):
             out["advice"] = self.advice.to_dict() if self.advice is not None else None
         if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
+        if self.tracking is not None:
+            out["tracking"] = self.tracking.to_dict()
         return json_ready(out)
 
 
@@ -365,6 +373,7 @@ def fit_match(
     effects_files: Sequence[str | Path] = (),
     warnings: Sequence[Note | str] = (),
     per_trial: bool = False,
+    tracking: Any = None,
 ) -> FitResult:
     """A :class:`FitResult` around a ready simulation-matching fit.
 
@@ -388,6 +397,8 @@ def fit_match(
         Notes of the identification around the fit (a string becomes ``fit.other``).
     per_trial : bool
         Fit each trial alone now and show the fits in :meth:`FitResult.to_dict`.
+    tracking : Tracking, optional
+        Parameters tracked in time (``fit --track``).
 
     Returns
     -------
@@ -403,6 +414,7 @@ def fit_match(
         coupling=robot_coupling(match.model, match.values(), [t.input for t in match.data.trials]),
         include_per_trial=per_trial,
         warnings=list(warnings),
+        tracking=tracking,
     )
     if per_trial:
         result.per_trial_fits()
