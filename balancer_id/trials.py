@@ -652,6 +652,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "runs": runs,
         "warnings": [*log.warnings, *(str(w) for w in trial_warnings)],
         "notes": notes_json([*log.notes, *(as_note(w, "segment.other") for w in trial_warnings)]),
+        "inferences": [i.to_dict() for i in getattr(log, "inferences", [])],
         "trials": [t.to_dict() for t in trials],
     }
 

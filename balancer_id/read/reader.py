@@ -11,12 +11,14 @@ from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
 from balancer_id.notes import Note, as_note, texts
 from balancer_id.read.assemble import build_recordings
+from balancer_id.read.evidence import columns_inference, layout_inference
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
 from balancer_id.read.layouts import detect_layout
 from balancer_id.read.orientation import orientations, turned_note_text
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
+from balancer_id.read.scale import refuse_headerless, refuse_no_scale
 from balancer_id.read.sniff import Sniffed, sniff
 from balancer_id.read.table import Table, read_table
 from balancer_id.read.timebase import first_wall_clock
@@ -31,7 +33,6 @@ NOTES_ONLY = frozenset({"read.column_guess"})
 SIGNAL_BOUND = 1e6
 
 
-
 def _rows_with_a_value(table: Table) -> int:
     """Rows of the table with a number in at least one of its columns."""
     if not table.columns:
@@ -44,6 +45,7 @@ def _rows_with_a_value(table: Table) -> int:
 
 #: Fewer data rows than this hold no run (no rate, no rest, no step).
 MIN_ROWS_OF_A_RUN = 3
+
 
 def read_log(
     path: str | os.PathLike[str],
@@ -94,8 +96,11 @@ def read_log(
     """
     accel_unit = check_accel_unit(accel_unit)
     sniffed = sniff(path, max_bytes)
+    refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
+    inferences = [layout_inference(fmt, header, columns)]
+    inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
     _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
@@ -109,9 +114,16 @@ def read_log(
                 factor, offset = plan.scales.get(col, (1.0, 0.0))
                 limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
     table = read_table(sniffed, wanted, optional, limits)
+    refuse_no_scale(sniffed, plans, table)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
-            sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
+            sniffed.path,
+            plans,
+            table,
+            sniffed.header,
+            accel_unit=accel_unit,
+            g=g,
+            inferences=inferences,
         )
     if not recordings:
         n_filled = _rows_with_a_value(table)
@@ -141,6 +153,7 @@ def read_log(
         recordings=recordings,
         warnings=texts(n for n in found if n.code not in NOTES_ONLY),
         notes=found,
+        inferences=inferences,
     )
 
 

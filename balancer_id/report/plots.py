@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+    from balancer_id.identify.band import ResponseBand, Stretch
     from balancer_id.identify.classic import ClassicResult
     from balancer_id.identify.coupling import Coupling
     from balancer_id.identify.data import TrialData
@@ -142,6 +143,7 @@ def _sig(x: float, digits: int) -> str:
     """``x`` to ``digits`` significant digits, trailing zeros kept (0.0300)."""
     return format_number(x, digits)
 
+
 def _rmse(y: np.ndarray, y_model: np.ndarray) -> float:
     r = np.asarray(y, float) - np.asarray(y_model, float)
     r = r[np.isfinite(r)]
@@ -155,6 +157,8 @@ def plot_trials(
     *,
     columns: int = TRIAL_COLUMNS,
     title: str | None = None,
+    bands: Sequence[ResponseBand | None] | None = None,
+    stretches: Sequence[Stretch] = (),
 ) -> Figure | Path:
     """Measured vs simulated acceleration of each trial, with the residual beneath.
 
@@ -178,6 +182,11 @@ def plot_trials(
         Trials per row.
     title : str, optional
         Title over all panels.
+    bands : sequence of ResponseBand or None, optional
+        Each model's 95 % bands over the same ``trials`` (in ``models``' order): the model
+        band shaded around its curve, the band widened by the noise as dotted edges.
+    stretches : sequence of Stretch
+        Where the measurement leaves the noise band (shaded red on its trial's panels).
 
     Returns
     -------
@@ -233,6 +242,20 @@ def plot_trials(
         ax = fig.add_subplot(inner[0])
         axr = fig.add_subplot(inner[1], sharex=ax)
         _draw_trial(ax, axr, td, [(lbl, curves[k]) for lbl, curves in models])
+        for j, band in enumerate(bands or ()):
+            if band is not None:
+                _draw_band(ax, td, band, MODEL_COLORS[j % len(MODEL_COLORS)])
+        for s in stretches:
+            if s.trial == td.index:
+                for a in (ax, axr):
+                    a.axvspan(
+                        s.t_start - td.t_step,
+                        s.t_end - td.t_step,
+                        color="#D55E00",
+                        alpha=0.15,
+                        lw=0,
+                        zorder=1,
+                    )
         if k % columns == 0:
             ax.set_ylabel("acceleration (m/s²)", fontsize=8)
             axr.set_ylabel("residual (m/s²)", fontsize=8)
@@ -284,6 +307,22 @@ def _draw_trial(
     lim = np.nanmax(np.abs(axr.get_ylim()))
     if np.isfinite(lim) and lim > 0:
         axr.set_ylim(-lim, lim)
+
+
+def _draw_band(ax: Axes, td: TrialData, band: ResponseBand, color: str) -> None:
+    """The 95 % model band of one trial (shaded) and the noise band's edges (dotted)."""
+    for k, other in enumerate(band.trials):
+        if other is td or (other.index == td.index and other.source == td.source):
+            sl = band.slices()[k]
+            break
+    else:
+        return
+    t = np.asarray(td.time, float)[: sl.stop - sl.start] - float(td.t_step)
+    ax.fill_between(
+        t, band.model_low[sl], band.model_high[sl], color=color, alpha=0.3, lw=0, zorder=2.5
+    )
+    for edge in (band.noise_low[sl], band.noise_high[sl]):
+        ax.plot(t, edge, color=color, lw=0.6, ls=":", zorder=2.6)
 
 
 _Corner = Literal["upper right", "upper left", "lower left", "lower right"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from balancer_id.metric_fields import FIT_METRICS, metric_line
@@ -69,6 +70,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 if run.get("vertical_sign_known", True):
                     known = "the axis is a guess (its sign fixed): give it with --vertical"
             console.print(f"    vertical (up): {run['vertical']} ({known})")
+    print_inferences(console, info.get("inferences", []))
     for w in info.get("warnings", []):  # the trials' warnings are there, named
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
     table = Table(title=trials_title(info["trials"]))
@@ -87,6 +89,25 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
             str(t.get("end_reason", "")),
         )
     console.print(table)
+
+
+def print_inferences(console: Console, inferences: list[dict[str, Any]]) -> None:
+    """Print what the reader decided, with its evidence and the option that overrides it.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    inferences : list of dict
+        The ``inspect`` object's ``inferences`` (CONTRACT.md).
+    """
+    if not inferences:
+        return
+    console.print("  read as:")
+    for item in inferences:
+        run = f"[{item['run']}] " if item.get("run") else ""
+        mark = "[yellow]?[/yellow] " if item.get("weak") else ""
+        console.print(f"    {mark}{escape(run + item['text'])}", highlight=False)
 
 
 _KIND_TITLES = {"step": ("step trial", "step trials"), "move": ("robot move", "robot moves"),
@@ -144,9 +165,11 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
     for name, p in result["parameters"].items():
         ci = p.get("ci95")
         note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
+        if p.get("claim"):  # a bound, not a value (issue 31)
+            note = "not reached" if p.get("not_reached") == "above" else "not resolved"
         table.add_row(
             name,
-            _fmt(p["value"]),
+            p["claim"] if p.get("claim") else _fmt(p["value"]),
             _fmt(p["stderr"], 2),
             (
                 f"{ci[0]:.4g} .. {ci[1]:.4g}"
