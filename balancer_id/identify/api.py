@@ -128,6 +128,8 @@ def fit(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
     track: Sequence[str] = (),
+    posterior: bool = False,
+    priors: Sequence[Any] = (),
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -173,6 +175,14 @@ def fit(
         Parameters to track in time within the session (``--track``): each as a function
         of time with a 95 % band, in :attr:`FitResult.tracking`
         (:func:`~balancer_id.identify.tracking.track_parameters`).
+    posterior : bool
+        Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
+        seconds): credible intervals beside the Wald and profile ones, convergence
+        figures, and the response band drawn from the samples.
+    priors : sequence of Prior or str
+        Normal priors for the posterior (``"m_a=normal:15,1"`` or
+        :class:`~balancer_id.identify.posterior.Prior`; giving any implies
+        ``posterior``); the others are uniform inside the bounds.
 
     Returns
     -------
@@ -274,6 +284,13 @@ def fit(
         from balancer_id.identify.tracking import track_parameters
 
         tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
+    post = None
+    if posterior or priors:  # issue 34.2: only on request (tens of seconds)
+        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+        post = sample_posterior(match, priors=given, seed=seed)
+        notes.extend(post.notes)
     return fit_match(
         match,
         ts,
@@ -283,4 +300,5 @@ def fit(
         warnings=notes,
         per_trial=per_trial,
         tracking=tracking,
+        posterior=post,
     )
