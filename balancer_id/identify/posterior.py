@@ -6,7 +6,8 @@ standard errors do, ``matching._covariance``):
 
     log L(theta) = -S(theta) / (2 sigma^2 tau),   sigma^2 = S_min / (n - k)
 
-times a uniform prior inside each parameter's bounds and, where the user gives one, a
+times a uniform prior inside each parameter's bounds (a positive one's within a factor
+100 of its fitted value, :func:`support`) and, where the user gives one, a
 normal prior ``NAME=normal:MU,SD``. emcee's ensemble sampler draws from it, started
 around the optimum, moved by differential evolution; the chain runs until it is 50
 autocorrelation times long (or its budget is spent), the first two autocorrelation times
@@ -263,13 +264,49 @@ class Posterior:
         }
 
 
+def support(match: MatchResult, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The uniform prior's support: the bounds, a positive parameter's within a factor
+    :data:`~balancer_id.identify.intervals.PROFILE_FACTOR` of its fitted value (as the
+    profile is followed; 0 stays reachable where it is the bound).
+
+    The model's bounds hold any balancer (0.01 kg to 1e5 kg, D0 to 1e6 kg/s); flat over
+    them, a ridge the data do not close (D0 and A both large) holds most of the prior's
+    volume and the posterior follows it there, not the data.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    names : sequence of str
+        Its free parameters.
+
+    Returns
+    -------
+    (lo, hi) : numpy.ndarray
+    """
+    from balancer_id.identify.intervals import PROFILE_FACTOR
+
+    lo, hi = [], []
+    for n in names:
+        spec = match.model.param(n)
+        est = match.parameters[n]
+        a, b = spec.min, spec.max
+        if a >= 0:
+            scale = max(abs(est.value), est.stderr or 0.0, 1e-12)
+            b = min(b, scale * PROFILE_FACTOR)
+            if a > 0:
+                a = max(a, abs(est.value) / PROFILE_FACTOR)
+        lo.append(a)
+        hi.append(b)
+    return np.array(lo, float), np.array(hi, float)
+
+
 def _log_posterior_fn(match: MatchResult, names: list[str], priors: Sequence[Prior]):
     """``log p(theta)`` of the free parameters ``names`` (a callable for emcee)."""
     model = match.model
     base = np.asarray(model.vector(match.values()), float)
     idx = [list(model.param_names).index(n) for n in names]
-    lo = np.array([model.param(n).min for n in names], float)
-    hi = np.array([model.param(n).max for n in names], float)
+    lo, hi = support(match, names)
     n = match.y.size
     k = len(names)
     s_min = float(np.sum(match.residual**2))
