@@ -117,3 +117,66 @@ def test_gravity_forced_by_the_column_map(tmp_path: Path) -> None:
     (rec,) = log.recordings
     assert not rec.accel_includes_gravity
     assert _inference(log, "gravity").evidence == "given in the column map"
+
+
+def test_clipping_at_a_two_g_range_is_noted(tmp_path: Path) -> None:
+    n = 1000
+    accel = _resting_g(n, 8, noise=0.01) * G_DEFAULT
+    for start in (300, 600):  # two shocks beyond a ±2 g range: pinned at +2 g on y
+        accel[start : start + 6, 1] = 2 * G_DEFAULT
+    rows = np.column_stack([0.01 * np.arange(n), accel])
+    log = read_log(_write(tmp_path / "c.csv", ["t", "ax", "ay", "az"], rows))
+    (note,) = [n for n in log.notes if n.code == "read.sensor_limit"]
+    assert f"12 on y at {2 * G_DEFAULT:.4g} m/s^2 (+2 g, 2 runs)" in note.text
+    assert log.recordings[0].saturated["accel"] == 12
+
+
+def test_values_repeated_in_pairs_are_noted(tmp_path: Path) -> None:
+    n = 400
+    accel = np.repeat(_resting_g(n // 2, 9, noise=0.02) * G_DEFAULT, 2, axis=0)
+    rows = np.column_stack([0.05 * np.arange(n), accel])
+    log = read_log(_write(tmp_path / "p.csv", ["t", "ax", "ay", "az"], rows))
+    (note,) = [n for n in log.notes if "repeated" in n.text]
+    assert "repeated 2 times" in note.text and "(10 Hz)" in note.text
+
+
+def _gate_file(path: Path, head: str, rows: list[str]) -> Path:
+    path.write_text(head + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_force_beside_event_timed_photogate_keeps_its_own_clock(tmp_path: Path) -> None:
+    n, events = 500, 11
+    tf = 0.02 * np.arange(n)
+    te = np.linspace(0.3, 8.7, events)
+    rows = [
+        f"{tf[i]:.3f},{5 + np.sin(tf[i]):.4f}," + (f"{te[i]:.4f},{i % 2}" if i < events else ",")
+        for i in range(n)
+    ]
+    head = "Run 1: Time (s),Run 1: Force (N),Run 1: Gate Time (s),Run 1: Gate State"
+    (rec,) = read_log(_gate_file(tmp_path / "v.csv", head, rows)).recordings
+    assert rec.n_samples == n and rec.sample_rate_hz == pytest.approx(50.0)
+
+
+def test_force_under_an_event_clock_is_refused_not_cut(tmp_path: Path) -> None:
+    n, events = 500, 11
+    te = np.linspace(0.3, 8.7, events)
+    rows = [
+        (f"{te[i]:.4f},{i % 2}," if i < events else ",,") + f"{5 + np.sin(i / 50):.4f}"
+        for i in range(n)
+    ]
+    head = "Run 1: Time (s),Run 1: Gate State,Run 1: Force (N)"
+    with pytest.raises(LogReadError, match="clocks of their own") as err:
+        read_log(_gate_file(tmp_path / "e.csv", head, rows))
+    assert "500 values but only 11" in str(err.value)
+
+
+def test_disjoint_clocks_are_refused_naming_them(tmp_path: Path) -> None:
+    n = 300
+    rows = [
+        f"{0.01 * i:.3f},{5.0 + 0.01 * (i % 7):.3f},{100 + 0.01 * i:.3f},0.1,0.2,9.8"
+        for i in range(n)
+    ]
+    head = "Time (s),Force (N),Time (s),ax (m/s^2),ay (m/s^2),az (m/s^2)"
+    with pytest.raises(LogReadError, match="do not overlap: channels on disjoint clocks"):
+        read_log(_gate_file(tmp_path / "d.csv", head, rows))

@@ -259,8 +259,14 @@ def fit(
         bool, typer.Option("--per-trial", help="Also fit each trial alone.")
     ] = False,
     starts: Annotated[
-        int, typer.Option("--starts", metavar="INTEGER", help="Optimizer starts.")
-    ] = 1,
+        int | None,
+        typer.Option(
+            "--starts",
+            metavar="INTEGER",
+            help="Optimizer starts (default: spread starts where the model has limits, "
+            "friction or delays).",
+        ),
+    ] = None,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
     ] = False,
@@ -354,8 +360,9 @@ def fit(
 
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
-    at_least(starts, 1, "--starts")
-    if starts > MAX_STARTS:
+    if starts is not None:
+        at_least(starts, 1, "--starts")
+    if starts is not None and starts > MAX_STARTS:
         raise UsageError(f"--starts {starts}: give at most {MAX_STARTS} starts")
     user_start = assignments(start_values, "--start")
     user_bounds = _bounds(bounds)
@@ -420,7 +427,7 @@ def fit(
             from balancer_id.report.document import check_report_path
 
             check_report_path(report, logs)
-        with stage(f"fitting {model or 'variable_viscosity'} ({starts} start(s))"):
+        with stage(f"fitting {model or 'variable_viscosity'} ({starts or 'default'} start(s))"):
             result = run_fit(
                 _load(logs, options, trajectory_text),
                 model=model,
@@ -449,6 +456,16 @@ def fit(
     if save is not None:
         _write_json(out, save)
     _render(out, json_out, "print_fit")
+    _exit_if_untrusted([out])
+
+
+def _exit_if_untrusted(results: list[Any]) -> None:
+    """Exit :data:`~balancer_id.errors.UNTRUSTED_EXIT_CODE` when any fit printed is not
+    trusted (its output already written: scripts read the reason from it)."""
+    from balancer_id.errors import UNTRUSTED_EXIT_CODE
+
+    if any(isinstance(r, dict) and r.get("trusted") is False for r in results):
+        raise typer.Exit(UNTRUSTED_EXIT_CODE)
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
@@ -465,13 +482,14 @@ def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -
         out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
     if json_out:
         emit_json(out)
-        return
-    from balancer_id.report.terminal import print_fit
+    else:
+        from balancer_id.report.terminal import print_fit
 
-    console = _console()
-    for item in out["groups"]:  # type: ignore[attr-defined]
-        console.print(f"[bold]group {printable(item['group'])}[/bold]")
-        print_fit(console, printable(item))
+        console = _console()
+        for item in out["groups"]:  # type: ignore[attr-defined]
+            console.print(f"[bold]group {printable(item['group'])}[/bold]")
+            print_fit(console, printable(item))
+    _exit_if_untrusted(out["groups"])  # type: ignore[arg-type]
 
 
 @app.command(cls=Command)

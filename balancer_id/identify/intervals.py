@@ -219,7 +219,7 @@ def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[st
     """
     done = []
     for name, est in match.parameters.items():
-        if not wald_crosses_bound(match, name):
+        if est.not_reached or not wald_crosses_bound(match, name):  # a bound has its own
             continue
         iv = profile_interval(match, name, level)
         est.profile = (iv.low, iv.high)

@@ -136,8 +136,25 @@ class FitResult(Displayable):
     @property
     def trusted(self) -> bool:
         """False when a note says the fit cannot be trusted (a bound the data did not
-        choose, starts that disagree): the values are then no identification."""
-        return not any(isinstance(n, Note) and n.severity == "error" for n in self.all_notes)
+        choose, starts that disagree, a parameter the data cannot determine, a fit below
+        0 %): the values are then no identification."""
+        return not self.untrusted_because
+
+    @property
+    def untrusted_because(self) -> list[str]:
+        """Why the fit is not trusted: the texts of its ``error`` notes (empty: trusted)."""
+        return [n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"]
+
+    @property
+    def stuck(self) -> bool:
+        """Whether a parameter ended on a bound the data did not choose, or the starts
+        ended at different optima: the fit's point itself is no optimum to build on."""
+        return any(
+            isinstance(n, Note)
+            and n.severity == "error"
+            and n.code in ("fit.at_bound", "fit.starts_disagree")
+            for n in self.all_notes
+        )
 
     @property
     def model(self) -> str:
@@ -319,9 +336,8 @@ class FitResult(Displayable):
             "warnings": texts(self.all_notes),
             "notes": notes_json([*self.all_notes, *sampling]),
             "trusted": self.trusted,
-            "untrusted_because": [
-                n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"
-            ],
+            "untrusted_because": self.untrusted_because,
+            "optima": [o.to_dict() for o in self.match.optima],
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()

@@ -30,7 +30,14 @@ from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
 from balancer_id.read.timebase import TimeBase, time_inference, to_seconds
 from balancer_id.read.units import UnitMismatch, resolve_accel
-from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
+from balancer_id.read.validate import (
+    check_time,
+    count_saturated,
+    find_gaps,
+    pinned_extremes,
+    repeat_factor,
+    sample_rate,
+)
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
 COMMON_SHARE = 0.75
@@ -133,6 +140,7 @@ def build_recordings(
             force_time = table.columns[plan.force_time] * plan.force_time_scale
             if base.started_at is not None:
                 force_time = force_time - base.started_at
+        _refuse_untimed(path, plan, table, header, time, force_time)
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
         sets, restarts = _split_restarts(sets, time, table, plan.name)
@@ -234,6 +242,45 @@ def _split_restarts(
             continue
         out.append(chosen)
     return out, notes
+
+
+#: A channel with more than this share of its values without a time is on another clock.
+UNTIMED_SHARE = 0.5
+
+
+def _refuse_untimed(
+    path: Path,
+    plan: RunPlan,
+    table: Table,
+    header: list[str],
+    time: np.ndarray,
+    force_time: np.ndarray,
+) -> None:
+    """Refuse a channel most of whose values have no time: it runs on another clock.
+
+    Cutting the run to the rows with a time (a photogate's event rows) would drop most
+    of the channel's samples and report the events' spacing as its rate.
+    """
+    channels = [(plan.force, force_time)] if plan.force is not None else []
+    channels += [(c, time) for c in plan.accel[:1]]
+    for col, clock in channels:
+        values = np.isfinite(table.columns[col])
+        n = int(np.count_nonzero(values))
+        timed = int(np.count_nonzero(values & np.isfinite(clock)))
+        if n >= MIN_BLOCK and n - timed > UNTIMED_SHARE * n:
+            column = header[
+                plan.force_time if col == plan.force and plan.force_time is not None else plan.time
+            ]
+            raise LogReadError(
+                path,
+                f"{plan.name}: '{header[col]}' has {n} values but only {timed} of them a time "
+                f"in '{column}': the channels run on clocks of their own (event-timed rows "
+                "beside sampled ones?); cutting the run to the timed rows would drop "
+                f"{100 * (n - timed) / n:.0f} % of the samples",
+                column=header[col],
+                hint="export each sensor with its own time column, or give the channel's own "
+                "time with --columns time=...",
+            )
 
 
 def _channel_sets(
@@ -384,6 +431,36 @@ def _build_one(
                 subject=name,
             )
         )
+    elif accel is not None:
+        pinned = pinned_extremes(accel)
+        if pinned:
+            saturated["accel"] = sum(p[2] for p in pinned)
+            axes = plan.accel_axes
+            where = "; ".join(
+                f"{samples} on {axes[j] if j < len(axes) else j} at {value:.4g} m/s^2 "
+                f"({value / g:+.3g} g, {runs} runs)"
+                for j, value, samples, runs in pinned
+            )
+            warnings.append(
+                Note(
+                    "read.sensor_limit",
+                    f"{name}: acceleration pinned at one extreme value in runs of equal "
+                    f"samples ({where}): the sensor's range was reached, those samples are "
+                    "clipped",
+                    subject=name,
+                )
+            )
+    repeats = repeat_factor(accel if accel is not None else force if force is not None else time)
+    if repeats > 1:
+        warnings.append(
+            Note(
+                "read.rate",
+                f"{name}: every value is repeated {repeats} times in a row: the sensor ran at "
+                f"1/{repeats} of the export's {rate:.4g} Hz ({rate / repeats:.4g} Hz); the "
+                "repeats carry no new information",
+                subject=name,
+            )
+        )
     rec = Recording(
         name=name,
         time=time,
@@ -450,6 +527,16 @@ def _force_onto_accel(
     t_accel = time_all[idx]
     if fidx.size < 2:
         return None, idx, "the force has fewer than 2 samples; left out"
+    if t_accel.size and (t_force[-1] < t_accel[0] or t_accel[-1] < t_force[0]):
+        raise LogReadError(
+            path,
+            f"{plan.name}: the force's clock ({t_force[0]:.4g}-{t_force[-1]:.4g} s in "
+            f"'{column}') and the acceleration's ({t_accel[0]:.4g}-{t_accel[-1]:.4g} s in "
+            f"'{header[plan.time]}') do not overlap: channels on disjoint clocks cannot be "
+            "joined",
+            column=column,
+            hint="export both sensors on one clock, or read each with --columns",
+        )
     res = onto_times(t_force, force_all[fidx], t_accel)
     how = (
         "averaged over each acceleration sample period (low-pass)"

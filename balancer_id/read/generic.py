@@ -15,7 +15,7 @@ import numpy as np
 
 from balancer_id.errors import LogReadError, UsageError
 from balancer_id.read.header import Column, name_tokens
-from balancer_id.read.plan import RunPlan, plan_from_columns, set_time_unit
+from balancer_id.read.plan import RunPlan, plan_from_columns, plans_by_time, set_time_unit
 from balancer_id.read.timebase import canonical
 
 #: Keys a column map may use.
@@ -286,12 +286,28 @@ def guess_plan(columns: list[Column]) -> list[RunPlan]:
     times = [c for c in columns if c.kind == "time"]
     if not times:
         return []
-    time = _run_time(times)
-    members = [c for c in columns if c.kind not in ("time", "datetime", "ignore")]
-    plan = plan_from_columns(RUN_NAME, time, members)
-    plan.extra = {}  # a generic log keeps time, force and acceleration
-    plan.guessed = True
-    return [plan] if plan.has_signal else []
+    if _own_clocks(columns, times):
+        plans = plans_by_time(RUN_NAME, columns)
+    else:
+        time = _run_time(times)
+        members = [c for c in columns if c.kind not in ("time", "datetime", "ignore")]
+        plans = [plan_from_columns(RUN_NAME, time, members)]
+    for plan in plans:
+        plan.extra = {}  # a generic log keeps time, force and acceleration
+        plan.guessed = True
+    return [p for p in plans if p.has_signal]
+
+
+def _own_clocks(columns: list[Column], times: list[Column]) -> bool:
+    """True when measurement columns follow more than one time column (each its clock)."""
+    followed = 0
+    current = None
+    for col in columns:
+        if col.kind == "time":
+            current = col
+        elif col.kind in ("force", "accel") and current is not None:
+            followed |= 1 << times.index(current)
+    return bin(followed).count("1") > 1
 
 
 def no_columns_error(path: Path, columns: list[Column], what: str) -> LogReadError:

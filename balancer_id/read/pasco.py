@@ -12,8 +12,8 @@ import re
 from pathlib import Path
 
 from balancer_id.errors import LogReadError
-from balancer_id.read.header import TIME_UNITS, Column
-from balancer_id.read.plan import RunPlan, plan_from_columns
+from balancer_id.read.header import Column
+from balancer_id.read.plan import RunPlan, join_rates, plan_from_columns
 
 _SHARED_RUNS = ("", "auto")
 _CAPSTONE_RUN = re.compile(r"^run\s*#\s*\d+$", re.IGNORECASE)
@@ -114,7 +114,7 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
     for key, by_time in groups.items():
         name = _run_name(key, groups)
         run_plans = [plan_from_columns(name, by_index[t], cols) for t, cols in by_time.items()]
-        run_plans = _join_rates([p for p in run_plans if p.has_signal])
+        run_plans = join_rates([p for p in run_plans if p.has_signal])
         for k, plan in enumerate(run_plans[1:], start=2):
             if plan.force is not None and not plan.accel:
                 plan.name = f"{name} (force)"
@@ -124,27 +124,6 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
                 plan.name = f"{name} ({k})"
         plans.extend(run_plans)
     return plans
-
-
-def _join_rates(plans: list[RunPlan]) -> list[RunPlan]:
-    """Join a force-only plan into the acceleration-only plan of the same run."""
-    force = next((p for p in plans if p.force is not None and not p.accel), None)
-    accel = next((p for p in plans if p.accel and p.force is None), None)
-    if force is None or accel is None:
-        return plans
-    accel.force, accel.force_time, accel.force_time_scale = (
-        force.force,
-        force.time,
-        TIME_UNITS.get(force.time_unit, 1.0),
-    )
-    accel.notes.extend(force.notes)
-    if force.extra:
-        accel.notes.append(
-            "channel(s) "
-            + ", ".join(f"'{k}'" for k in force.extra)
-            + " on the force's time column ignored"
-        )
-    return [p for p in plans if p is not force]
 
 
 def _run_name(key: str, members: dict[str, dict[int, list[Column]]]) -> str:

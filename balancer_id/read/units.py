@@ -319,9 +319,7 @@ def resolve_accel(
     ):
         includes_gravity, gravity_note = _check_gravity_claim(sub, level, includes_gravity)
         from_header = gravity_note is None
-    unit_override = (
-        "--accel-unit m/s^2" if explicit_g or header_unit != "m/s^2" else "--accel-unit g"
-    )
+    unit_override = "--accel-unit g"
     if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
         if accel_unit == "g":
             raise UnitMismatch(
@@ -448,7 +446,8 @@ def _gravity_inference(
         return Inference("gravity", decision, "given in the column map")
     source = "the header names it; " if from_header else ""
     override = "--columns ...,gravity=" + ("no" if with_g else "yes")
-    weak = with_g != rest.steady and not from_header
+    looks_with_g = rest.steady and (_near(rest.level, 1.0) or _near(rest.level, _G_STANDARD))
+    weak = with_g != looks_with_g and not from_header
     return Inference("gravity", decision, source + rest.said(unit), override, weak=weak)
 
 

@@ -181,9 +181,13 @@ def _summary_section(result: FitResult) -> Section:
         f"The paper's method gives m_a = {format_number(c.m_a)} kg and "
         f"T_a = {format_number(c.T_a, 3)} s." + ("" if n_warn else " No warnings.")
     )
+    untrusted = "".join(
+        f'<p class="alert"><b>NOT TRUSTED:</b> {_e(why)}</p>'
+        for why in result.untrusted_because
+    )
     return Section(
         "Summary",
-        html=f'<div class="cards">{"".join(cards)}</div>{warn_html}',
+        html=f'{untrusted}<div class="cards">{"".join(cards)}</div>{warn_html}',
         blocks=[intro, _parameter_table(result), errors],
     )
 

@@ -173,9 +173,11 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
     for name, p in result["parameters"].items():
         ci = p.get("ci95")
         note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
+        if p.get("claim"):  # a bound, not a value (issue 31)
+            note = "not reached" if p.get("not_reached") == "above" else "not resolved"
         cells = [
             name,
-            _fmt(p["value"]),
+            p["claim"] if p.get("claim") else _fmt(p["value"]),
             _fmt(p["stderr"], 2),
             (
                 f"{ci[0]:.4g} .. {ci[1]:.4g}"
