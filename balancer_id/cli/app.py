@@ -137,6 +137,15 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _priors(items: list[str] | None) -> list:
+    """``--prior NAME=normal:MU,SD ...`` parsed (a usage error names the bad one)."""
+    if not items:
+        return []
+    from balancer_id.identify.posterior import parse_prior
+
+    return [parse_prior(item) for item in items]
+
+
 def _write_series(frame, path: Path) -> None:
     """``--series``: per trial, time, measured, simulated and residual, as CSV."""
     from balancer_id.files import atomic_write_text
@@ -324,6 +333,20 @@ def fit(
             "--group-by", metavar="TEXT", help="run|log|runs:1-3,4-6: identify each group apart."
         ),
     ] = None,
+    posterior: Annotated[
+        bool,
+        typer.Option(
+            "--posterior", help="Also sample the posterior (emcee): credible intervals, corner."
+        ),
+    ] = False,
+    prior: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--prior",
+            metavar="NAME=normal:MU,SD",
+            help="A normal prior for --posterior (repeatable); others uniform in bounds.",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
     thrust: ThrustOpt = None,
     force_sign: ForceSignOpt = None,
@@ -374,6 +397,9 @@ def fit(
         raise UsageError(
             "--per-log fits all logs at once: not with --group-by, --track, --series or --report"
         )
+    priors = _priors(prior)  # issue 34.2: checked before any log is read
+    if group_by is not None and (posterior or priors):
+        raise UsageError("--posterior and --prior are for one fit: not with --group-by")
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
             raise UsageError(
@@ -404,7 +430,7 @@ def fit(
         track=tracked,
         per_log=own,
     )
-    tuned = bool(user_start or user_bounds)
+    tuned = bool(user_start or user_bounds or posterior or priors)
     key = None if (no_cache or tuned) else request.cache_key()
     from balancer_id import cache
 
@@ -428,6 +454,8 @@ def fit(
                 bounds=user_bounds,
                 track=tracked,
                 per_log=own,
+                posterior=posterior,
+                priors=priors,
             )
         out = result.to_dict()  # a robot pair's advice included (issue 9)
         cache.store(key, out)

@@ -133,6 +133,8 @@ def fit(
     track: Sequence[str] = (),
     per_log: Sequence[str] = (),
     held_out: bool = True,
+    posterior: bool = False,
+    priors: Sequence[Any] = (),
 ) -> FitResult | PerLogFit:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -186,6 +188,14 @@ def fit(
         nothing shared; returns a :class:`~balancer_id.identify.per_log.PerLogFit`.
     held_out : bool
         With ``per_log``: also score the sharings on held-out halves of logs.
+    posterior : bool
+        Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
+        seconds): credible intervals beside the Wald and profile ones, convergence
+        figures, and the response band drawn from the samples.
+    priors : sequence of Prior or str
+        Normal priors for the posterior (``"m_a=normal:15,1"`` or
+        :class:`~balancer_id.identify.posterior.Prior`; giving any implies
+        ``posterior``); the others are uniform inside the bounds.
 
     Returns
     -------
@@ -303,6 +313,13 @@ def fit(
         from balancer_id.identify.tracking import track_parameters
 
         tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
+    post = None
+    if posterior or priors:  # issue 34.2: only on request (tens of seconds)
+        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+        post = sample_posterior(match, priors=given, seed=seed)
+        notes.extend(post.notes)
     return fit_match(
         match,
         ts,
@@ -312,4 +329,5 @@ def fit(
         warnings=notes,
         per_trial=per_trial,
         tracking=tracking,
+        posterior=post,
     )
