@@ -137,6 +137,15 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _priors(items: list[str] | None) -> list:
+    """``--prior NAME=normal:MU,SD ...`` parsed (a usage error names the bad one)."""
+    if not items:
+        return []
+    from balancer_id.identify.posterior import parse_prior
+
+    return [parse_prior(item) for item in items]
+
+
 def _write_series(frame, path: Path) -> None:
     """``--series``: per trial, time, measured, simulated and residual, as CSV."""
     from balancer_id.files import atomic_write_text
@@ -250,8 +259,14 @@ def fit(
         bool, typer.Option("--per-trial", help="Also fit each trial alone.")
     ] = False,
     starts: Annotated[
-        int, typer.Option("--starts", metavar="INTEGER", help="Optimizer starts.")
-    ] = 1,
+        int | None,
+        typer.Option(
+            "--starts",
+            metavar="INTEGER",
+            help="Optimizer starts (default: spread starts where the model has limits, "
+            "friction or delays).",
+        ),
+    ] = None,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
     ] = False,
@@ -309,6 +324,20 @@ def fit(
             "--group-by", metavar="TEXT", help="run|log|runs:1-3,4-6: identify each group apart."
         ),
     ] = None,
+    posterior: Annotated[
+        bool,
+        typer.Option(
+            "--posterior", help="Also sample the posterior (emcee): credible intervals, corner."
+        ),
+    ] = False,
+    prior: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--prior",
+            metavar="NAME=normal:MU,SD",
+            help="A normal prior for --posterior (repeatable); others uniform in bounds.",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
     thrust: ThrustOpt = None,
     force_sign: ForceSignOpt = None,
@@ -331,8 +360,9 @@ def fit(
 
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
-    at_least(starts, 1, "--starts")
-    if starts > MAX_STARTS:
+    if starts is not None:
+        at_least(starts, 1, "--starts")
+    if starts is not None and starts > MAX_STARTS:
         raise UsageError(f"--starts {starts}: give at most {MAX_STARTS} starts")
     user_start = assignments(start_values, "--start")
     user_bounds = _bounds(bounds)
@@ -353,6 +383,9 @@ def fit(
     )
     if group_by is not None and tracked:
         raise UsageError("--track follows one session's fit: not with --group-by")
+    priors = _priors(prior)  # issue 34.2: checked before any log is read
+    if group_by is not None and (posterior or priors):
+        raise UsageError("--posterior and --prior are for one fit: not with --group-by")
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
             raise UsageError(
@@ -382,7 +415,7 @@ def fit(
         effects_files=tuple(str(p) for p in effects_file or ()),
         track=tracked,
     )
-    tuned = bool(user_start or user_bounds)
+    tuned = bool(user_start or user_bounds or posterior or priors)
     key = None if (no_cache or tuned) else request.cache_key()
     from balancer_id import cache
 
@@ -394,7 +427,7 @@ def fit(
             from balancer_id.report.document import check_report_path
 
             check_report_path(report, logs)
-        with stage(f"fitting {model or 'variable_viscosity'} ({starts} start(s))"):
+        with stage(f"fitting {model or 'variable_viscosity'} ({starts or 'default'} start(s))"):
             result = run_fit(
                 _load(logs, options, trajectory_text),
                 model=model,
@@ -405,6 +438,8 @@ def fit(
                 start=user_start,
                 bounds=user_bounds,
                 track=tracked,
+                posterior=posterior,
+                priors=priors,
             )
         out = result.to_dict()  # a robot pair's advice included (issue 9)
         cache.store(key, out)
@@ -421,6 +456,16 @@ def fit(
     if save is not None:
         _write_json(out, save)
     _render(out, json_out, "print_fit")
+    _exit_if_untrusted([out])
+
+
+def _exit_if_untrusted(results: list[Any]) -> None:
+    """Exit :data:`~balancer_id.errors.UNTRUSTED_EXIT_CODE` when any fit printed is not
+    trusted (its output already written: scripts read the reason from it)."""
+    from balancer_id.errors import UNTRUSTED_EXIT_CODE
+
+    if any(isinstance(r, dict) and r.get("trusted") is False for r in results):
+        raise typer.Exit(UNTRUSTED_EXIT_CODE)
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
@@ -437,13 +482,14 @@ def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -
         out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
     if json_out:
         emit_json(out)
-        return
-    from balancer_id.report.terminal import print_fit
+    else:
+        from balancer_id.report.terminal import print_fit
 
-    console = _console()
-    for item in out["groups"]:  # type: ignore[attr-defined]
-        console.print(f"[bold]group {printable(item['group'])}[/bold]")
-        print_fit(console, printable(item))
+        console = _console()
+        for item in out["groups"]:  # type: ignore[attr-defined]
+            console.print(f"[bold]group {printable(item['group'])}[/bold]")
+            print_fit(console, printable(item))
+    _exit_if_untrusted(out["groups"])  # type: ignore[arg-type]
 
 
 @app.command(cls=Command)

@@ -26,8 +26,8 @@ class FitRequest:
         How the logs are read.
     per_trial : bool
         ``--per-trial``.
-    starts : int
-        ``--starts``.
+    starts : int or None
+        ``--starts`` (None: the default search).
     trajectory : str or None
         ``--trajectory`` as given.
     effects_files : tuple of str
@@ -41,7 +41,7 @@ class FitRequest:
     fixed: dict[str, float] = field(default_factory=dict)
     options: ReadOptions = field(default_factory=ReadOptions)
     per_trial: bool = False
-    starts: int = 1
+    starts: int | None = None
     trajectory: str | None = None
     effects_files: tuple[str, ...] = ()
     track: tuple[str, ...] = ()

@@ -7,11 +7,13 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.identify.basins import scaled_starts
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
+from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
 from balancer_id.model.registry import Registry
@@ -120,7 +122,7 @@ def fit(
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
     per_trial: bool = False,
-    n_starts: int = 1,
+    n_starts: int | None = None,
     seed: int = 0,
     max_nfev: int = 2000,
     profile: bool = True,
@@ -128,6 +130,8 @@ def fit(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
     track: Sequence[str] = (),
+    posterior: bool = False,
+    priors: Sequence[Any] = (),
 ) -> FitResult:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
@@ -151,8 +155,10 @@ def fit(
         The robot's reference move (``servo``) when ``trials`` holds paths.
     per_trial : bool
         Also fit each trial alone, so drift with thrust and direction shows.
-    n_starts : int
-        Optimizer starts (see :func:`~balancer_id.identify.matching.match_trials`).
+    n_starts : int or None
+        Optimizer starts (see :func:`~balancer_id.identify.matching.match_trials`);
+        None (default): one from the data, plus spread ones where the model has limits,
+        friction or delays or the first ends suspect (issue 31).
     seed : int
         Seed of the extra starts.
     max_nfev : int
@@ -173,6 +179,14 @@ def fit(
         Parameters to track in time within the session (``--track``): each as a function
         of time with a 95 % band, in :attr:`FitResult.tracking`
         (:func:`~balancer_id.identify.tracking.track_parameters`).
+    posterior : bool
+        Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
+        seconds): credible intervals beside the Wald and profile ones, convergence
+        figures, and the response band drawn from the samples.
+    priors : sequence of Prior or str
+        Normal priors for the posterior (``"m_a=normal:15,1"`` or
+        :class:`~balancer_id.identify.posterior.Prior`; giving any implies
+        ``posterior``); the others are uniform inside the bounds.
 
     Returns
     -------
@@ -205,7 +219,7 @@ def fit(
     user_start = dict(start or {})
     auto_start, start_notes = fit_start(mdl, data, classic)
     notes: list[Note | str] = [*start_notes]
-    start = {**auto_start, **user_start}
+    start = {**scaled_starts(mdl, data), **auto_start, **user_start}
     for name in [*user_start, *(bounds or {})]:
         if name not in mdl.param_names:
             raise UsageError(
@@ -249,6 +263,7 @@ def fit(
             "give the stretches where only the measured force acts with --window, or hold "
             "known values with --fix)"
         )
+    match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals
 
@@ -274,6 +289,13 @@ def fit(
         from balancer_id.identify.tracking import track_parameters
 
         tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
+    post = None
+    if posterior or priors:  # issue 34.2: only on request (tens of seconds)
+        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+        post = sample_posterior(match, priors=given, seed=seed)
+        notes.extend(post.notes)
     return fit_match(
         match,
         ts,
@@ -283,4 +305,5 @@ def fit(
         warnings=notes,
         per_trial=per_trial,
         tracking=tracking,
+        posterior=post,
     )
