@@ -120,7 +120,7 @@ def draw_world(seed: int) -> tuple[World, list[Recording]]:
             effect_values = {"T_up": T_a, "T_down": T_a * float(rng.choice([0.4, 2.5]))}
     spec = "variable_viscosity" + (f"+{effect}" if effect else "")
     model = resolve_model(spec)
-    values = {**truth, **effect_values}
+    values = {k: v for k, v in {**truth, **effect_values}.items() if k in model.param_names}
     recording = str(rng.choice(["steps", "session", "updown", "guided"], p=[0.4, 0.3, 0.2, 0.1]))
     layout = str(
         rng.choice(["pasco-capstone", "pasco-sparkvue", "phyphox", "generic"])
