@@ -52,6 +52,8 @@ CODES: dict[str, str] = {
     "fit.optima": "the distinct optima the starts ended at, and their costs",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
+    "fit.posterior_not_converged": "the posterior chain is short against its autocorrelation time",
+    "fit.posterior_disagrees": "a credible interval differs from the Wald interval",
     "fit.other": "another remark about the fit",
     # diagnosing
     "diagnose.not_white": "the residual is not white beyond the sensor's noise colour",

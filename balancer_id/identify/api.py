@@ -12,6 +12,7 @@ from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
+from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
@@ -138,7 +139,11 @@ def fit(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
     track: Sequence[str] = (),
-) -> FitResult:
+    per_log: Sequence[str] = (),
+    held_out: bool = True,
+    posterior: bool = False,
+    priors: Sequence[Any] = (),
+) -> FitResult | PerLogFit:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
     Parameters
@@ -185,10 +190,25 @@ def fit(
         Parameters to track in time within the session (``--track``): each as a function
         of time with a 95 % band, in :attr:`FitResult.tracking`
         (:func:`~balancer_id.identify.tracking.track_parameters`).
+    per_log : sequence of str
+        Parameters each log has its own value of, the rest shared over all logs
+        (``--per-log``): one fit over all logs, compared with everything shared and
+        nothing shared; returns a :class:`~balancer_id.identify.per_log.PerLogFit`.
+    held_out : bool
+        With ``per_log``: also score the sharings on held-out halves of logs.
+    posterior : bool
+        Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
+        seconds): credible intervals beside the Wald and profile ones, convergence
+        figures, and the response band drawn from the samples.
+    priors : sequence of Prior or str
+        Normal priors for the posterior (``"m_a=normal:15,1"`` or
+        :class:`~balancer_id.identify.posterior.Prior`; giving any implies
+        ``posterior``); the others are uniform inside the bounds.
 
     Returns
     -------
-    FitResult
+    FitResult or PerLogFit
+        A :class:`PerLogFit` when ``per_log`` is given.
 
     Raises
     ------
@@ -203,10 +223,20 @@ def fit(
         bounds = {**spans, **(bounds or {})}
     if isinstance(track, str):
         track = [track]
+    if isinstance(per_log, str):
+        per_log = [per_log]
+    if per_log and track:
+        raise UsageError("--per-log and --track: give one of them")
     if track:
         from balancer_id.identify.tracking import check_tracked
 
         check_tracked(mdl, track, dict(fixed or {}))  # before any log is read
+    for name in per_log:
+        if name not in mdl.param_names:
+            raise UsageError(
+                f"--per-log {name}: not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
@@ -224,6 +254,10 @@ def fit(
                 f"{name} is not a parameter of '{mdl.spec}' "
                 f"(its parameters: {', '.join(mdl.param_names)})"
             )
+    if per_log:
+        from balancer_id.identify.per_log import fit_per_log
+
+        return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
     if mdl.needs_reference_move and ts.trajectory is not None:
         from balancer_id.segment.move import start_given
 
@@ -287,6 +321,13 @@ def fit(
         from balancer_id.identify.tracking import track_parameters
 
         tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
+    post = None
+    if posterior or priors:  # issue 34.2: only on request (tens of seconds)
+        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+        post = sample_posterior(match, priors=given, seed=seed)
+        notes.extend(post.notes)
     return fit_match(
         match,
         ts,
@@ -296,4 +337,5 @@ def fit(
         warnings=notes,
         per_trial=per_trial,
         tracking=tracking,
+        posterior=post,
     )

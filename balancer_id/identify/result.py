@@ -28,6 +28,7 @@ from balancer_id.trials import TrialSet
 
 if TYPE_CHECKING:
     from balancer_id.identify.advice import Advice
+    from balancer_id.identify.posterior import Posterior
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
@@ -62,6 +63,9 @@ class FitResult(Displayable):
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
         The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
+    posterior : Posterior or None
+        Posterior samples of the free parameters (``fit(..., posterior=True)``,
+        ``fit --posterior``); the band is then drawn from them.
 
     Notes
     -----
@@ -83,6 +87,7 @@ class FitResult(Displayable):
     include_per_trial: bool = False
     warnings: list[Note | str] = field(default_factory=list)
     tracking: Any = None
+    posterior: Posterior | None = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
@@ -109,8 +114,16 @@ class FitResult(Displayable):
     def _summary_warnings(self) -> list[str]:
         return texts(self.all_notes)
 
+    def _band_samples(self) -> dict[str, Any]:
+        if self.posterior is None:
+            return {}
+        return {"samples": self.posterior.samples, "sample_names": self.posterior.names}
+
     def _summary_extra(self) -> list[str]:
-        return self.tracking.lines() if self.tracking is not None else []
+        lines = self.tracking.lines() if self.tracking is not None else []
+        if self.posterior is not None:
+            lines += self.posterior.lines()
+        return lines
 
     @property
     def all_notes(self) -> list[Note | str]:
@@ -333,6 +346,8 @@ class FitResult(Displayable):
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
         if self.tracking is not None:
             out["tracking"] = self.tracking.to_dict()
+        if self.posterior is not None:
+            out["posterior"] = self.posterior.to_dict()
         return json_ready(out)
 
 
@@ -374,6 +389,7 @@ def fit_match(
     warnings: Sequence[Note | str] = (),
     per_trial: bool = False,
     tracking: Any = None,
+    posterior: Posterior | None = None,
 ) -> FitResult:
     """A :class:`FitResult` around a ready simulation-matching fit.
 
@@ -399,6 +415,8 @@ def fit_match(
         Fit each trial alone now and show the fits in :meth:`FitResult.to_dict`.
     tracking : Tracking, optional
         Parameters tracked in time (``fit --track``).
+    posterior : Posterior, optional
+        Posterior samples of the fit (:func:`~balancer_id.identify.posterior.sample_posterior`).
 
     Returns
     -------
@@ -415,6 +433,7 @@ def fit_match(
         include_per_trial=per_trial,
         warnings=list(warnings),
         tracking=tracking,
+        posterior=posterior,
     )
     if per_trial:
         result.per_trial_fits()

@@ -29,6 +29,7 @@ from balancer_id.report.blocks import (
 )
 from balancer_id.report.plots import (
     model_curves,
+    plot_corner,
     plot_coupling,
     plot_paper_method,
     plot_per_trial,
@@ -75,7 +76,13 @@ def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[S
     ]
     if result.per_trial:
         sections.append(_per_trial_section(result))
+    if result.tracking is not None:
+        from balancer_id.report.tracking_plot import tracking_section
+
+        sections.append(tracking_section(result.tracking))
     sections.append(_correlation_section(result))
+    if result.posterior is not None:
+        sections.append(_posterior_section(result))
     if result.coupling is not None:
         sections.append(_coupling_section(result))
     return sections
@@ -391,6 +398,60 @@ def _trials_section(result: FitResult) -> Section:
         )
     blocks.append(_where_it_fails(band, stretches, match.y))
     return Section("Trials: measured vs simulated", blocks=blocks)
+
+
+def _posterior_section(result: FitResult) -> Section:
+    """Credible intervals beside the Wald and profile ones, the chain's health, the corner."""
+    post = result.posterior
+    assert post is not None
+    cred, med = post.credible(), post.median()
+    units = {n: p.unit for n, p in result.match.parameters.items()}
+
+    def span(iv) -> str:
+        return f"{format_number(iv[0], 4)} .. {format_number(iv[1], 4)}" if iv else "-"
+
+    rows: list[list[str | Cell]] = []
+    disagree = {n.subject for n in post.notes if n.code == "fit.posterior_disagrees"}
+    for n in post.names:
+        rows.append(
+            [
+                Cell(n, "strong"),
+                format_number(post.fitted[n], 4),
+                format_number(med[n], 4),
+                span(post.wald.get(n)),
+                span(post.profile.get(n)),
+                Cell(span(cred[n]), "warn") if n in disagree else span(cred[n]),
+                units.get(n, ""),
+            ]
+        )
+    table = Table(
+        [
+            "parameter",
+            "fitted",
+            "posterior median",
+            "Wald 95 %",
+            "profile 95 %",
+            "credible 95 %",
+            "unit",
+        ],
+        rows,
+        "The posterior sampled with emcee (likelihood of the fit's own noise variance and "
+        "residual correlation; uniform priors inside the bounds"
+        + (", normal priors as given" if post.priors else "")
+        + "). A credible interval marked differs from the Wald one by more than a quarter "
+        "of its width: the uncertainty is not Gaussian there.",
+    )
+    blocks: list[Block] = [table, Paragraph(post.diagnostics_text())]
+    blocks += [Paragraph(f"⚠ {n.text}") for n in post.notes]
+    blocks.append(
+        Plot(
+            plot_corner(post),
+            "Corner plot of the posterior samples: each parameter's histogram (2.5, 50 and "
+            "97.5 % quantiles dashed in blue, the Wald interval dashed in grey) and each "
+            "pair's joint samples; orange lines: the least-squares optimum.",
+        )
+    )
+    return Section("Posterior", blocks=blocks)
 
 
 def _band_method(method: str) -> str:

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     from balancer_id.identify.coupling import Coupling
     from balancer_id.identify.data import TrialData
     from balancer_id.identify.matching import MatchResult
+    from balancer_id.identify.posterior import Posterior
     from balancer_id.identify.result import PerTrialFit
 
 #: One model's simulated acceleration, per trial: ``(label, [y_model of trial 0, ...])``.
@@ -809,4 +810,51 @@ def plot_coupling(
         ax.set_ylabel("servo stiffness k_r (N/m)", fontsize=9)
         ax.set_title(f"Routh-Hurwitz (D = D0 = {D:.3g} kg/s)", fontsize=9, loc="left")
         ax.legend(fontsize=7, loc="upper left")
+    return _finish(fig, path)
+
+
+# --------------------------------------------------------------------------------------
+# the posterior: a corner plot
+# --------------------------------------------------------------------------------------
+def plot_corner(posterior: Posterior, path: str | Path | None = None) -> Figure | Path:
+    """The posterior's corner plot: each parameter's histogram and each pair's samples.
+
+    The least-squares optimum is marked (lines) and the Wald 95 % interval drawn as dashed
+    lines on the diagonal, so a curved or one-sided posterior stands out against them.
+
+    Parameters
+    ----------
+    posterior : Posterior
+        Samples (:func:`~balancer_id.identify.posterior.sample_posterior`).
+    path : str or Path, optional
+        Write a PNG here instead of returning the figure.
+
+    Returns
+    -------
+    Figure or Path
+    """
+    import corner
+
+    k = len(posterior.names)
+    size = max(2.0, min(2.2 * k, 9.0))
+    fig = _new_figure(size, size, layout=None)
+    corner.corner(
+        posterior.samples,
+        labels=list(posterior.names),
+        truths=[posterior.fitted[n] for n in posterior.names],
+        truth_color=MODEL_COLORS[1],
+        quantiles=[0.025, 0.5, 0.975],
+        show_titles=True,
+        title_fmt=".4g",
+        title_kwargs={"fontsize": 8},
+        label_kwargs={"fontsize": 9},
+        fig=fig,
+        color=MODEL_COLORS[0],
+    )
+    axes = np.array(fig.axes).reshape(k, k)
+    for j, name in enumerate(posterior.names):
+        wald = posterior.wald.get(name)
+        if wald is not None:
+            for end in wald:
+                axes[j, j].axvline(end, color="0.3", ls="--", lw=0.8)
     return _finish(fig, path)

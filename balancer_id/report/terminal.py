@@ -37,6 +37,7 @@ def print_command(console: Console, command: str, indent: str = "    ") -> None:
 def _fmt(x: Any, digits: int = 4) -> str:
     return format_number(x, digits) if isinstance(x, float) else ("-" if x is None else str(x))
 
+
 def print_inspection(console: Console, info: dict[str, Any]) -> None:
     """Print what ``inspect`` read and the trials it found.
 
@@ -110,9 +111,12 @@ def print_inferences(console: Console, inferences: list[dict[str, Any]]) -> None
         console.print(f"    {mark}{escape(run + item['text'])}", highlight=False)
 
 
-_KIND_TITLES = {"step": ("step trial", "step trials"), "move": ("robot move", "robot moves"),
-                "guided": ("guided move", "guided moves"),
-                "window": ("given window", "given windows")}
+_KIND_TITLES = {
+    "step": ("step trial", "step trials"),
+    "move": ("robot move", "robot moves"),
+    "guided": ("guided move", "guided moves"),
+    "window": ("given window", "given windows"),
+}
 
 
 def trials_title(trials: list[dict[str, Any]]) -> str:
@@ -160,14 +164,18 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         for why in result.get("untrusted_because", []):
             _stderr(console).print(f"[bold red]NOT TRUSTED:[/bold red] {why}")
     table = Table(title=f"model {result['model']}: simulation matching over all trials")
-    for col in ("parameter", "value", "std. error", "95% interval", "unit", "note"):
+    post = result.get("posterior") or {}
+    credible = {n: q.get("credible95") for n, q in post.get("parameters", {}).items()}
+    cols = ["parameter", "value", "std. error", "95% interval"]
+    cols += ["95% credible"] if post else []
+    for col in (*cols, "unit", "note"):
         table.add_column(col)
     for name, p in result["parameters"].items():
         ci = p.get("ci95")
         note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
         if p.get("claim"):  # a bound, not a value (issue 31)
             note = "not reached" if p.get("not_reached") == "above" else "not resolved"
-        table.add_row(
+        cells = [
             name,
             p["claim"] if p.get("claim") else _fmt(p["value"]),
             _fmt(p["stderr"], 2),
@@ -177,10 +185,19 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             )
             if ci
             else "-",
-            p.get("unit", ""),
-            note,
-        )
+        ]
+        if post:
+            cr = credible.get(name)
+            cells.append(f"{cr[0]:.4g} .. {cr[1]:.4g}" if cr else "-")
+        table.add_row(*cells, p.get("unit", ""), note)
     console.print(table)
+    if post:  # issue 34.2: how well the chain mixed
+        console.print(
+            f"posterior: {post['n_walkers']} walkers x {post['n_steps']} steps, "
+            f"acceptance {post['acceptance']:.2f}, "
+            f"autocorrelation {max((q['tau_steps'] or 0) for q in post['parameters'].values()):.0f}"
+            f" steps: {'converged' if post['converged'] else 'NOT converged (rough intervals)'}"
+        )
     c = result["classic"]
     console.print(
         f"paper's method: m_a = {_fmt(c['m_a'])} kg (± {_fmt(c.get('m_a_stderr'), 2)}), "
@@ -204,7 +221,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         from balancer_id.identify.tracking import tracking_lines
 
         for line in tracking_lines(result["tracking"]):
-            console.print(line, markup=False)
+            console.print(line, markup=False, soft_wrap=True)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
@@ -470,3 +487,20 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
         )
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
+
+
+def print_per_log(console: Console, result: dict[str, Any]) -> None:
+    """Print a fit with per-log parameters (``fit --per-log``): the shared values, each
+    log's own, the sharings compared and the verdict.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The ``fit --per-log`` JSON object (:meth:`PerLogFit.to_dict`).
+    """
+    from balancer_id.identify.per_log import per_log_lines
+
+    for line in per_log_lines(result):
+        console.print(line, markup=False, soft_wrap=True)
