@@ -100,8 +100,10 @@ def read_log(
     refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
-    if fmt == "phyphox" and any(p.force is not None for p in plans) and not _phyphox_numbers(
-        sniffed
+    if (
+        fmt == "phyphox"
+        and any(p.force is not None for p in plans)
+        and not _phyphox_numbers(sniffed)
     ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
         fmt = "generic"
     elif fmt == "generic" and not columns and _phyphox_like(header, sniffed):
