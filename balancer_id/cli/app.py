@@ -840,6 +840,54 @@ def diagnose(
 
 @app.command(cls=Command)
 @guarded
+def plan(
+    logs: LogsArg,
+    model: ModelOpt = None,
+    param: Annotated[
+        str | None,
+        typer.Option(
+            "--param",
+            metavar="NAME",
+            help="Shrink this parameter's interval ('all': D-optimal; default: the widest).",
+        ),
+    ] = None,
+    count: Annotated[
+        int, typer.Option("--count", metavar="INTEGER", help="Trials to propose.")
+    ] = 3,
+    no_separate: Annotated[
+        bool,
+        typer.Option("--no-separate", help="Skip the diagnosis (competing explanations)."),
+    ] = False,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    effects_file: EffectsFileOpt = None,
+    quiet: QuietOpt = False,
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
+) -> None:
+    """The trials to record next: those that shrink the widest interval most.
+
+    Example: balancer-id plan sample_logs/paper_balancer.csv --param A
+    """
+    from balancer_id.workflows.plan import plan as run_plan
+
+    at_least(count, 1, "--count")
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    fitted = _fit(
+        logs, options, model=model, fix=fix, effects_file=effects_file, trajectory_text=None
+    )
+    with stage("planning the next trials"):
+        result = run_plan(fitted, param=param, count=count, separate=not no_separate)
+    _render(result.to_dict(), json_out, "print_plan")
+
+
+@app.command(cls=Command)
+@guarded
 def improve(
     logs: LogsArg,
     start: Annotated[
