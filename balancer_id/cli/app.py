@@ -858,6 +858,14 @@ def plan(
         bool,
         typer.Option("--no-separate", help="Skip the diagnosis (competing explanations)."),
     ] = False,
+    report: Annotated[
+        Path | None,
+        typer.Option("--report", metavar="FILE", help="The fit's report with the plan."),
+    ] = None,
+    posterior: Annotated[
+        bool, typer.Option("--posterior", help="Sample the fit's posterior too (emcee).")
+    ] = False,
+    overwrite: OverwriteOpt = False,
     fix: FixOpt = None,
     json_out: JsonOpt = False,
     effects_file: EffectsFileOpt = None,
@@ -878,11 +886,26 @@ def plan(
 
     at_least(count, 1, "--count")
     options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
-    fitted = _fit(
-        logs, options, model=model, fix=fix, effects_file=effects_file, trajectory_text=None
-    )
-    with stage("planning the next trials"):
-        result = run_plan(fitted, param=param, count=count, separate=not no_separate)
+    check_outputs({"--report": report}, inputs_of(logs, effects_file, None), overwrite)
+    if report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(report, logs)
+    with stage("fitting and planning the next trials"):
+        result = run_plan(
+            _load(logs, options, None),
+            model=model,
+            fixed=assignments(fix, "--fix"),
+            effects_files=tuple(str(p) for p in effects_file or ()),
+            param=param,
+            count=count,
+            separate=not no_separate,
+            posterior=posterior,
+        )
+    if report is not None:
+        with stage(f"writing {report}"):
+            result.write_report(report)
+        typer.echo(f"wrote {report}", err=True)
     _render(result.to_dict(), json_out, "print_plan")
 
 

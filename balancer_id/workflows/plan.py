@@ -99,7 +99,7 @@ class Plan:
         ]
         v = abs(self.design.values[goal])
         now = (
-            "is not determined now"
+            "is not determined now and is"
             if p.before[goal] > 10 * max(v, 1e-12)
             else f"{self._interval(goal, p.before[goal])} is"
         )
@@ -173,6 +173,55 @@ class Plan:
             + "</div>"
         )
 
+    def report_section(self) -> Any:
+        """The "Next trials" section of a report: the proposals and their predictions.
+
+        Returns
+        -------
+        balancer_id.report.blocks.Section
+        """
+        from balancer_id.report.blocks import Paragraph, Section, Table
+
+        rows: list[list[Any]] = []
+        for k, p in enumerate(self.design.proposals, 1):
+            c = p.candidate
+            goal = p.reaches or p.target
+            names = self.design.names if goal == "all" else [goal]
+            rows.append(
+                [
+                    str(k),
+                    f"{c.thrust_N:+.3g} N {c.direction}",
+                    f"{c.rest_s:g}",
+                    f"{c.duration_s:.3g}",
+                    "; ".join(f"{n} ±{p.before[n]:.3g} → ±{p.after[n]:.3g}" for n in names),
+                ]
+            )
+        table = Table(
+            ["#", "thrust", "rest before (s)", "record after (s)", "95 % half-width now → after"],
+            rows,
+            "The step trials to record next, in order, each chosen from the fit's Fisher "
+            "information given the ones before it (levels up to 3x the largest recorded, "
+            "moves up to 1.5x as far); the half-widths are predicted at the fitted values.",
+        )
+        blocks = [table, *(Paragraph(line.strip()) for line in self.lines()[1:])]
+        return Section("Next trials", blocks=blocks)
+
+    def write_report(self, path: str | Path) -> Path:
+        """The fit's report (bands, posterior when sampled) with the plan after it.
+
+        Parameters
+        ----------
+        path : str or Path
+            ``FILE.html`` or ``FILE.pdf``.
+
+        Returns
+        -------
+        Path
+        """
+        from balancer_id.report.document import write_fit_report
+
+        return write_fit_report(self.fit, path, extra_sections=[self.report_section()])
+
     def to_dict(self) -> dict[str, object]:
         """The ``plan --json`` object (CONTRACT.md)."""
         from balancer_id.jsonsafe import json_ready
@@ -203,6 +252,7 @@ def plan(
     options: ReadOptions | None = None,
     fixed: dict[str, float] | None = None,
     effects_files: Sequence[str | Path] = (),
+    posterior: bool = False,
 ) -> Plan:
     """The trials to record next: what shrinks the widest interval most.
 
@@ -227,6 +277,9 @@ def plan(
         Values held in the fit.
     effects_files : sequence of path
         User effect files.
+    posterior : bool
+        Sample the fit's posterior too (when the fit is made here): its report then has
+        the corner plot and the bands from the samples.
 
     Returns
     -------
@@ -236,7 +289,12 @@ def plan(
         result = source
     else:
         result = run_fit(
-            source, model=model, options=options, fixed=fixed, effects_files=effects_files
+            source,
+            model=model,
+            options=options,
+            fixed=fixed,
+            effects_files=effects_files,
+            posterior=posterior,
         )
     model = result.match.model
     held = [  # held by the fit because one thrust level cannot determine them (A)
