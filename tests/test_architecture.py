@@ -132,6 +132,7 @@ def _request_variants():
         "trajectory": "trapezoid:distance=0.2,speed=0.1,accel=0.5",
         "effects_files": ("hose.py",),
         "track": ("D0",),
+        "per_log": ("m_a",),
     }
     option_changes = {
         "columns": {"time": "t", "force": "F"},

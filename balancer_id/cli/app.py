@@ -318,6 +318,15 @@ def fit(
             "(repeatable, or NAME,NAME).",
         ),
     ] = None,
+    per_log: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--per-log",
+            metavar="NAME...",
+            help="Each log's own value of NAME, the rest shared over all logs; compares "
+            "the sharings (repeatable, or NAME,NAME).",
+        ),
+    ] = None,
     group_by: Annotated[
         str | None,
         typer.Option(
@@ -383,6 +392,11 @@ def fit(
     )
     if group_by is not None and tracked:
         raise UsageError("--track follows one session's fit: not with --group-by")
+    own = tuple(n.strip() for item in per_log or [] for n in item.split(",") if n.strip())
+    if own and (group_by is not None or tracked or series is not None or report is not None):
+        raise UsageError(
+            "--per-log fits all logs at once: not with --group-by, --track, --series or --report"
+        )
     priors = _priors(prior)  # issue 34.2: checked before any log is read
     if group_by is not None and (posterior or priors):
         raise UsageError("--posterior and --prior are for one fit: not with --group-by")
@@ -414,6 +428,7 @@ def fit(
         trajectory=trajectory_text,
         effects_files=tuple(str(p) for p in effects_file or ()),
         track=tracked,
+        per_log=own,
     )
     tuned = bool(user_start or user_bounds or posterior or priors)
     key = None if (no_cache or tuned) else request.cache_key()
@@ -438,6 +453,7 @@ def fit(
                 start=user_start,
                 bounds=user_bounds,
                 track=tracked,
+                per_log=own,
                 posterior=posterior,
                 priors=priors,
             )
@@ -455,7 +471,7 @@ def fit(
             _write_series(result.tracking.to_frame(), track_series)
     if save is not None:
         _write_json(out, save)
-    _render(out, json_out, "print_fit")
+    _render(out, json_out, "print_per_log" if own else "print_fit")
     _exit_if_untrusted([out])
 
 
@@ -1084,6 +1100,15 @@ def batch(
             "--report", metavar="FILE", help="FILE.html or FILE.pdf: the fleet view of the logs."
         ),
     ] = None,
+    per_log: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--per-log",
+            metavar="NAME...",
+            help="Then fit the counted logs together: NAME each log's own, the rest "
+            "shared (a fleet of one type); writes OUT/shared_fit.json.",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
     force_sign: ForceSignOpt = None,
     vertical: VerticalOpt = "auto",
@@ -1124,13 +1149,31 @@ def batch(
             diagnose=diagnose_logs,
             tick=tick,
         )
+    shared = None
+    own = [n.strip() for item in per_log or [] for n in item.split(",") if n.strip()]
+    if own:
+        from balancer_id.batch.shared import SHARED_NAME, fit_fleet_shared
+
+        with stage(f"fitting the counted logs together ({', '.join(own)} per log)"):
+            shared = fit_fleet_shared(
+                result.rows,
+                out,
+                own,
+                model=model,
+                fixed=assignments(fix, "--fix"),
+                options=options,
+                effects_files=effects_file or (),
+                trajectory=trajectory(trajectory_text),
+            )
+        said = shared.get("error") or f"shared fit: {shared.get('verdict')}"
+        typer.echo(f"{one_line(said)}; wrote {out / SHARED_NAME}", err=True)
     if fleet_report is not None:
         from balancer_id.report.fleet import write_fleet_report
 
-        write_fleet_report(result.rows, fleet_report)
+        write_fleet_report(result.rows, fleet_report, shared)
         typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
-        emit_json(result.to_dict())
+        emit_json({**result.to_dict(), **({"shared_fit": shared} if shared else {})})
     else:
         typer.echo(
             f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",

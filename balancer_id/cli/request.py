@@ -34,6 +34,8 @@ class FitRequest:
         ``--effects-file`` paths.
     track : tuple of str
         ``--track`` parameters.
+    per_log : tuple of str
+        ``--per-log`` parameters.
     """
 
     logs: tuple[str, ...]
@@ -45,6 +47,7 @@ class FitRequest:
     trajectory: str | None = None
     effects_files: tuple[str, ...] = ()
     track: tuple[str, ...] = ()
+    per_log: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, JSON-ready (no field can be left out: they are walked)."""

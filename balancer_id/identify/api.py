@@ -12,6 +12,7 @@ from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
+from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
@@ -84,7 +85,8 @@ def from_parameters(
     Raises
     ------
     UsageError
-        A name that is not one of the model's parameters, or a value that is not finite.
+        A name that is not one of the model's parameters, a value that is not finite, or
+        an ``expr`` tie (never dropped in silence).
     """
     import math
 
@@ -96,6 +98,13 @@ def from_parameters(
             raise UsageError(
                 f"params: {name} is not a parameter of '{model.spec}' "
                 f"(its parameters: {', '.join(model.param_names)})"
+            )
+        expr = getattr(p, "expr", None)
+        if expr:  # a tie would be held at its current value in silence: refuse it
+            raise UsageError(
+                f"params: {name} has expr {expr!r} (a tie to other parameters), which the "
+                "fit cannot honour; give it a value with vary=True (fitted) or vary=False "
+                "(held), or choose a model without that parameter"
             )
         value = float(p.value)
         if not math.isfinite(value):
@@ -130,9 +139,11 @@ def fit(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
     track: Sequence[str] = (),
+    per_log: Sequence[str] = (),
+    held_out: bool = True,
     posterior: bool = False,
     priors: Sequence[Any] = (),
-) -> FitResult:
+) -> FitResult | PerLogFit:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
     Parameters
@@ -179,6 +190,12 @@ def fit(
         Parameters to track in time within the session (``--track``): each as a function
         of time with a 95 % band, in :attr:`FitResult.tracking`
         (:func:`~balancer_id.identify.tracking.track_parameters`).
+    per_log : sequence of str
+        Parameters each log has its own value of, the rest shared over all logs
+        (``--per-log``): one fit over all logs, compared with everything shared and
+        nothing shared; returns a :class:`~balancer_id.identify.per_log.PerLogFit`.
+    held_out : bool
+        With ``per_log``: also score the sharings on held-out halves of logs.
     posterior : bool
         Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
         seconds): credible intervals beside the Wald and profile ones, convergence
@@ -190,7 +207,8 @@ def fit(
 
     Returns
     -------
-    FitResult
+    FitResult or PerLogFit
+        A :class:`PerLogFit` when ``per_log`` is given.
 
     Raises
     ------
@@ -205,10 +223,20 @@ def fit(
         bounds = {**spans, **(bounds or {})}
     if isinstance(track, str):
         track = [track]
+    if isinstance(per_log, str):
+        per_log = [per_log]
+    if per_log and track:
+        raise UsageError("--per-log and --track: give one of them")
     if track:
         from balancer_id.identify.tracking import check_tracked
 
         check_tracked(mdl, track, dict(fixed or {}))  # before any log is read
+    for name in per_log:
+        if name not in mdl.param_names:
+            raise UsageError(
+                f"--per-log {name}: not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
@@ -226,6 +254,10 @@ def fit(
                 f"{name} is not a parameter of '{mdl.spec}' "
                 f"(its parameters: {', '.join(mdl.param_names)})"
             )
+    if per_log:
+        from balancer_id.identify.per_log import fit_per_log
+
+        return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
     if mdl.needs_reference_move and ts.trajectory is not None:
         from balancer_id.segment.move import start_given
 

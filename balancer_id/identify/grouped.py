@@ -18,7 +18,7 @@ import numpy as np
 
 from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
-from balancer_id.identify.matching import ParameterEstimate, _Problem
+from balancer_id.identify.matching import ParameterEstimate, _at_bound, _Problem
 from balancer_id.identify.metrics import correlation_time
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
@@ -52,6 +52,14 @@ class GroupedFit:
         square root, and the information criteria count ``n_samples / tau`` samples.
     group_rss, group_n : list
         Each group's residual sum of squares and sample count.
+    own_time : list of dict of str to float
+        Each group's own parameters' times: the mean sample time weighted by the
+        parameter's information (its sensitivity squared): the time an estimate of a
+        parameter that moves within the group stands for.
+    own_given_shared : list of dict of str to float or None
+        Each group's own parameters' standard errors given the shared values: the part of
+        their error independent from group to group (the rest, through the shared
+        values' error, is common to all groups).
     converged : bool
         Whether the steps became a small fraction of every standard error.
     iterations : int
@@ -67,6 +75,8 @@ class GroupedFit:
     tau: float
     group_rss: list[float]
     group_n: list[int]
+    own_time: list[dict[str, float]]
+    own_given_shared: list[dict[str, float | None]]
     converged: bool
     iterations: int
 
@@ -100,12 +110,7 @@ class GroupedFit:
 
 def _estimate(model: Model, name: str, value: float, se: float | None, lo: float, hi: float,
               vary: bool = True) -> ParameterEstimate:
-    span = hi - lo if np.isfinite(hi - lo) else max(abs(value), 1.0)
-    side = None
-    if vary and value <= lo + 1e-6 * span:
-        side = "min"
-    elif vary and value >= hi - 1e-6 * span:
-        side = "max"
+    side = _at_bound(value, lo, hi) if vary else None
     return ParameterEstimate(
         name=name, value=float(value), stderr=se, unit=model.param(name).unit, vary=vary,
         at_bound=side,
@@ -238,7 +243,20 @@ def fit_grouped(
                 break
     n = n_total
     k = p + q * len(groups)
-    residuals = [pr.residual(np.concatenate([s, og])) for pr, og in zip(problems, o, strict=True)]
+    residuals = []
+    own_time = []
+    for pr, og in zip(problems, o, strict=True):
+        r, sens = pr.evaluate(np.concatenate([s, og]))
+        residuals.append(np.where(np.isfinite(r), r, 0.0))
+        times = np.concatenate([td.time for td in pr.data.trials])[: r.size]
+        w = sens[:, p:] ** 2
+        total = w.sum(axis=0)
+        own_time.append(
+            {
+                name: float(w[:, j] @ times / total[j]) if total[j] > 0 else float(np.mean(times))
+                for j, name in enumerate(own_names)
+            }
+        )
     rss = float(sum(float(r @ r) for r in residuals))
     segs = [r[sl] for pr, r in zip(problems, residuals, strict=True) for sl in pr.data.slices()]
     tau = max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
@@ -252,12 +270,17 @@ def fit_grouped(
         if name in names:
             shared[name] = _estimate(model, name, value, None, -np.inf, np.inf, vary=False)
     owns = []
-    for og, cov in zip(o, cov_o, strict=True):
+    own_given_shared = []
+    for og, (cond, common) in zip(o, cov_o, strict=True):
+        full_cov = None if cond is None else cond + common
         owns.append(
             {
-                name: _estimate(model, name, og[j], _se(cov, j, sigma2), lo[p + j], hi[p + j])
+                name: _estimate(model, name, og[j], _se(full_cov, j, sigma2), lo[p + j], hi[p + j])
                 for j, name in enumerate(own_names)
             }
+        )
+        own_given_shared.append(
+            {name: _se(cond, j, sigma2) for j, name in enumerate(own_names)}
         )
     return GroupedFit(
         model=model,
@@ -269,6 +292,8 @@ def fit_grouped(
         tau=tau,
         group_rss=[float(r @ r) for r in residuals],
         group_n=[int(r.size) for r in residuals],
+        own_time=own_time,
+        own_given_shared=own_given_shared,
         converged=converged,
         iterations=iterations,
     )
@@ -328,7 +353,9 @@ def _lm_step(parts, p: int, q: int, lam: float, cost: float, n: int):
 
 
 def _covariances(parts, p: int, q: int):
-    """``inv(J^T J)``: its shared block and each group's own block (block-arrow inverse)."""
+    """``inv(J^T J)``: its shared block, and each group's own block in two parts: given the
+    shared values (independent from group to group) and through the shared values' error
+    (common to all groups); their sum is the marginal covariance."""
     hss = np.zeros((p, p))
     blocks = []
     for jt, _ in parts:
@@ -346,7 +373,7 @@ def _covariances(parts, p: int, q: int):
         cov_o = []
         for (hso, _), inv in zip(blocks, invs, strict=True):
             m = inv @ hso.T  # q x p
-            cov_o.append(inv + m @ cov_s @ m.T)
+            cov_o.append((inv, m @ cov_s @ m.T))
     except np.linalg.LinAlgError:
-        return None, [None] * len(parts)
+        return None, [(None, None)] * len(parts)
     return cov_s, cov_o

@@ -32,6 +32,11 @@ from balancer_id.notes import Note
 MOVING_P_VALUE = 0.05
 #: Fewest local estimates a walk is fitted to.
 MIN_BLOCKS = 4
+#: Most fits of the blocks, each from the states the previous one's values give (the
+#: session's state at a block's start depends on the values before it): they stop when
+#: no tracked value moves by more than :data:`PASS_STOP` of its standard error.
+PASSES = 6
+PASS_STOP = 0.1
 Z95 = 1.959963984540054
 
 
@@ -45,11 +50,17 @@ class LocalEstimate:
     trials: list[int]
     values: dict[str, float]
     stderr: dict[str, float | None]
+    #: Per parameter, the time its estimate stands for (information-weighted).
+    times: dict[str, float] = field(default_factory=dict)
+    #: Per parameter, the standard error given the shared parameters (independent from
+    #: block to block; the rest of ``stderr`` is common to all blocks).
+    given_shared: dict[str, float | None] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict."""
         return {
             "time_s": self.time_s,
+            "times_s": self.times,
             "t_start_s": self.t_start_s,
             "t_end_s": self.t_end_s,
             "trials": self.trials,
@@ -74,6 +85,10 @@ class ParameterTrack:
         The smoothed walk (``walk.value`` and ``walk.variance`` at ``time_s``).
     joint : float
         The joint fit's constant value.
+    common_variance : numpy.ndarray, optional
+        The part of each local estimate's variance common to all blocks (through the
+        shared parameters' error): the walk smooths the independent part; this is added
+        to the band (it does not shrink with more blocks).
     """
 
     name: str
@@ -83,6 +98,7 @@ class ParameterTrack:
     local_stderr: np.ndarray
     walk: WalkFit
     joint: float
+    common_variance: np.ndarray | None = None
 
     @property
     def value(self) -> np.ndarray:
@@ -91,8 +107,9 @@ class ParameterTrack:
 
     @property
     def stderr(self) -> np.ndarray:
-        """Its standard error."""
-        return np.sqrt(self.walk.variance)
+        """Its standard error (the walk's, and the part common to all blocks)."""
+        common = 0.0 if self.common_variance is None else self.common_variance * self.walk.scale
+        return np.sqrt(self.walk.variance + common)
 
     @property
     def lo(self) -> np.ndarray:
@@ -163,7 +180,8 @@ class ParameterTrack:
             "moving": self.moving,
             "p_value_constant": self.walk.p_value,
             "likelihood_ratio": self.walk.lr,
-            "walk_sd_per_sqrt_s": self.walk.walk_sd_per_sqrt_s,
+            "path_model": self.walk.kind,
+            "walk_variance": self.walk.ratio * self.walk.scale,
             "stderr_scale": float(np.sqrt(self.walk.scale)),
             "joint_value": self.joint,
             "start": self._point(0),
@@ -233,6 +251,31 @@ class Tracking:
                 )
         return pd.DataFrame(rows)
 
+    def plot(self, path=None):
+        """Each tracked parameter against time with its band
+        (:func:`~balancer_id.identify.tracking_plot.plot_tracking`).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Write a PNG here instead of returning the figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+        """
+        from balancer_id.identify.tracking_plot import plot_tracking
+
+        return plot_tracking(self, path)
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return "<pre>" + html.escape("\n".join(self.lines())) + "</pre>"
+
+    def __repr__(self) -> str:
+        return "\n".join(self.lines())
+
     def lines(self) -> list[str]:
         """The terminal's and notebook's text (:func:`tracking_lines`)."""
         return tracking_lines(self.to_dict())
@@ -250,12 +293,13 @@ def tracking_lines(tracking: Mapping[str, object]) -> list[str]:
     -------
     list of str
     """
-    out = ["tracked in time (random walk through per-block fits, Kalman/RTS smoother; 95 %):"]
+    out = ["tracked in time (per-block fits, Kalman/RTS smoother; 95 % intervals):"]
     params = tracking.get("parameters", {})
     assert isinstance(params, Mapping)
     for name, d in params.items():
+        path = "smooth drift" if d.get("path_model") == "trend" else "random walk"
         verdict = (
-            f"moves (a constant is rejected, p = {d['p_value_constant']:.2g})"
+            f"moves ({path}; a constant is rejected, p = {d['p_value_constant']:.2g})"
             if d["moving"]
             else f"no movement found (p = {d['p_value_constant']:.2g} for a constant)"
         )
@@ -295,16 +339,35 @@ def session_times(trials: Sequence[TrialData]) -> np.ndarray:
     numpy.ndarray
         Seconds from the first run's start.
     """
+    return np.array([
+        (float(np.mean(td.time)) if td.time.size else td.t_step) + off
+        for td, off in zip(trials, session_offsets(trials), strict=True)
+    ])
+
+
+def session_offsets(trials: Sequence[TrialData]) -> np.ndarray:
+    """What each trial's own clock adds to reach the session's: 0 in the first run, the
+    later runs laid end to end after it.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials, in order.
+
+    Returns
+    -------
+    numpy.ndarray
+        Seconds, one per trial.
+    """
     out = []
     offset, last_end, source = 0.0, 0.0, None
     for td in trials:
         t = td.time
         if td.source != source:
-            offset, source = last_end, td.source
-            base = float(t[0]) if t.size else 0.0
-            offset -= base
-        mid = float(np.mean(t)) if t.size else td.t_step
-        out.append(mid + offset)
+            if source is not None:
+                offset = last_end - (float(t[0]) if t.size else 0.0)
+            source = td.source
+        out.append(offset)
         last_end = (float(t[-1]) if t.size else td.t_step) + offset
     return np.asarray(out)
 
@@ -489,7 +552,8 @@ def track_parameters(
     per_trial = [dict(values)] * len(trials)
     own_start = None
     fit = None
-    for _ in range(2):  # states from the joint values, then from the tracked ones
+    for _ in range(PASSES):  # states from the joint values, then from the tracked ones
+        previous = fit
         chained = chain_states(model, trials, per_trial)
         fit = fit_grouped(
             model,
@@ -504,21 +568,26 @@ def track_parameters(
         for b, g in zip(blocks, range(len(blocks)), strict=True):
             for k in b:
                 per_trial[k] = fit.values(g)
+        if previous is not None and _settled(previous, fit, names):
+            break
     assert fit is not None
+    offsets = session_offsets(trials)
     estimates: list[LocalEstimate] = []
     for g, b in enumerate(blocks):
         group = [trials[k] for k in b]
+        off = float(offsets[b[0]])
         t0 = float(group[0].time[0]) if group[0].time.size else 0.0
         t1 = float(group[-1].time[-1]) if group[-1].time.size else 0.0
-        mid = float(np.mean(times[b]))
         estimates.append(
             LocalEstimate(
-                time_s=mid,
-                t_start_s=mid - (t1 - t0) / 2,
-                t_end_s=mid + (t1 - t0) / 2,
+                time_s=float(np.mean(times[b])),
+                t_start_s=t0 + off,
+                t_end_s=t1 + off,
                 trials=[trials[k].index for k in b],
                 values={n: fit.own[g][n].value for n in names},
                 stderr={n: _usable(fit.own[g][n]) for n in names},
+                given_shared={n: fit.own_given_shared[g][n] for n in names},
+                times={n: fit.own_time[g][n] + off for n in names},
             )
         )
     notes: list[Note] = []
@@ -540,20 +609,38 @@ def track_parameters(
                     severity="info",
                 )
             )
-        t = np.array([b.time_s for b in ok])
+        t = np.array([b.times.get(name, b.time_s) for b in ok])
+        order = np.argsort(t, kind="stable")
+        ok = [ok[k] for k in order]
+        t = t[order]
         y = np.array([b.values[name] for b in ok])
         se = np.array([b.stderr[name] for b in ok], dtype=float)
+        own = np.array([b.given_shared.get(name) or b.stderr[name] for b in ok], dtype=float)
+        own = np.minimum(own, se)
         tracks[name] = ParameterTrack(
             name=name,
             unit=model.param(name).unit,
             time_s=t,
             local=y,
             local_stderr=se,
-            walk=smooth_walk(t, y, se),
+            walk=smooth_walk(t, y, own),
+            common_variance=se**2 - own**2,
             joint=float(values[name]),
         )
     shared = {n: p.value for n, p in fit.shared.items() if n not in names}
     return Tracking(tracks=tracks, blocks=estimates, notes=notes, shared=shared)
+
+
+def _settled(before, after, names: Sequence[str]) -> bool:
+    """No tracked value moved by more than PASS_STOP of its standard error."""
+    for old, new in zip(before.own, after.own, strict=True):
+        for n in names:
+            se = new[n].stderr
+            if se is None or not np.isfinite(se) or se <= 0:
+                continue
+            if abs(new[n].value - old[n].value) > PASS_STOP * se:
+                return False
+    return True
 
 
 def _usable(p) -> float | None:

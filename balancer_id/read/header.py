@@ -21,21 +21,50 @@ _RUN_ONLY = re.compile(r"^(?P<q>.*?)\s+(?P<r>Run\s*#?\s*\d+)$", re.IGNORECASE)
 _DATETIME = re.compile(r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I)
 
 TIME_WORDS = frozenset(
-    {"time", "t", "zeit", "tiempo", "czas", "temps", "tempo", "tijd", "timestamp", "elapsed time"}
+    {
+        "time",
+        "t",
+        "zeit",
+        "tiempo",
+        "czas",
+        "temps",
+        "tempo",
+        "tijd",
+        "tid",
+        "aika",
+        "время",
+        "timestamp",
+        "elapsed time",
+    }
 )
-FORCE_WORDS = ("force", "kraft", "fuerza", "siła", "sila", "forza")
+FORCE_WORDS = ("force", "kraft", "fuerza", "siła", "sila", "forza", "força", "kracht", "сила")
 ACCEL_WORDS = (
     "accel",
     "beschleunigung",
     "aceleración",
     "aceleracion",
+    "aceleração",
+    "aceleracao",
     "przyspieszenie",
     "accélération",
     "acceleration",
     "accelerazione",
+    "versnelling",
+    "acceleratie",
+    "acceleración",
+    "ускорение",
+    "ivme",
 )
 #: Words that mark a magnitude column (|a|), which the readers ignore.
-MAGNITUDE_WORDS = ("resultant", "absolute", "magnitude", "norm", "total", "betrag")
+MAGNITUDE_WORDS = (
+    "resultant",
+    "absolu",
+    "magnitude",
+    "norm",
+    "total",
+    "betrag",
+    "bezwzgl",
+)
 GYRO_WORDS = ("gyro", "angular velocity", "rotation rate")
 
 _ACCEL_UNITS = {
@@ -209,7 +238,18 @@ def name_tokens(text: str) -> list[str]:
 
 
 #: Words (whole tokens) that name a time column.
-TIME_TOKENS = TIME_WORDS | {"sec", "secs", "seconds", "elapsed", "timestamp", "timestamps"}
+TIME_TOKENS = TIME_WORDS | {
+    "sec",
+    "secs",
+    "seconds",
+    "elapsed",
+    "timestamp",
+    "timestamps",
+    "millis",
+    "micros",
+    "nanos",
+    "msec",
+}
 #: Words (whole tokens) that name a force column.
 FORCE_TOKENS = frozenset({*FORCE_WORDS, "f", "load", "fz", "loadcell"})
 #: A token that names an acceleration axis by itself: ``ax``, ``accX``, ``accelz``.
@@ -217,7 +257,21 @@ _AXIS_TOKEN = re.compile(r"^(?:a|acc|accel|acceleration)([xyz])$")
 #: Words that mark the gravity vector of a phone (iOS ``gravityX``): not an acceleration.
 GRAVITY_WORDS = frozenset({"gravity", "grav", "schwerkraft"})
 #: Words that mark an acceleration without gravity (phyphox, iOS ``userAcceleration``).
-LINEAR_WORDS = frozenset({"linear", "lin", "user", "linacc"})
+LINEAR_WORDS = frozenset(
+    {
+        "linear",
+        "lin",
+        "user",
+        "linacc",
+        "lineare",
+        "lineal",
+        "linéaire",
+        "lineaire",
+        "liniowe",
+        "lineair",
+        "linear_acceleration",
+    }
+)
 _FORCE_UNITS = ("n", "kn", "mn", "lbf", "kgf", "")
 
 

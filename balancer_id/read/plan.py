@@ -182,6 +182,9 @@ def plan_from_columns(
     if chosen:
         units = {c.accel_unit for c in chosen}
         plan.accel_unit = units.pop() if len(units) == 1 else ""
+        if all(c.unit.strip().lower() == "mg" for c in chosen):  # thousandths of g
+            plan.accel_unit = "g"
+            plan.scales.update({c.index: (1e-3, 0.0) for c in chosen})
         if any(c.linear for c in chosen):
             plan.includes_gravity = False
         elif with_gravity_name is not None and len(chosen) == 3:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +100,10 @@ def read_log(
     refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
+    if fmt == "phyphox" and any(p.force is not None for p in plans) and not _phyphox_numbers(
+        sniffed
+    ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
+        fmt = "generic"
     inferences = [layout_inference(fmt, header, columns)]
     inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
     _wall_clocks(sniffed, header, plans)
@@ -155,6 +160,16 @@ def read_log(
         notes=found,
         inferences=inferences,
     )
+
+
+_PHYPHOX_NUMBER = re.compile(rb"-?\d[.,]\d{9}E[-+]?\d+")
+
+
+def _phyphox_numbers(sniffed: Sniffed) -> bool:
+    """True when the first data line's numbers are written as phyphox writes them."""
+    end = sniffed.data.find(b"\n", sniffed.data_start)
+    line = sniffed.data[sniffed.data_start : end if end >= 0 else None]
+    return _PHYPHOX_NUMBER.search(line) is not None
 
 
 def _wall_clocks(sniffed: Sniffed, header: list[Column], plans: list[RunPlan]) -> None:

@@ -75,6 +75,8 @@ def unit_of_column(col: Column) -> tuple[str, str]:
     for word in reversed(words[1:] if len(words) > 1 else []):
         if word.lower() in TIME_UNITS:
             return canonical(word), "name"
+    if len(words) == 1 and words[0].lower() in ("millis", "micros", "nanos", "msec"):
+        return canonical(words[0]), "name"  # Arduino's millis()
     return "", ""
 
 

@@ -113,16 +113,20 @@ class Rest:
         Median over those windows of ``|mean vector| / mean magnitude``: near 1 when the
         vector holds one direction at rest (gravity), small when it wanders (noise of an
         acceleration without gravity).
+    constancy : float
+        Relative robust spread of the mean vector's length from one resting window to
+        another: small for gravity, large for the slow sway of a hand.
     """
 
     level: float
     spread: float
     coherence: float
+    constancy: float = 0.0
 
     @property
     def steady(self) -> bool:
-        """True when the resting vector holds one direction (gravity, or a fixed offset)."""
-        return self.coherence >= STEADY_COHERENCE
+        """True when the resting vector holds one direction and one length (gravity)."""
+        return self.coherence >= STEADY_COHERENCE and self.constancy <= STEADY_LENGTH
 
     def said(self, unit: str = "") -> str:
         """The evidence in words: ``"resting magnitude 0.998 ± 0.004, constant direction"``.
@@ -137,11 +141,12 @@ class Rest:
         str
         """
         tail = f" {unit}" if unit else ""
-        how = (
-            "constant direction"
-            if self.steady
-            else f"no constant direction (coherence {self.coherence:.2f})"
-        )
+        if self.steady:
+            how = "constant direction"
+        elif self.coherence < STEADY_COHERENCE:
+            how = f"no constant direction (coherence {self.coherence:.2f})"
+        else:
+            how = f"its length changes from rest to rest by {100 * self.constancy:.0f} %"
         size = (
             f"{self.level:.3f} ± {self.spread:.3f}"
             if self.level < 100
@@ -152,6 +157,9 @@ class Rest:
 
 #: A resting vector whose windows keep ``|mean| / mean |a|`` above this holds one direction.
 STEADY_COHERENCE = 0.8
+#: ... and gravity's length changes from one resting window to another by less than this
+#: (relative robust spread); a hand-held sway of a gravity-free acceleration does not.
+STEADY_LENGTH = 0.15
 
 
 def rest_of(block: np.ndarray) -> Rest:
@@ -184,10 +192,14 @@ def rest_of(block: np.ndarray) -> Rest:
     mean_vec = np.linalg.norm(x.mean(axis=1), axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         coherence = np.where(magnitude > 0, mean_vec / magnitude, 0.0)
+    lengths = mean_vec[quiet]
+    middle = float(np.median(lengths))
+    spread = float(np.median(np.abs(lengths - middle))) * 1.4826
     return Rest(
         float(np.median(magnitude[quiet])),
         float(np.median(motion[quiet])),
         float(np.median(coherence[quiet])),
+        spread / middle if middle > 0 else float("inf"),
     )
 
 
@@ -196,12 +208,16 @@ def _scale_of(level: float) -> tuple[str, str, str] | None:
 
     ``9.87e9`` is 9.8 m/s^2 times 1e9 (a spreadsheet's scaling); ``1000`` is 1 g in mg.
     """
+    options = []
     for base, unit in ((_G_STANDARD, "m/s^2"), (1.0, "g")):
-        power = np.log10(level / base)
+        power = float(np.log10(level / base))
         k = round(power)
         if k >= 2 and abs(power - k) < 0.06:
-            return unit, f"1e{k}", f"1e-{k}{unit}"
-    return None
+            options.append((abs(power - k), unit, k))
+    if not options:
+        return None
+    _, unit, k = min(options)
+    return unit, f"1e{k}", f"1e-{k}{unit}"
 
 
 def raw_scale_error(level: float) -> UnitMismatch:

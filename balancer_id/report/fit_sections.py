@@ -76,6 +76,10 @@ def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[S
     ]
     if result.per_trial:
         sections.append(_per_trial_section(result))
+    if result.tracking is not None:
+        from balancer_id.report.tracking_plot import tracking_section
+
+        sections.append(tracking_section(result.tracking))
     sections.append(_correlation_section(result))
     if result.posterior is not None:
         sections.append(_posterior_section(result))

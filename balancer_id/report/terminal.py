@@ -221,7 +221,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         from balancer_id.identify.tracking import tracking_lines
 
         for line in tracking_lines(result["tracking"]):
-            console.print(line, markup=False)
+            console.print(line, markup=False, soft_wrap=True)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
@@ -487,6 +487,23 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
         )
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
+
+
+def print_per_log(console: Console, result: dict[str, Any]) -> None:
+    """Print a fit with per-log parameters (``fit --per-log``): the shared values, each
+    log's own, the sharings compared and the verdict.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The ``fit --per-log`` JSON object (:meth:`PerLogFit.to_dict`).
+    """
+    from balancer_id.identify.per_log import per_log_lines
+
+    for line in per_log_lines(result):
+        console.print(line, markup=False, soft_wrap=True)
 
 
 def print_plan(console: Console, result: dict[str, Any]) -> None:
