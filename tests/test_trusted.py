@@ -137,3 +137,43 @@ def test_default_fit_searches_past_a_wrong_basin(tmp_path) -> None:
     assert len(default.match.optima) >= 2  # the other basin is reported, with its cost
     assert default.match.optima[1].delta_sigma2 > 10
     assert any(n.code == "fit.optima" for n in default.all_notes)
+
+
+def _held_back_log(tmp_path, mass: float, tension: float, with_rest: bool):
+    """A load held back against a string's constant tension, then let go: the force
+    sensor reads the tension before and after (it goes on pulling), 100 Hz."""
+    import numpy as np
+
+    rng = np.random.default_rng(5)
+    g, damping = 9.81, 0.3
+    t = np.arange(0.0, 5.0, 0.01)
+    start = 1.0 if with_rest else 0.0
+    s = np.clip(t - start, 0.0, None)
+    a = np.where(t >= start, tension / mass * np.exp(-damping * s / mass), 0.0)
+    force = tension + rng.normal(0, 0.005, t.size)
+    accel = a + rng.normal(0, 0.02, t.size)
+    rows = "\n".join(
+        f"{ti:.4f},{fi:.5f},0.0,0.0,{ai + g:.5f}"
+        for ti, fi, ai in zip(t, force, accel, strict=True)
+    )
+    path = tmp_path / "held.csv"
+    path.write_text("t,F,ax,ay,az\n" + rows + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("with_rest", [True, False])
+def test_a_tension_that_goes_on_pulling_is_not_removed_as_an_offset(tmp_path, with_rest) -> None:
+    from balancer_id.identify.api import fit
+    from balancer_id.trials import ReadOptions
+
+    path = _held_back_log(tmp_path, mass=0.6, tension=0.5, with_rest=with_rest)
+    window = "1.0:4.5" if with_rest else "0.0:4.5"
+    options = ReadOptions.from_text(
+        columns="time=t,force=F,ax=ax,ay=ay,az=az", window=[window], g=9.81
+    )
+    result = fit([path], model="viscous", options=options)
+    # the tension removed as an offset leaves no force to move 0.6 kg (before: thousands
+    # of kg); the absolute force gives the mass (noise 0.02 m/s^2 on 0.8 m/s^2: 2 %)
+    assert result.values["m_a"] == pytest.approx(0.6, rel=0.05)
+    said = " ".join(map(str, result.all_notes))
+    assert "absolute force" in said and "window" in said
