@@ -856,6 +856,77 @@ def diagnose(
 
 @app.command(cls=Command)
 @guarded
+def plan(
+    logs: LogsArg,
+    model: ModelOpt = None,
+    param: Annotated[
+        str | None,
+        typer.Option(
+            "--param",
+            metavar="NAME",
+            help="Shrink this parameter's interval ('all': D-optimal; default: the widest).",
+        ),
+    ] = None,
+    count: Annotated[
+        int, typer.Option("--count", metavar="INTEGER", help="Trials to propose.")
+    ] = 3,
+    no_separate: Annotated[
+        bool,
+        typer.Option("--no-separate", help="Skip the diagnosis (competing explanations)."),
+    ] = False,
+    report: Annotated[
+        Path | None,
+        typer.Option("--report", metavar="FILE", help="The fit's report with the plan."),
+    ] = None,
+    posterior: Annotated[
+        bool, typer.Option("--posterior", help="Sample the fit's posterior too (emcee).")
+    ] = False,
+    overwrite: OverwriteOpt = False,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    effects_file: EffectsFileOpt = None,
+    quiet: QuietOpt = False,
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
+) -> None:
+    """The trials to record next: those that shrink the widest interval most.
+
+    Example: balancer-id plan sample_logs/paper_balancer.csv --param A
+    """
+    from balancer_id.workflows.plan import plan as run_plan
+
+    at_least(count, 1, "--count")
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    check_outputs({"--report": report}, inputs_of(logs, effects_file, None), overwrite)
+    if report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(report, logs)
+    with stage("fitting and planning the next trials"):
+        result = run_plan(
+            _load(logs, options, None),
+            model=model,
+            fixed=assignments(fix, "--fix"),
+            effects_files=tuple(str(p) for p in effects_file or ()),
+            param=param,
+            count=count,
+            separate=not no_separate,
+            posterior=posterior,
+        )
+    if report is not None:
+        with stage(f"writing {report}"):
+            result.write_report(report)
+        typer.echo(f"wrote {report}", err=True)
+    _render(result.to_dict(), json_out, "print_plan")
+
+
+@app.command(cls=Command)
+@guarded
 def improve(
     logs: LogsArg,
     start: Annotated[

@@ -85,7 +85,8 @@ def from_parameters(
     Raises
     ------
     UsageError
-        A name that is not one of the model's parameters, or a value that is not finite.
+        A name that is not one of the model's parameters, a value that is not finite, or
+        an ``expr`` tie (never dropped in silence).
     """
     import math
 
@@ -97,6 +98,13 @@ def from_parameters(
             raise UsageError(
                 f"params: {name} is not a parameter of '{model.spec}' "
                 f"(its parameters: {', '.join(model.param_names)})"
+            )
+        expr = getattr(p, "expr", None)
+        if expr:  # a tie would be held at its current value in silence: refuse it
+            raise UsageError(
+                f"params: {name} has expr {expr!r} (a tie to other parameters), which the "
+                "fit cannot honour; give it a value with vary=True (fitted) or vary=False "
+                "(held), or choose a model without that parameter"
             )
         value = float(p.value)
         if not math.isfinite(value):

@@ -225,11 +225,15 @@ def covariance_of(fit: ShownFit) -> tuple[list[str], np.ndarray] | None:
     Returns
     -------
     (names, covariance) or None
-        The fitted parameters' names and their covariance (widened as the standard errors
-        are); None when a fitted parameter has no finite standard error. An empty list and
-        a 0 x 0 matrix when nothing was fitted.
+        The fitted parameters' names (those not reached, reported as bounds, left out)
+        and their covariance (widened as the standard errors are); None when a fitted
+        parameter has no finite standard error. An empty list and a 0 x 0 matrix when
+        nothing was fitted.
     """
-    names = [n for n, p in fit.parameters.items() if p.vary]
+    # a limit or friction the data do not reach is a bound, not an estimate: held here
+    names = [
+        n for n, p in fit.parameters.items() if p.vary and getattr(p, "not_reached", None) is None
+    ]
     sd = np.array([fit.parameters[n].stderr or np.nan for n in names], float)
     if names and not np.all(np.isfinite(sd)):
         return None

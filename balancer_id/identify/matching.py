@@ -614,6 +614,7 @@ def match_trials(
     count = spread if auto else max(int(n_starts or 1), 1) - 1
     starts = [base[free]]
     starts += basins.spread_starts(model, free_names, base[free], lo, hi, count, trials, seed)
+    mirrored = not auto
 
     stopped: list[np.ndarray] = []
 
@@ -632,8 +633,13 @@ def match_trials(
         best = _Outcome(base[free], r, np.zeros((0, 0)), True, "no free parameter", 1)
     k = 0
     while free:
+        if k == len(starts) and not mirrored and best is not None:
+            mirrored = True  # the lag and the viscous time swapped answer a step alike
+            mirror = basins.mirror_start(model, free_names, best.x, trials)
+            if mirror is not None:
+                starts.append(basins.inside(mirror, lo, hi))
         if k == len(starts):
-            if not (auto and not spread and k == 1 and _suspect(problem, best, free_names)):
+            if not (auto and not spread and _suspect(problem, best, free_names)):
                 break
             spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
             starts += basins.spread_starts(
@@ -820,8 +826,40 @@ def _at_bound(value: float, lo: float, hi: float) -> str | None:
     return None
 
 
-def _bound_note(model: Model, name: str, value: float, side: str, problem: _Problem) -> Note:
-    """What a parameter at a bound means: below resolution, absent, chosen, or untrusted."""
+#: A parameter on its physical limit (0) whose unconstrained estimate lies more than this
+#: many standard errors past it is held there against the data, not "none of it".
+PULL_PAST_LIMIT = 3.0
+
+
+def _pull_past(problem: _Problem, out: _Outcome, j: int, tau: float) -> float:
+    """How many standard errors past its bound the ``j``-th free parameter's
+    unconstrained Gauss-Newton estimate lies (its step over its standard error, signed
+    away from the bound: positive means the data would take it further)."""
+    try:
+        problem.fun(out.x)
+        jac, fun = problem._jac, problem._fun
+        with np.errstate(all="ignore"):
+            hess = jac.T @ jac
+            step = -np.linalg.solve(hess, jac.T @ fun)
+            n, k = out.residual.size, len(problem.free)
+            var = np.linalg.inv(hess)[j, j] * out.chisqr / max(n - k, 1) * max(tau, 1.0)
+    except (np.linalg.LinAlgError, ValueError):
+        return 0.0
+    if not (np.isfinite(var) and var > 0 and np.isfinite(step[j])):
+        return 0.0
+    side = -1.0 if out.x[j] - problem.lo[j] <= problem.hi[j] - out.x[j] else 1.0
+    return float(side * step[j] / np.sqrt(var))
+
+
+def _bound_note(
+    model: Model, name: str, value: float, side: str, problem: _Problem, pull: float = 0.0
+) -> Note:
+    """What a parameter at a bound means: below resolution, absent, chosen, or untrusted.
+
+    ``pull`` is :func:`_pull_past`: a parameter on its physical limit that the data would
+    take more than :data:`PULL_PAST_LIMIT` standard errors further is held there against
+    them (a wrong basin, or a force the model lacks), not absent.
+    """
     spec = model.param(name)
     where = f"{name} = {value:.4g} {spec.unit}"
     if name in problem.user_bounds:
@@ -833,6 +871,16 @@ def _bound_note(model: Model, name: str, value: float, side: str, problem: _Prob
         )
     if side == "min" and name in model.drive_lag_names and problem.lag_floor > 0:
         return _unresolved_lag_note(name, value, problem.lag_floor)
+    if side == "min" and spec.min == 0.0 and pull > PULL_PAST_LIMIT:
+        return Note(
+            "fit.at_bound",
+            f"{name} = 0 {spec.unit} is held at its physical limit against the data (they "
+            f"would take it {pull:.0f} standard errors below 0): the model cannot follow "
+            "these trials at this optimum (another basin, or a force the model lacks); "
+            "this fit cannot be trusted: try --starts 8, or 'balancer-id diagnose'",
+            subject=name,
+            severity="error",
+        )
     if side == "min" and spec.min == 0.0:
         return Note(
             "fit.at_bound",
@@ -940,7 +988,8 @@ def _collect(
             spec.name, value, stderr, spec.unit, vary, at_bound
         )
         if at_bound:
-            notes.append(_bound_note(model, spec.name, value, at_bound, problem))
+            pull = _pull_past(problem, out, problem.free.index(i), tau)
+            notes.append(_bound_note(model, spec.name, value, at_bound, problem, pull))
         elif vary and spec.name in model.drive_lag_names and value < 2 * problem.lag_floor:
             notes.append(_unresolved_lag_note(spec.name, value, problem.lag_floor))
     poorly = [

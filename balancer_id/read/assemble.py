@@ -127,6 +127,8 @@ def build_recordings(
                     base.source,
                     clock.started_at + float(clock.seconds[first]),
                     clock=header[plan.clock],
+                    stated=base.stated,
+                    spacing=base.spacing,
                 )
         time = base.seconds
         said = base.note(header[plan.time])
@@ -301,7 +303,14 @@ def _channel_sets(
         timed["acceleration"] = ok & has_time
     counts = {k: int(np.count_nonzero(m)) for k, m in timed.items()}
     for key in [k for k, n in counts.items() if n == 0]:
-        notes.append(f"the {key} column is empty; ignored")
+        untimed = int(np.count_nonzero(masks[key]))
+        if untimed:
+            notes.append(
+                f"the {key} column has {untimed} value(s) but none on a row with a time "
+                "(a clock of its own?); ignored"
+            )
+        else:
+            notes.append(f"the {key} column is empty; ignored")
         del masks[key], counts[key], timed[key]
     if masks:
         no_time = sum(int(np.count_nonzero(masks[k] & ~timed[k])) for k in masks)

@@ -100,10 +100,14 @@ def read_log(
     refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
-    if fmt == "phyphox" and any(p.force is not None for p in plans) and not _phyphox_numbers(
-        sniffed
+    if (
+        fmt == "phyphox"
+        and any(p.force is not None for p in plans)
+        and not _phyphox_numbers(sniffed)
     ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
         fmt = "generic"
+    elif fmt == "generic" and not columns and _phyphox_like(header, sniffed):
+        fmt = "phyphox"  # another phyphox experiment (Elevator: 'Acceleration (m/s²)')
     inferences = [layout_inference(fmt, header, columns)]
     inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
     _wall_clocks(sniffed, header, plans)
@@ -118,7 +122,8 @@ def read_log(
             if col is not None:  # the bound holds after the column map's scale
                 factor, offset = plan.scales.get(col, (1.0, 0.0))
                 limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
-    table = read_table(sniffed, wanted, optional, limits)
+    clocks = {c for plan in plans for c in (plan.time, plan.force_time) if c is not None}
+    table = read_table(sniffed, wanted, optional, limits, clocks)
     refuse_no_scale(sniffed, plans, table)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
@@ -142,7 +147,7 @@ def read_log(
             )
         raise LogReadError(
             sniffed.path,
-            "no usable data rows: every run's time, force and acceleration cells are blank",
+            "no usable data rows: " + _blank_cause(plans, table, sniffed.header),
             line=sniffed.header_line + 1,
             hint="check that the export includes the measurements",
         )
@@ -170,6 +175,33 @@ def _phyphox_numbers(sniffed: Sniffed) -> bool:
     end = sniffed.data.find(b"\n", sniffed.data_start)
     line = sniffed.data[sniffed.data_start : end if end >= 0 else None]
     return _PHYPHOX_NUMBER.search(line) is not None
+
+
+def _blank_cause(plans: list[RunPlan], table: Table, header: list[str]) -> str:
+    """Why no run has a row: the columns are blank, or their filled rows never meet."""
+    for plan in plans:
+        signals = [c for c in (plan.force, *plan.accel[:1]) if c is not None]
+        time = np.isfinite(table.columns[plan.time])
+        for col in signals:
+            values = np.isfinite(table.columns[col])
+            if time.any() and values.any() and not (time & values).any():
+                return (
+                    f"'{header[plan.time]}' ({int(time.sum())} values) and "
+                    f"'{header[col]}' ({int(values.sum())} values) are never filled on the "
+                    "same row: channels on clocks of their own"
+                )
+    return "every run's time, force and acceleration cells are blank"
+
+
+def _phyphox_like(header: list[Column], sniffed: Sniffed) -> bool:
+    """A header phyphox writes (time first, no runs, no force) over phyphox's numbers."""
+    return (
+        bool(header)
+        and header[0].kind == "time"
+        and not any(c.run for c in header)
+        and not any(c.kind == "force" for c in header)
+        and _phyphox_numbers(sniffed)
+    )
 
 
 def _wall_clocks(sniffed: Sniffed, header: list[Column], plans: list[RunPlan]) -> None:

@@ -103,5 +103,7 @@ def refuse_no_scale(sniffed: Sniffed, plans: list[RunPlan], table: Table) -> Non
                     "re-export, or raw counts)",
                     column=sniffed.header[plan.force],
                     hint="export the values again unscaled, or give the scale in the column "
-                    f"map, e.g. --columns force=NAME:1e-{k}N",
+                    f"map: --columns force=NAME:1e-{k}N for values {10**k:g} times too large, "
+                    "or a load cell's calibration, N per count plus offset "
+                    "(force=NAME:3.15e-6N+0.30)",
                 )

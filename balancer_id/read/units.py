@@ -389,6 +389,29 @@ def resolve_accel(
             "pass --accel-unit g or auto",
         )
     looks_like_g = _G_LOW < level < _G_HIGH and rest.steady
+    if (
+        accel.shape[1] == 1
+        and accel_unit == "auto"
+        and not header_unit
+        and includes_gravity is not False
+        and rest.steady
+        and 0.8 < level < 1.2
+    ):  # one axis resting steadily at ~1: gravity in g (a kinematic acceleration rests at 0)
+        said.append(
+            Inference(
+                "acceleration unit",
+                "g",
+                f"no unit stated; one axis {rest.said()}: gravity in g, since a "
+                "kinematic acceleration rests at 0",
+                "--accel-unit m/s^2",
+            )
+        )
+        said.append(_gravity_inference(True, rest, "g", from_header, gravity_given))
+        warning = (
+            f"the one acceleration axis rests steadily at {level:.2f}: gravity in g; "
+            "converted to m/s^2 (pass --accel-unit m/s^2 if wrong)"
+        )
+        return accel * g, True, warning, said
     if accel_unit == "m/s^2" or accel.shape[1] == 1:
         if includes_gravity is None:
             includes_gravity = level > g / 2 and rest.steady

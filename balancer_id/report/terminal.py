@@ -504,3 +504,20 @@ def print_per_log(console: Console, result: dict[str, Any]) -> None:
 
     for line in per_log_lines(result):
         console.print(line, markup=False, soft_wrap=True)
+
+
+def print_plan(console: Console, result: dict[str, Any]) -> None:
+    """Print a plan: the trials to record next and the intervals predicted after each.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The CONTRACT.md ``plan`` object (:meth:`~balancer_id.workflows.plan.Plan.to_dict`).
+    """
+    lines = result.get("text") or []
+    if lines:
+        console.print(f"[bold]{lines[0]}[/bold]", highlight=False)
+    for line in lines[1:]:
+        console.print(line, highlight=False)

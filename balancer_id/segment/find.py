@@ -13,6 +13,7 @@ from balancer_id.notes import Note, has_code
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient, vertical_name
+from balancer_id.segment.events import standing_out, without_onset
 from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
@@ -121,10 +122,16 @@ def find_trials(
         )
     if given is None and any(st.source == "accel" for r in runs for st in r.steps):
         # without force and without thrusts the onsets are no usable step trials
+        missed = _events_hint(runs)
+        advice = (
+            "give one thrust per onset, in order, with --thrust F1,F2,..."
+            if not missed
+            else "check every motion with inspect --plot before giving thrusts (one per step "
+            "kept, --thrust F1,F2,...; a missed step's stretch with --window START:END)"
+        )
         raise NoTrialError(
             f"{log.path}: no step trial found (no force channel and no thrusts given: the "
-            f"acceleration shows {total} onset(s) at {_onsets(runs)}; give one thrust per "
-            "onset, in order, with --thrust F1,F2,...)"
+            f"acceleration shows {total} onset(s) at {_onsets(runs)}{missed}; {advice})"
         )
     empty = [r for r in runs if not r.steps]  # a run without a trial says why
     for r in empty:
@@ -137,6 +144,7 @@ def find_trials(
         )
         if text not in log.warnings:
             log.warnings.append(text)
+    _note_missed_motions(log, runs)
     first = np.cumsum([0] + [len(r.steps) for r in runs])
     run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
     signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
@@ -198,6 +206,23 @@ def _check_arguments(
     if not all(np.isfinite(v) and v != 0 for v in values):
         raise UsageError(f"thrusts must be finite and non-zero (N), got {values}")
     return values
+
+
+def _events_hint(runs: list[Run]) -> str:
+    """``"; 3 more motion(s) stand out with no onset: ..."``, or ``""`` when none do."""
+    missed = []
+    for r in runs:
+        if r.motion is None:
+            continue
+        onsets = [float(r.rec.time[st.onset]) for st in r.steps]
+        missed += without_onset(standing_out(r.rec.time, r.motion.accel), onsets)
+    if not missed:
+        return ""
+    shown = ", ".join(e.text for e in missed[:8]) + (", ..." if len(missed) > 8 else "")
+    return (
+        f"; {len(missed)} more motion(s) stand out with no onset ({shown}): the log may hold "
+        "more steps than the onsets listed"
+    )
 
 
 def _onsets(runs: list[Run]) -> str:
@@ -366,6 +391,20 @@ def _note_verticals(log: Log, runs: list[Run]) -> None:
                 severity="info",
             )
         )
+
+
+def _note_missed_motions(log: Log, runs: list[Run]) -> None:
+    """Note each accel-only run's motions that stand out with no onset (issue 32.4)."""
+    for r in runs:
+        if r.motion is None or not r.steps or r.steps[0].source != "accel":
+            continue
+        hint = _events_hint([r])
+        if hint:
+            text = f"{r.rec.name}: {hint.removeprefix('; ')}; each trial is one onset"
+            note = Note("segment.other", text, subject=r.rec.name)
+            if note not in log.notes:
+                log.notes.append(note)
+                log.warnings.append(text)
 
 
 def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:
