@@ -204,3 +204,41 @@ def test_values_without_a_time_are_refused_or_named(tmp_path: Path) -> None:
     path.write_text("t,F,a\n" + "\n".join(rows[:14]) + "\n")  # two untimed: noted, not hidden
     log = read_log(path)
     assert any("2 value(s) but none on a row with a time" in w for w in log.warnings)
+
+
+def test_metadata_lines_above_the_header_are_skipped_and_said(tmp_path: Path) -> None:
+    n = 200
+    rows = np.column_stack([0.01 * np.arange(n), np.ones(n), _resting_g(n, 13) * G_DEFAULT])
+    body = _write(tmp_path / "b.csv", ["t", "F", "ax", "ay", "az"], rows).read_text()
+    path = tmp_path / "m.csv"
+    path.write_text("Device: Phone X\nSample rate: 100 Hz\n\n" + body)
+    log = read_log(path)
+    assert log.recordings[0].n_samples == n and log.recordings[0].force is not None
+    assert any("2 line(s) before the header skipped" in w for w in log.warnings)
+
+
+def test_g_force_columns_are_acceleration_in_g(tmp_path: Path) -> None:
+    n = 300
+    rows = np.column_stack([0.01 * np.arange(n), _resting_g(n, 14)])
+    rows = np.column_stack([rows, np.linalg.norm(rows[:, 1:], axis=1)])
+    log = read_log(_write(tmp_path / "pt.csv", ["time", "gFx", "gFy", "gFz", "TgF"], rows))
+    (rec,) = log.recordings
+    assert rec.force is None and rec.accel is not None and rec.accel.shape[1] == 3
+    level = float(np.median(np.linalg.norm(rec.accel, axis=1)))
+    assert level == pytest.approx(G_DEFAULT, rel=0.01)
+
+
+def test_time_written_as_clock_text_across_midnight(tmp_path: Path) -> None:
+    n = 400
+    seconds = 86_398.0 + 0.01 * np.arange(n)  # 23:59:58 to past midnight
+    clock = [f"{int(v // 3600) % 24:02d}:{int(v % 3600 // 60):02d}:{v % 60:06.3f}" for v in seconds]
+    accel = _resting_g(n, 15) * G_DEFAULT
+    lines = ["Time,ax,ay,az"] + [
+        f"{c},{a[0]:.5f},{a[1]:.5f},{a[2]:.5f}" for c, a in zip(clock, accel, strict=True)
+    ]
+    path = tmp_path / "clock.csv"
+    path.write_text("\n".join(lines) + "\n")
+    log = read_log(path)
+    (rec,) = log.recordings
+    assert rec.n_samples == n and rec.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
+    assert any("read from clock text" in w for w in log.warnings)

@@ -137,3 +137,62 @@ def test_default_fit_searches_past_a_wrong_basin(tmp_path) -> None:
     assert len(default.match.optima) >= 2  # the other basin is reported, with its cost
     assert default.match.optima[1].delta_sigma2 > 10
     assert any(n.code == "fit.optima" for n in default.all_notes)
+
+
+def _held_back_log(tmp_path, mass: float, tension: float, with_rest: bool):
+    """A load held back against a string's constant tension, then let go: the force
+    sensor reads the tension before and after (it goes on pulling), 100 Hz."""
+    import numpy as np
+
+    rng = np.random.default_rng(5)
+    g, damping = 9.81, 0.3
+    t = np.arange(0.0, 5.0, 0.01)
+    start = 1.0 if with_rest else 0.0
+    s = np.clip(t - start, 0.0, None)
+    a = np.where(t >= start, tension / mass * np.exp(-damping * s / mass), 0.0)
+    force = tension + rng.normal(0, 0.005, t.size)
+    accel = a + rng.normal(0, 0.02, t.size)
+    rows = "\n".join(
+        f"{ti:.4f},{fi:.5f},0.0,0.0,{ai + g:.5f}"
+        for ti, fi, ai in zip(t, force, accel, strict=True)
+    )
+    path = tmp_path / "held.csv"
+    path.write_text("t,F,ax,ay,az\n" + rows + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("with_rest", [True, False])
+def test_a_tension_that_goes_on_pulling_is_not_removed_as_an_offset(tmp_path, with_rest) -> None:
+    from balancer_id.identify.api import fit
+    from balancer_id.trials import ReadOptions
+
+    path = _held_back_log(tmp_path, mass=0.6, tension=0.5, with_rest=with_rest)
+    window = "1.0:4.5" if with_rest else "0.0:4.5"
+    options = ReadOptions.from_text(
+        columns="time=t,force=F,ax=ax,ay=ay,az=az", window=[window], g=9.81
+    )
+    result = fit([path], model="viscous", options=options)
+    # the tension removed as an offset leaves no force to move 0.6 kg (before: thousands
+    # of kg); the absolute force gives the mass (noise 0.02 m/s^2 on 0.8 m/s^2: 2 %)
+    assert result.values["m_a"] == pytest.approx(0.6, rel=0.05)
+    said = " ".join(map(str, result.all_notes))
+    assert "absolute force" in said and "window" in said
+
+
+def test_force_noise_on_a_light_cart_does_not_bias_the_lag(tmp_path) -> None:
+    # issue 31: 0.2 kg, T_a 5 ms, steps of 0.2-0.6 N, force noise 0.03 N: driven by the
+    # noisy force, T_a came out 11 ms (10 standard errors) and A at 0 (truth 0.5)
+    from balancer_id.identify.api import fit
+    from balancer_id.model.spec import resolve_model
+    from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
+
+    truth = {"m_a": 0.2, "T_a": 0.005, "D0": 0.5, "A": 0.5}
+    log = tmp_path / "cart.csv"
+    thrusts = [0.2, -0.2, 0.4, -0.4, 0.6, -0.6]
+    sensor = SensorSettings(force_noise=0.03)
+    write_synthetic_log(log, resolve_model("variable_viscosity"), truth, thrusts, sensor=sensor)
+    result = fit(log, profile=False)
+    values = result.values
+    assert values["m_a"] == pytest.approx(0.2, rel=0.03)
+    assert values["T_a"] == pytest.approx(0.005, rel=0.15)  # before: 0.011
+    assert values["A"] == pytest.approx(0.5, rel=0.15)  # before: 0

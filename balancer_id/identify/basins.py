@@ -189,11 +189,59 @@ def spread_starts(
                 x[j] = (0.5 * k if k < 3 else float(rng.uniform(0.0, 2.0))) * lag
             else:
                 x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.7))) if x[j] != 0 else x[j]
-        out.append(_inside(x, lo, hi))
+        out.append(inside(x, lo, hi))
     return out
 
 
-def _inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def mirror_start(
+    model: Model, free: Sequence[str], x: np.ndarray, trials: Sequence[TrialData]
+) -> np.ndarray | None:
+    """The start with the drive lag and the viscous time constant swapped, or None.
+
+    A step through a first-order drive lag ``T_a`` into a mass on a viscosity ``D``
+    moves as ``1 / ((T_a s + 1)(m_a s + D))``: symmetric in ``T_a`` and ``m_a / D``. The
+    mirror ``T_a' = m_a / D``, ``m_a' = D T_a`` answers a step from rest exactly as the
+    original does; only a viscosity that changes with the thrust (``A``, two levels or
+    more) or another effect tells them apart. Both are started from, and when they end
+    about as well the fit says the trials do not decide (``fit.starts_disagree``).
+
+    Parameters
+    ----------
+    model : Model
+        The model fitted.
+    free : sequence of str
+        The parameters varied, in the order of ``x``.
+    x : numpy.ndarray
+        A start.
+    trials : sequence of TrialData
+        The trials (the median thrust sets the viscosity of a variable one).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        None when the model has not one drive lag, a mass and a viscosity all varied, or
+        the mirror is within 20 % of ``x``.
+    """
+    lags = [n for n in model.drive_lag_names if n in free]
+    if len(lags) != 1 or "m_a" not in free or "D0" not in free:
+        return None
+    pos = {n: j for j, n in enumerate(free)}
+    m_a, lag, d0 = float(x[pos["m_a"]]), float(x[pos[lags[0]]]), float(x[pos["D0"]])
+    u, _ = data_scales(trials)
+    a = float(x[pos["A"]]) if "A" in pos else 0.0
+    d_eff = d0 * float(np.exp(-a * u)) if np.isfinite(u) else d0
+    if not (d_eff > 0 and m_a > 0 and lag > 0):
+        return None
+    tau_v = m_a / d_eff
+    if 1 / 1.2 < tau_v / lag < 1.2:
+        return None
+    out = np.asarray(x, dtype=float).copy()
+    out[pos[lags[0]]] = tau_v
+    out[pos["m_a"]] = d_eff * lag
+    return out
+
+
+def inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """``x`` moved strictly inside ``[lo, hi]`` (a start on a bound has no gradient)."""
     span = np.where(np.isfinite(hi - lo), hi - lo, np.abs(lo) + 1.0)
     inner = np.minimum(1e-3 * span, np.abs(lo) + 1e-9)

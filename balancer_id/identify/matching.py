@@ -614,6 +614,7 @@ def match_trials(
     count = spread if auto else max(int(n_starts or 1), 1) - 1
     starts = [base[free]]
     starts += basins.spread_starts(model, free_names, base[free], lo, hi, count, trials, seed)
+    mirrored = not auto
 
     stopped: list[np.ndarray] = []
 
@@ -632,8 +633,13 @@ def match_trials(
         best = _Outcome(base[free], r, np.zeros((0, 0)), True, "no free parameter", 1)
     k = 0
     while free:
+        if k == len(starts) and not mirrored and best is not None:
+            mirrored = True  # the lag and the viscous time swapped answer a step alike
+            mirror = basins.mirror_start(model, free_names, best.x, trials)
+            if mirror is not None:
+                starts.append(basins.inside(mirror, lo, hi))
         if k == len(starts):
-            if not (auto and not spread and k == 1 and _suspect(problem, best, free_names)):
+            if not (auto and not spread and _suspect(problem, best, free_names)):
                 break
             spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
             starts += basins.spread_starts(

@@ -254,6 +254,8 @@ TIME_TOKENS = TIME_WORDS | {
 FORCE_TOKENS = frozenset({*FORCE_WORDS, "f", "load", "fz", "loadcell"})
 #: A token that names an acceleration axis by itself: ``ax``, ``accX``, ``accelz``.
 _AXIS_TOKEN = re.compile(r"^(?:a|acc|accel|acceleration)([xyz])$")
+#: A g-force column (``gFx``, ``g-force z``, ``TgF`` its total): acceleration in g.
+_G_FORCE = re.compile(r"^(t)?g-?f(?:orce)?[-_]?([xyz])?$")
 #: Words that mark the gravity vector of a phone (iOS ``gravityX``): not an acceleration.
 GRAVITY_WORDS = frozenset({"gravity", "grav", "schwerkraft"})
 #: Words that mark an acceleration without gravity (phyphox, iOS ``userAcceleration``).
@@ -339,6 +341,12 @@ def classify(index: int, raw: str) -> Column:
     axis = ""
     linear = False
     accel_unit = normalize_accel_unit(unit)
+    gforce = _G_FORCE.match(q.replace(" ", ""))
+    if gforce and (not u or accel_unit == "g"):  # Physics Toolbox's gFx, gFy, gFz, TgF
+        total = gforce.group(1) == "t" or not gforce.group(2)
+        kind = "ignore" if total else "accel"
+        axis = "" if total else gforce.group(2)
+        return Column(index, raw, quantity, unit or "g", run, kind, axis, False)
     if _DATETIME.match(q):
         kind = "datetime"
     elif (q in TIME_WORDS and (u in _TIME_UNITS or u == "")) or _time_like(tokens, u):

@@ -16,7 +16,8 @@ from balancer_id.read.header import Column
 from balancer_id.read.plan import RunPlan, join_rates, plan_from_columns
 
 _SHARED_RUNS = ("", "auto")
-_CAPSTONE_RUN = re.compile(r"^run\s*#\s*\d+$", re.IGNORECASE)
+#: Capstone's run suffix in any language: ``Run #1``, ``Lauf #1``, ``Ejecución #1``.
+_CAPSTONE_RUN = re.compile(r"^[^\W\d_]+\s*#\s*\d+$", re.IGNORECASE)
 _SPARKVUE_RUN = re.compile(r"^run\s+\d+$", re.IGNORECASE)
 
 

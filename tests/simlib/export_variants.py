@@ -343,6 +343,20 @@ def time_units(rng: np.random.Generator) -> Variant:
         header, t = ["Time (s)"], np.round(sig.t * 1e3)
     elif how == "us header":
         header, t = ["t (us)"], np.round(sig.t * 1e6)
+    elif how == "clock text":
+        start = rng.uniform(0, 86_000)
+        header = ["Time"]
+        t = [
+            f"{int(v // 3600) % 24:02d}:{int(v % 3600 // 60):02d}:{v % 60:06.3f}"
+            for v in start + sig.t
+        ]
+    elif how == "ISO text":
+        header = ["timestamp"]
+        t = [
+            f"2025-03-0{1 + int(v // 86400)}T{int(v % 86400 // 3600):02d}:"
+            f"{int(v % 3600 // 60):02d}:{v % 60:06.3f}Z"
+            for v in 40_000 + sig.t
+        ]
     elif how == "Time sec":
         header, t = ["Time sec"], sig.t
     elif how == "ns clock":
@@ -394,8 +408,6 @@ _EXTRAS = (
 
 def renamed_reordered(rng: np.random.Generator) -> Variant:
     """A generic log with its axis family named any way, columns shuffled, extra channels."""
-    if rng.uniform() < 0.2:
-        return sensorlog_ios(rng)
     sig = signals(rng, gravity=True)
     family = str(rng.choice(_FAMILIES))
     names = [family.format(a=a, A=a.upper()) for a in "xyz"]
@@ -462,6 +474,75 @@ def sensorlog_ios(rng: np.random.Generator) -> Variant:
         "read",
         sig,
         {"format": "generic", "force": False},
+    )
+
+
+def other_apps(rng: np.random.Generator) -> Variant:
+    """Other apps' exports: Physics Toolbox (g-force), Capstone in another language, metadata
+    lines above the header, an Arduino sketch's millis() and g columns, iOS SensorLog."""
+    which = str(
+        rng.choice(
+            ["physics toolbox", "capstone localized", "metadata lines", "arduino", "sensorlog"]
+        )
+    )
+    if which == "sensorlog":
+        variant = sensorlog_ios(rng)
+        variant.cls = "other apps"
+        return variant
+    sig = signals(rng, gravity=True)
+    ax, ay, az = sig.accel.T
+    if which == "physics toolbox":
+        g_axes = sig.accel / G_DEFAULT
+        cols = [sig.t, *g_axes.T, np.linalg.norm(g_axes, axis=1)]
+        content = render(["time", "gFx", "gFy", "gFz", "TgF"], cols, fmt="%.4f")
+        return Variant(
+            "other apps",
+            which,
+            "physics_toolbox.csv",
+            content,
+            "read",
+            sig,
+            {"format": "generic", "force": False, "accel_tol": 0.002 * G_DEFAULT},
+        )
+    if which == "capstone localized":
+        run = str(rng.choice(["Lauf", "Ejecución", "Essai", "Prova", "Serie"]))
+        time, force, accel = _LANGUAGES[str(rng.choice(sorted(_LANGUAGES)))][:3]
+        header = [f"{time} (s) {run} #1", f"{force} (N) {run} #1"]
+        header += [f"{accel} {a} (m/s²) {run} #1" for a in "xyz"]
+        content = render(header, [sig.t, sig.force, ax, ay, az], delimiter=";", decimal=",")
+        return Variant(
+            "other apps",
+            f"capstone '{run} #1'",
+            "capstone.csv",
+            content,
+            "read",
+            sig,
+            {"format": "pasco-capstone", "force": True},
+        )
+    if which == "metadata lines":
+        lines = ["Device: Phone X", f"Sample rate: {sig.rate:g} Hz", "Exported: 2026-01-13", ""]
+        body = render(["Time (s)", "Force (N)", "ax", "ay", "az"], [sig.t, sig.force, ax, ay, az])
+        content = ("\n".join(lines) + "\n").encode() + body
+        return Variant(
+            "other apps",
+            which,
+            "log.csv",
+            content,
+            "read",
+            sig,
+            {"format": "generic", "force": True},
+        )
+    g_axes = sig.accel / G_DEFAULT
+    header = ["millis", "force_N", "ax_g", "ay_g", "az_g"]
+    content = render(header, [np.round(sig.t * 1000), sig.force, *g_axes.T], fmt="%.6g")
+    return Variant(
+        "other apps",
+        which,
+        "arduino.csv",
+        content,
+        "read",
+        sig,
+        {"format": "generic", "force": True},
     )
 
 
@@ -624,6 +705,7 @@ CLASSES: dict[str, Callable[[np.random.Generator], Variant]] = {
     "values at no scale": no_scale,
     "clipping": clipping,
     "repeated pairs": repeated_pairs,
+    "other apps": other_apps,
 }
 
 
@@ -655,7 +737,7 @@ def _wrong(log: Any, v: Variant) -> list[str]:
         wrong.append(f"includes gravity {rec.accel_includes_gravity}, expected {truth.gravity}")
     if rec.n_samples == truth.t.size:
         err = float(np.max(np.abs(rec.accel - truth.accel)))
-        if err > 0.02 * G_DEFAULT:
+        if err > facts.get("accel_tol", 0.02 * G_DEFAULT):
             wrong.append(f"acceleration off by up to {err:.3g} m/s^2 (unit or axes misread)")
     codes = {n.code for n in log.notes}
     wrong += [f"no note {c}" for c in facts.get("notes", []) if c not in codes]
