@@ -1,7 +1,7 @@
 """Tracking a parameter within a session (issue 33): coverage, detection, false tracking.
 
-Each case is one continuous session (a thrust change every 6-10 s, up and down in turn,
-the weight changed at every step) of a ``variable_viscosity`` balancer at one of three
+Each case is one continuous session (a thrust change every 6-10 s, whole seconds, up and
+down in turn, the weight changed at every step) of a ``variable_viscosity`` balancer at one of three
 scales (a 1.5 kg lab balancer, the paper's 15 kg, a 300 kg hoist: thrusts, D0 and A
 scaled so that the accelerations are alike), with one parameter moving (D0, A or m_a;
 linear, a step, an exponential warm-up, a slow oscillation) or nothing moving (the
@@ -15,6 +15,12 @@ and scored:
 * false tracking: the controls where it says so (wanted <= 5 %);
 * the same coverage for sliding-window means (60 s) of the same block fits, the
   alternative the random walk was chosen over (docs/DECISIONS.md).
+
+The thrust changes fall on sample instants: a step between two samples shifts the
+measured force's step by up to half a sample, which biases T_a by up to 2.5 ms at 200 Hz
+(2 % of a 1.5 kg balancer's 0.12 s lag, and D0 and A with it). That bias is the fit's,
+not the tracker's, and shows in a plain fit of the same logs; it is kept out here so that
+the coverage measures the tracker (noted in docs/DECISIONS.md).
 
 Fresh cases every run (the seed is printed; ``--seed`` repeats a run).
 
@@ -124,7 +130,7 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
     """Simulate, fit and score one case."""
     rng = np.random.default_rng(case.seed)
     dur = case.minutes * 60.0
-    hold = float(rng.uniform(6.0, 10.0))
+    hold = float(rng.integers(6, 11))  # whole seconds: see the module's docstring
     k = case.mass / PAPER["m_a"]
     levels = [x * k for x in alternating_levels(int((dur - 2) / hold), rng)]
     thrust = session_thrust(levels, hold)
