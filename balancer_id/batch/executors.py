@@ -26,6 +26,10 @@ _PRELOAD = ("balancer_id.batch.preload",)
 #: Each worker process runs one BLAS/OpenMP thread: the pool is the parallelism (and
 #: the fits' small matrices run faster on one thread anyway). A value the user set wins.
 _THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Worker processes start as ``python -c ...``, which puts the working folder first on
+#: ``sys.path``: a ``multiprocessing.py`` or ``json.py`` lying there would run as the
+#: user. ``PYTHONSAFEPATH`` (Python 3.11) keeps it off.
+_SAFE_PATH_ENV = "PYTHONSAFEPATH"
 
 
 _DASK_HINT = "pip install 'balancer-id[dask]'"
@@ -97,9 +101,23 @@ def _interrupt_ignored() -> Iterator[None]:
 
 
 @contextmanager
+def _safe_path() -> Iterator[None]:
+    """Processes started inside never import from the working folder (``PYTHONSAFEPATH``)."""
+    if os.environ.get(_SAFE_PATH_ENV):
+        yield
+        return
+    os.environ[_SAFE_PATH_ENV] = "1"
+    try:
+        yield
+    finally:
+        os.environ.pop(_SAFE_PATH_ENV, None)
+
+
+@contextmanager
 def _one_thread_env() -> Iterator[None]:
-    """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)."""
-    added = [name for name in _THREAD_ENV if name not in os.environ]
+    """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)
+    and never import from the working folder (``PYTHONSAFEPATH``)."""
+    added = [name for name in (*_THREAD_ENV, _SAFE_PATH_ENV) if name not in os.environ]
     for name in added:
         os.environ[name] = "1"
     try:
@@ -186,6 +204,19 @@ def run_in_processes(
     notify : callable, optional
         Told, in one line, when a worker died and the rest run one process each.
     """
+    with _safe_path():  # the pool's helpers (resource tracker) start before any submit
+        _run_pool(func, items, record, jobs, context=context, notify=notify)
+
+
+def _run_pool(
+    func: Callable[[Any], Payload],
+    items: Sequence[tuple[int, Any]],
+    record: Callable[[int, Payload], None],
+    jobs: int,
+    *,
+    context: Any = None,
+    notify: Callable[[str], None] | None = None,
+) -> None:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 

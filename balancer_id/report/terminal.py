@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from rich.console import Console
@@ -15,7 +16,11 @@ def _stderr(console: Console) -> Console:
     """The console messages and warnings go to: stderr, at the same width and colours."""
     if console.stderr:
         return console
-    return Console(stderr=True, width=console.width if console.is_terminal else None)
+    if sys.stderr is not None and sys.stderr.isatty():
+        return Console(stderr=True)  # the terminal's own width
+    # piped or redirected: as wide as the tables (rich's default of 80 columns would
+    # break the warnings mid-sentence while the tables beside them run wider)
+    return Console(stderr=True, width=console.width)
 
 
 def print_command(console: Console, command: str, indent: str = "    ") -> None:
