@@ -368,6 +368,67 @@ def _dask() -> Any:
     return distributed
 
 
+#: Seconds to wait for a scheduler's port to answer, for Dask's handshake, and for a
+#: first worker: an address that never answers must not hang the batch.
+SCHEDULER_TIMEOUT_S = float(os.environ.get("BALANCER_ID_SCHEDULER_TIMEOUT", "10"))
+
+
+def probe_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Check that something listens at a Dask scheduler's ``address`` before Dask tries.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://host:port``, ``host:port`` or ``tls://host:port``.
+    timeout : float
+        Seconds for the name look-up and the TCP connection.
+
+    Raises
+    ------
+    UsageError
+        One line naming the problem: an address that is not ``host:port``, a host name
+        that does not resolve, a port nobody listens on, or no answer in ``timeout``.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    if address == "local":
+        return
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise UsageError(
+            f"--scheduler {address}: expected tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786) or local"
+        )
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror:
+        raise UsageError(
+            f"--scheduler {address}: the host '{host}' is not known (check the name)"
+        ) from None
+    family, kind, proto, _, sockaddr = infos[0]
+    with socket.socket(family, kind, proto) as sock:
+        sock.settimeout(timeout)
+        try:
+            sock.connect(sockaddr)
+        except ConnectionRefusedError:
+            raise UsageError(
+                f"--scheduler {address}: nothing listens on port {port} of {host} "
+                "(is the Dask scheduler running?)"
+            ) from None
+        except TimeoutError:
+            raise UsageError(
+                f"--scheduler {address}: no answer from {host}:{port} in {timeout:g} s "
+                "(a firewall, or the wrong address)"
+            ) from None
+        except OSError as exc:
+            why = exc.strerror or exc
+            raise UsageError(f"--scheduler {address}: cannot connect ({why})") from None
+
+
 def _run_dask(
     func: Callable[[Any], Payload],
     items: Sequence[tuple[int, Any]],
@@ -391,12 +452,25 @@ def _run_dask(
             client = distributed.Client(cluster)
             where = f"a local Dask cluster of {n_workers} workers"
         else:
-            client = distributed.Client(scheduler)
+            probe_scheduler(scheduler)
+            client = distributed.Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
             where = f"the Dask cluster at {scheduler}"
     except (OSError, TimeoutError, ValueError) as exc:
         if cluster is not None:
             cluster.close()
-        raise UsageError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        raise UsageError(
+            f"--scheduler {scheduler}: no Dask scheduler answered in {SCHEDULER_TIMEOUT_S:g} s "
+            f"({type(exc).__name__}; is it a Dask scheduler's address?)"
+        ) from None
+    if cluster is None:
+        try:
+            client.wait_for_workers(1, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError) as exc:
+            client.close()
+            raise UsageError(
+                f"--scheduler {scheduler}: the scheduler has no worker after "
+                f"{SCHEDULER_TIMEOUT_S:g} s; start one (dask worker {scheduler})"
+            ) from exc
     try:
         say(f"identifying {len(items)} logs on {where}")
         futures = {client.submit(func, arg, pure=False): key for key, arg in items}
