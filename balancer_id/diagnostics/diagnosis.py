@@ -480,7 +480,7 @@ def _discover(
         if not (failed and discovery_search.challenges(best, inp.match.model.registry)):
             return None
         margin = discovery_search.CHALLENGE_BIC  # the library's law reached the floor
-    if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
+    if fit.stuck:  # a fit stuck on a bound: a force found would only patch it
         return None
     command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
     try:
