@@ -164,6 +164,10 @@ def _readme_number(pattern: str) -> float:
     return float(found.group(1))
 
 
+#: The simulated check of the advised viscosity: its frequency and damping.
+D0_CHECK = r"D0 .*?simulated: ([0-9.]+) Hz, damping ([0-9.]+)"
+
+
 def _assert_readme_robot_numbers(out: str) -> None:
     """Every number the README quotes for the robot step is what the command prints (to the
     README's rounding): the mode's damping, the stability condition's two sides, the
@@ -176,10 +180,8 @@ def _assert_readme_robot_numbers(out: str) -> None:
         "k_r_to": float(re.search(r"k_r \(N/m\): [0-9.]+ -> ([0-9.]+)", flat).group(1)),
         "d0_to": float(re.search(r"D0 \(kg/s\): [0-9.]+ -> ([0-9.]+)", flat).group(1)),
         "d0_from": float(re.search(r"D0 \(kg/s\): ([0-9.]+) ->", flat).group(1)),
-        "d0_hz": float(re.search(r"D0 .*?simulated: ([0-9.]+) Hz, damping ([0-9.]+)", flat).group(1)),
-        "d0_damping": float(
-            re.search(r"D0 .*?simulated: ([0-9.]+) Hz, damping ([0-9.]+)", flat).group(2)
-        ),
+        "d0_hz": float(re.search(D0_CHECK, flat).group(1)),
+        "d0_damping": float(re.search(D0_CHECK, flat).group(2)),
     }
     quoted = {
         "damping": _readme_number(r"0\.66 Hz with damping ratio ([0-9.]+)"),

@@ -14,7 +14,7 @@ from balancer_id.errors import UsageError
 
 
 def test_an_unknown_host_is_named_not_called_a_timeout():
-    with pytest.raises(UsageError, match="host 'no-such-host.invalid' is not known"):
+    with pytest.raises(UsageError, match=r"host 'no-such-host\.invalid' is not known"):
         probe_scheduler("tcp://no-such-host.invalid:8786", timeout=2)
 
 
