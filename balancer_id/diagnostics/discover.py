@@ -83,9 +83,6 @@ STRIBECK_GRID = (0.02, 0.07, 0.25)
 #: The error above the noise floor (x the noise) that the arena's best may leave before
 #: discovery is tried (the level test's tolerance, adequacy.LEVEL_MIN).
 LEFT_OVER = 0.5
-#: Explanations a missing force can mimic (a parameter that seems to change between runs
-#: when it depends on the speed or the thrust): the search competes with them on BIC.
-MIMICS = ("split", "drift", "pair")
 #: Samples (at most, by a regular stride) of the residual force's spectrum over position.
 PERIOD_SAMPLES = 3000
 #: The Coulomb term, and the prefix of the Stribeck terms (tried with it as a pair).
@@ -465,20 +462,21 @@ class Discovery:
 
     def explanation(self) -> Explanation:
         """The discovery as one of the arena's explanations (kind ``discovered``)."""
-        return Explanation(
-            "discovered",
+        from balancer_id.diagnostics.explanations import kind_of
+
+        e = kind_of("discovered").make(
             f"discovered force {self.formula}",
             self.delta_bic,
             self.rmse,
-            [],
-            [],
-            {
+            detail={
                 "formula": self.formula,
                 "values": self.refit.values(),
                 "alternatives": self.alternatives,
             },
-            excess_drop=self.excess_drop,
         )
+        e.excess_drop = self.excess_drop
+        e.source = self
+        return e
 
     def effect_source(self, name: str = "discovered", evidence: str = "") -> str:
         """The discovered force as a user effect file (the README's plug-in form).
@@ -845,13 +843,12 @@ def should_try(best: Explanation | None, noise_floor: float, tests_failed: bool)
     Returns
     -------
     bool
-        True when the best explanation is a parameter changing between runs
-        (:data:`MIMICS`: a missing force depending on the speed or the thrust looks like
-        one), or when a test failed and there is no standing explanation or the best
-        one leaves an error above the noise floor larger than :data:`LEFT_OVER` x the
-        noise.
+        True when the best explanation changes a parameter (a missing force depending
+        on the speed or the thrust looks like one), or when a test failed and there is
+        no standing explanation or the best one leaves an error above the noise floor
+        larger than :data:`LEFT_OVER` x the noise.
     """
-    if best is not None and best.kind in MIMICS:
+    if best is not None and best.explainer.changes_parameter:
         return True
     if not tests_failed:
         return False
@@ -881,7 +878,7 @@ def challenges(best: Explanation | None, registry: Registry) -> bool:
     -------
     bool
     """
-    if best is None or best.kind != "effect":
+    if best is None or best.key != "effect":
         return False
     return any(name in registry and "friction" in registry[name].hooks() for name in best.effects)
 
