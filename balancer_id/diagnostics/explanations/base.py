@@ -11,23 +11,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from enum import IntEnum, StrEnum
+from enum import IntEnum
 from typing import TYPE_CHECKING, ClassVar
+
+from balancer_id.verdicts import Verdict
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.arena import ArenaInput
     from balancer_id.identify.result import FitResult
-
-
-class Verdict(StrEnum):
-    """The verdicts of ``diagnose`` (CONTRACT.md: the string values are the contract)."""
-
-    ADEQUATE = "adequate"
-    EFFECT_MISSING = "effect missing"
-    PARAMETER_CHANGED = "parameter changed"
-    PARAMETER_DRIFT = "parameter drift"
-    SENSOR_EFFECT = "sensor effect"
-    AMBIGUOUS = "ambiguous"
 
 
 class Stage(IntEnum):

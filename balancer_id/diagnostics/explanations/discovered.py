@@ -40,7 +40,7 @@ class Discovered(ExplanationKind):
 
     def propose(self, inp: ArenaInput) -> list[Explanation]:
         """The discovered force, when the search is due and finds one that pays."""
-        from balancer_id.diagnostics import discover as search
+        from balancer_id.diagnostics import discover as discovery
 
         fit, ctx = inp.fit, inp.context
         if not inp.discover or fit is None or ctx is None:
@@ -48,16 +48,16 @@ class Discovered(ExplanationKind):
         standing = arena.standing(inp.found, inp.tests_failed)
         best = standing[0] if standing else None
         margin = 0.0
-        if not search.should_try(best, ctx.noise_floor, inp.tests_failed):
-            if not (inp.tests_failed and search.challenges(best, inp.match.model.registry)):
+        if not discovery.should_try(best, ctx.noise_floor, inp.tests_failed):
+            if not (inp.tests_failed and discovery.challenges(best, inp.match.model.registry)):
                 return []
-            margin = search.CHALLENGE_BIC  # the library's law reached the floor
+            margin = discovery.CHALLENGE_BIC  # the library's law reached the floor
         if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
             return []
         command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
         try:
             with step("discovering the missing term"):
-                found = search.discover(
+                found = discovery.discover(
                     inp,
                     ctx,
                     rival=best,
