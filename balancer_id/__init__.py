@@ -10,6 +10,7 @@ whatever order they are called (no subpackage carries the name of one of them)::
     compare(trials, models) -> [ModelComparison]
     validate(fit_or_params, new_logs) -> Validation  does a saved model hold on new logs?
     full_report(logs, "report.html") -> FullReport  fit, diagnose, improve, write
+    plan(fit_or_logs) -> Plan                      the trials to record next
     simulate(model, values, thrust, ...)           the balancer's response
     read_log(path) -> Log
 
@@ -54,6 +55,7 @@ _LAZY = {
     "compare": "balancer_id.diagnostics.api",
     "validate": "balancer_id.diagnostics.api",
     "full_report": "balancer_id.workflows",
+    "plan": "balancer_id.workflows",
 }
 
 

@@ -6,6 +6,10 @@ one-line message that says what went wrong, where, and what to do.
 
 from __future__ import annotations
 
+#: Exit code of a command whose fit ran but is not trusted (``"trusted": false``): the
+#: output is written as usual, and a script sees that the values are no identification.
+UNTRUSTED_EXIT_CODE = 5
+
 
 class BalancerIdError(Exception):
     """Base class of every error balancer-id raises on purpose."""

@@ -47,8 +47,13 @@ CODES: dict[str, str] = {
     "fit.below_resolution": "a time constant below what the sample rate resolves",
     "fit.correlated_residual": "standard errors widened for a residual correlated over samples",
     "fit.no_convergence": "the optimizer did not converge",
+    "fit.worse_than_mean": "the fit follows the acceleration worse than its mean (fit % below 0)",
+    "fit.not_reached": "a parameter the data do not reach: a bound from its profile, not a value",
+    "fit.optima": "the distinct optima the starts ended at, and their costs",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
+    "fit.posterior_not_converged": "the posterior chain is short against its autocorrelation time",
+    "fit.posterior_disagrees": "a credible interval differs from the Wald interval",
     "fit.other": "another remark about the fit",
     # diagnosing
     "diagnose.not_white": "the residual is not white beyond the sensor's noise colour",

@@ -514,6 +514,7 @@ def load_trials(
     options = options or ReadOptions()
     if options.thrusts is not None and len(paths) > 1:
         raise UsageError("--thrust lists the trials of one log; give one log per command")
+    refuse_same_file_twice(paths)
     loaded = []
     problems = []
     for path in paths:
@@ -531,6 +532,46 @@ def load_trials(
             trial.index = k
             k += 1
     return TrialSet(loaded, options, trajectory, trajectory_source=trajectory_source)
+
+
+def refuse_same_file_twice(paths: Sequence[str | Path]) -> None:
+    """Refuse a log given twice, by any name (a copy, a link, another path to it).
+
+    Its trials would count twice: every standard error would shrink by sqrt(2) for
+    nothing measured.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        The logs, as given.
+
+    Raises
+    ------
+    UsageError
+        Two of them with the same contents (their SHA-256), naming both.
+    """
+    import hashlib
+
+    if len(paths) < 2:
+        return
+    seen: dict[tuple[int, str], str | Path] = {}
+    for path in paths:
+        try:
+            size = Path(path).stat().st_size
+            digest = hashlib.sha256()
+            with open(path, "rb") as fh:
+                for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                    digest.update(block)
+        except OSError:
+            continue  # the reader says what is wrong with it
+        key = (size, digest.hexdigest())
+        if key in seen:
+            raise UsageError(
+                f"{path} and {seen[key]} hold the same log (identical contents): its trials "
+                "would count twice and every standard error shrink by 1.4x for nothing "
+                "measured; give each log once"
+            )
+        seen[key] = path
 
 
 def as_trial_set(
@@ -652,6 +693,7 @@ def describe_log(log: Log, trials: Sequence[Trial]) -> dict[str, object]:
         "runs": runs,
         "warnings": [*log.warnings, *(str(w) for w in trial_warnings)],
         "notes": notes_json([*log.notes, *(as_note(w, "segment.other") for w in trial_warnings)]),
+        "inferences": [i.to_dict() for i in getattr(log, "inferences", [])],
         "trials": [t.to_dict() for t in trials],
     }
 

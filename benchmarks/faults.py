@@ -74,7 +74,7 @@ BAD_FILES: dict[str, tuple[bytes | str, int, str]] = {
     "binary.csv": (bytes(range(256)) * 8, 3, ""),
     "header_only.csv": ("Time (s),Force (N),Acceleration (m/s²)\n", 3, ""),
     "one_row.csv": ("Time (s),Force (N),Acceleration (m/s²)\n0,1,9.8\n", 3, "row"),
-    "no_columns.csv": ("a,b\n1,2\n3,4\n", 3, "no time, force or acceleration column"),
+    "no_columns.csv": ("p,q\n1,2\n3,4\n", 3, "no time, force or acceleration column"),
     "text_cells.csv": ("Time (s),Force (N),Acceleration (m/s²)\n0,x,y\n0.005,x,y\n", 3, ""),
     "zip.csv": (b"PK\x03\x04" + b"\x00" * 64, 3, "zip"),
     "nan_cells.csv": (

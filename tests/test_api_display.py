@@ -49,7 +49,8 @@ def test_a_fit_shows_itself_short_and_in_full(fitted):
 
 def test_to_frame_holds_every_sample_and_its_residual(fitted):
     frame = fitted.to_frame()
-    assert list(frame.columns[-4:]) == ["time", "measured", "simulated", "residual"]
+    assert list(frame.columns[4:8]) == ["time", "measured", "simulated", "residual"]
+    assert list(frame.columns[8:]) == ["model_low", "model_high", "noise_low", "noise_high"]
     assert len(frame) == len(fitted.match.y)
     assert sorted(frame["trial"].unique()) == [t.index for t in fitted.match.data.trials]
     np.testing.assert_allclose(frame["residual"], frame["measured"] - frame["simulated"])
@@ -66,7 +67,8 @@ def test_plot_returns_a_figure_of_measured_simulated_and_residual(fitted):
     assert len(fig.axes) == 2 * len(trials)  # small multiples: a panel and its residual
     tops, bottoms = fig.axes[0::2], fig.axes[1::2]
     for ax, td in zip(tops, trials, strict=True):
-        assert len(ax.lines) == 2  # measured and simulated
+        assert len(ax.lines) == 4  # measured, simulated and the noise band's two edges
+        assert len(ax.collections) == 1  # the model's 95 % band, shaded
         assert f"{td.thrust_N:+.3g} N" in ax.get_title()  # each trial named by its thrust
     assert bottoms[0].get_ylabel().startswith("residual")
     png = fig._repr_png_()  # a notebook shows it without %matplotlib inline

@@ -131,6 +131,8 @@ def _request_variants():
         "starts": 4,
         "trajectory": "trapezoid:distance=0.2,speed=0.1,accel=0.5",
         "effects_files": ("hose.py",),
+        "track": ("D0",),
+        "per_log": ("m_a",),
     }
     option_changes = {
         "columns": {"time": "t", "force": "F"},

@@ -92,13 +92,15 @@ def test_fleet_sections_flag_outliers_and_list_missing_effects(tmp_path: Path) -
     rows.append(BatchRow(file="bad.csv", status="failed", error="bad.csv: unreadable"))
     sections = fleet_sections(rows)
     titles = [s.title for s in sections]
-    assert titles == ["Fleet", "Logs", "Parameters across logs", "Effect missing"]
+    assert titles == ["Fleet", "Logs", "Not counted", "Parameters across logs", "Effect missing"]
     logs = next(b for b in sections[1].blocks if isinstance(b, Table))
     marked = [r[0] for r in logs.rows if any("outlier" in getattr(c, "text", "") for c in r)]
     assert marked == ["log6.csv"]
-    missing = next(b for b in sections[3].blocks if isinstance(b, Table))
+    apart = next(b for b in sections[2].blocks if isinstance(b, Table))
+    assert [r[0] for r in apart.rows] == ["log3.csv"]  # its effect is missing: not counted
+    missing = next(b for b in sections[4].blocks if isinstance(b, Table))
     assert missing.rows == [["log3.csv", "+karnopp", "balancer-id fit log3.csv"]]
-    text = " ".join(getattr(b, "text", "") for b in sections[2].blocks)
+    text = " ".join(getattr(b, "text", "") for b in sections[3].blocks)
     assert "recorded (from the export)" in text
     out = write_fleet_report(rows, tmp_path / "fleet.html")
     html = out.read_text(encoding="utf-8")
@@ -215,3 +217,41 @@ def test_summary_verdict_is_the_logs_own_diagnosis_or_untrusted():
     row = BatchRow(file="c.csv", status="ok")
     judge_row(row, {"trusted": True})
     assert row.verdict == "identified"
+
+
+def test_untrusted_and_effect_missing_logs_are_listed_apart_and_not_counted(tmp_path: Path):
+    """Issue 33: a wild untrusted fit (m_a 6.23 ± 74 kg) and a log whose diagnosis says an
+    effect is missing stay out of the median, the quartiles, the outliers and the trend."""
+    rng = np.random.default_rng(8)
+    rows = []
+    for k in range(8):
+        doc = {"recorded": {"time": f"2024-03-{k + 1:02d}T08:00:00", "source": "export"},
+               "trusted": True, "diagnosis": {"verdict": "adequate", "suggestions": []}}
+        rows.append(_row(f"log{k}", 15.0 + float(rng.normal(0, 0.05)), doc, tmp_path))
+    bad = _row("wild", 6.23, {"trusted": False, "untrusted_because": ["m_a at a bound"],
+                              "recorded": {"time": "2024-03-20T08:00:00", "source": "export"}},
+               tmp_path)
+    bad.trusted = False
+    bad.parameters["m_a"]["stderr"] = 74.0
+    rows.append(bad)
+    rows.append(_row("drifted", 40.0, {"trusted": True,
+                                       "recorded": {"time": "2024-03-21T08:00:00"},
+                                       "diagnosis": {"verdict": "effect missing"}}, tmp_path))
+    sections = fleet_sections(rows)
+    summary = next(b for b in sections[0].blocks if isinstance(b, Table))
+    m_a = next(r for r in summary.rows if r[0] == "m_a")
+    assert m_a[1] == "8"  # counted logs only
+    lo, hi = (float(x) for x in m_a[4].split(" .. "))
+    assert 14.8 < lo and hi < 15.2  # neither 6.23 nor 40 in the range
+    assert getattr(m_a[5], "text", m_a[5]) == "0"  # no outlier: they were never counted
+    apart = next(s for s in sections if s.title == "Not counted")
+    table = next(b for b in apart.blocks if isinstance(b, Table))
+    reasons = {r[0]: getattr(r[1], "text", r[1]) for r in table.rows}
+    assert reasons["wild.csv"].startswith("fit not trusted: m_a at a bound")
+    assert "effect is missing" in reasons["drifted.csv"]
+    lead = sections[0].blocks[0].text
+    assert "8 counted" in lead and "2 listed apart" in lead
+    trends = next(s for s in sections if s.title == "Parameters across logs")
+    assert "No parameter has a significant trend" in " ".join(
+        getattr(b, "text", "") for b in trends.blocks
+    )

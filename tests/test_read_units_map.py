@@ -60,9 +60,12 @@ def test_header_unit_us_and_a_rate_out_of_range_warned(tmp_path: Path) -> None:
     slow = read_log(
         _write(tmp_path, "slow.csv", "t,ax,ay,az\n" + _rows(50, lambda i: 5 * i, (0, 0, 9.81)))
     )
-    (note,) = [n for n in slow.notes if n.code == "read.rate"]
-    assert "0.2 Hz (time read in s)" in note.text
-    assert "if the time is in ms, pass --columns time=t:ms" in note.text
+    # whole numbers 5 apart: 0.2 Hz in s (no accelerometer log), 200 Hz in ms: read in ms
+    assert slow.recordings[0].sample_rate_hz == pytest.approx(200.0)
+    (note,) = [n for n in slow.notes if n.code == "read.time_unit"]
+    assert "read in ms (from its spacing: whole numbers 5 apart)" in note.text
+    (unit,) = [i for i in slow.inferences if i.what == "time unit"]
+    assert unit.decision == "ms" and "--columns time=t:" in unit.override
 
 
 @pytest.mark.parametrize(
@@ -212,9 +215,11 @@ def test_time_unit_from_values_gives_seconds_that_increase(start: float, step: f
         assert base.seconds[0] == 0.0 and base.started_at > 1e8
 
 
-def test_ns_values_under_a_seconds_header_are_warned_not_a_crash(tmp_path: Path) -> None:
+def test_ns_values_under_a_seconds_header_are_read_by_their_spacing(tmp_path: Path) -> None:
     body = _rows(50, lambda i: 1730147596612447367 + 5_000_000 * i, (0.0, 0.0, 9.81))
     log = read_log(_write(tmp_path, "wrong.csv", "Time (s),ax,ay,az\n" + body))
-    assert log.recordings[0].started_at is None
-    (note,) = [n for n in log.notes if n.code == "read.rate"]
-    assert "if the time is in ns, pass --columns time=Time (s):ns" in note.text
+    (rec,) = log.recordings
+    assert rec.sample_rate_hz == pytest.approx(200.0, rel=1e-3)
+    assert rec.started_at == pytest.approx(1730147596.6, abs=1.0)  # a clock time in ns
+    (note,) = [n for n in log.notes if n.code == "read.time_unit"]
+    assert "read in ns" in note.text and "the header says s" in note.text

@@ -121,7 +121,8 @@ def test_fit_takes_start_values_bounds_and_writes_the_series(cli, identified, tm
     assert f"wrote {series}" in err
     with series.open(encoding="utf-8") as fh:
         header = next(csv.reader(fh))
-    assert header[-4:] == ["time", "measured", "simulated", "residual"]
+    assert header[4:8] == ["time", "measured", "simulated", "residual"]
+    assert header[8:] == ["model_low", "model_high", "noise_low", "noise_high"]
 
 
 @pytest.mark.parametrize(

@@ -53,7 +53,8 @@ class BatchRow:
         One-line message of a failed log (it names the file).
     exit_code : int
         0 when identified, else what ``balancer-id fit`` would have exited with
-        (3 unreadable log, 4 identification impossible, 1 internal error).
+        (3 unreadable log, 4 identification impossible, 5 fitted but not trusted, 1
+        internal error).
     model : str or None
         The model's spec.
     n_trials : int or None
@@ -317,6 +318,12 @@ def judge_row(row: BatchRow, doc: dict[str, Any]) -> None:
         The log's result (``fit`` JSON, with ``diagnosis`` under ``--diagnose``).
     """
     row.trusted = doc.get("trusted") is not False
+    if not row.trusted:  # the row leads with why, and carries fit's own exit code
+        from balancer_id.errors import UNTRUSTED_EXIT_CODE
+
+        why = [str(w) for w in doc.get("untrusted_because") or []]
+        row.error = "not trusted: " + (" | ".join(why) or "see the warnings")
+        row.exit_code = UNTRUSTED_EXIT_CODE
     diagnosis = doc.get("diagnosis")
     if isinstance(diagnosis, dict) and diagnosis.get("verdict"):
         row.diagnosis_verdict = str(diagnosis["verdict"])

@@ -137,12 +137,26 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _priors(items: list[str] | None) -> list:
+    """``--prior NAME=normal:MU,SD ...`` parsed (a usage error names the bad one)."""
+    if not items:
+        return []
+    from balancer_id.identify.posterior import parse_prior
+
+    return [parse_prior(item) for item in items]
+
+
 def _write_series(frame, path: Path) -> None:
     """``--series``: per trial, time, measured, simulated and residual, as CSV."""
     from balancer_id.files import atomic_write_text
 
     atomic_write_text(path, frame.to_csv(index=False))
     typer.echo(f"wrote {path}", err=True)
+
+
+def _track_series_path(series: Path) -> Path:
+    """Where ``--series FILE`` puts the tracked parameters: ``FILE-track.csv`` beside it."""
+    return series.with_name(f"{series.stem}-track.csv")
 
 
 def _write_json(obj: object, path: Path) -> None:
@@ -245,8 +259,14 @@ def fit(
         bool, typer.Option("--per-trial", help="Also fit each trial alone.")
     ] = False,
     starts: Annotated[
-        int, typer.Option("--starts", metavar="INTEGER", help="Optimizer starts.")
-    ] = 1,
+        int | None,
+        typer.Option(
+            "--starts",
+            metavar="INTEGER",
+            help="Optimizer starts (default: spread starts where the model has limits, "
+            "friction or delays).",
+        ),
+    ] = None,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Recompute even if this exact run is cached.")
     ] = False,
@@ -289,10 +309,42 @@ def fit(
         ),
     ] = None,
     overwrite: OverwriteOpt = False,
+    track: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--track",
+            metavar="NAME...",
+            help="Track a parameter in time within the session, with a 95 % band "
+            "(repeatable, or NAME,NAME).",
+        ),
+    ] = None,
+    per_log: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--per-log",
+            metavar="NAME...",
+            help="Each log's own value of NAME, the rest shared over all logs; compares "
+            "the sharings (repeatable, or NAME,NAME).",
+        ),
+    ] = None,
     group_by: Annotated[
         str | None,
         typer.Option(
             "--group-by", metavar="TEXT", help="run|log|runs:1-3,4-6: identify each group apart."
+        ),
+    ] = None,
+    posterior: Annotated[
+        bool,
+        typer.Option(
+            "--posterior", help="Also sample the posterior (emcee): credible intervals, corner."
+        ),
+    ] = False,
+    prior: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--prior",
+            metavar="NAME=normal:MU,SD",
+            help="A normal prior for --posterior (repeatable); others uniform in bounds.",
         ),
     ] = None,
     quiet: QuietOpt = False,
@@ -317,15 +369,37 @@ def fit(
 
         fixed = {**held_for_model(params, model, effects_file or ()), **fixed}
 
-    at_least(starts, 1, "--starts")
-    if starts > MAX_STARTS:
+    if starts is not None:
+        at_least(starts, 1, "--starts")
+    if starts is not None and starts > MAX_STARTS:
         raise UsageError(f"--starts {starts}: give at most {MAX_STARTS} starts")
     user_start = assignments(start_values, "--start")
     user_bounds = _bounds(bounds)
     ins = inputs_of(logs, effects_file, trajectory_text)
     if params is not None:
         ins.append(params)
-    check_outputs({"--report": report, "--save": save, "--series": series}, ins, overwrite)
+    tracked = tuple(n.strip() for item in track or [] for n in item.split(",") if n.strip())
+    track_series = _track_series_path(series) if tracked and series is not None else None
+    check_outputs(
+        {
+            "--report": report,
+            "--save": save,
+            "--series": series,
+            "--series (tracked)": track_series,
+        },
+        ins,
+        overwrite,
+    )
+    if group_by is not None and tracked:
+        raise UsageError("--track follows one session's fit: not with --group-by")
+    own = tuple(n.strip() for item in per_log or [] for n in item.split(",") if n.strip())
+    if own and (group_by is not None or tracked or series is not None or report is not None):
+        raise UsageError(
+            "--per-log fits all logs at once: not with --group-by, --track, --series or --report"
+        )
+    priors = _priors(prior)  # issue 34.2: checked before any log is read
+    if group_by is not None and (posterior or priors):
+        raise UsageError("--posterior and --prior are for one fit: not with --group-by")
     if group_by is not None:
         if user_start or user_bounds or save is not None or series is not None:
             raise UsageError(
@@ -353,8 +427,10 @@ def fit(
         starts=starts,
         trajectory=trajectory_text,
         effects_files=tuple(str(p) for p in effects_file or ()),
+        track=tracked,
+        per_log=own,
     )
-    tuned = bool(user_start or user_bounds)
+    tuned = bool(user_start or user_bounds or posterior or priors)
     key = None if (no_cache or tuned) else request.cache_key()
     from balancer_id import cache
 
@@ -366,7 +442,7 @@ def fit(
             from balancer_id.report.document import check_report_path
 
             check_report_path(report, logs)
-        with stage(f"fitting {model or 'variable_viscosity'} ({starts} start(s))"):
+        with stage(f"fitting {model or 'variable_viscosity'} ({starts or 'default'} start(s))"):
             result = run_fit(
                 _load(logs, options, trajectory_text),
                 model=model,
@@ -376,6 +452,10 @@ def fit(
                 n_starts=starts,
                 start=user_start,
                 bounds=user_bounds,
+                track=tracked,
+                per_log=own,
+                posterior=posterior,
+                priors=priors,
             )
         out = result.to_dict()  # a robot pair's advice included (issue 9)
         cache.store(key, out)
@@ -387,9 +467,21 @@ def fit(
             typer.echo(f"wrote {report}", err=True)
         if series is not None:
             _write_series(result.to_frame(), series)
+        if track_series is not None and result.tracking is not None:
+            _write_series(result.tracking.to_frame(), track_series)
     if save is not None:
         _write_json(out, save)
-    _render(out, json_out, "print_fit")
+    _render(out, json_out, "print_per_log" if own else "print_fit")
+    _exit_if_untrusted([out])
+
+
+def _exit_if_untrusted(results: list[Any]) -> None:
+    """Exit :data:`~balancer_id.errors.UNTRUSTED_EXIT_CODE` when any fit printed is not
+    trusted (its output already written: scripts read the reason from it)."""
+    from balancer_id.errors import UNTRUSTED_EXIT_CODE
+
+    if any(isinstance(r, dict) and r.get("trusted") is False for r in results):
+        raise typer.Exit(UNTRUSTED_EXIT_CODE)
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
@@ -406,13 +498,14 @@ def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -
         out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
     if json_out:
         emit_json(out)
-        return
-    from balancer_id.report.terminal import print_fit
+    else:
+        from balancer_id.report.terminal import print_fit
 
-    console = _console()
-    for item in out["groups"]:  # type: ignore[attr-defined]
-        console.print(f"[bold]group {printable(item['group'])}[/bold]")
-        print_fit(console, printable(item))
+        console = _console()
+        for item in out["groups"]:  # type: ignore[attr-defined]
+            console.print(f"[bold]group {printable(item['group'])}[/bold]")
+            print_fit(console, printable(item))
+    _exit_if_untrusted(out["groups"])  # type: ignore[arg-type]
 
 
 @app.command(cls=Command)
@@ -763,6 +856,77 @@ def diagnose(
 
 @app.command(cls=Command)
 @guarded
+def plan(
+    logs: LogsArg,
+    model: ModelOpt = None,
+    param: Annotated[
+        str | None,
+        typer.Option(
+            "--param",
+            metavar="NAME",
+            help="Shrink this parameter's interval ('all': D-optimal; default: the widest).",
+        ),
+    ] = None,
+    count: Annotated[
+        int, typer.Option("--count", metavar="INTEGER", help="Trials to propose.")
+    ] = 3,
+    no_separate: Annotated[
+        bool,
+        typer.Option("--no-separate", help="Skip the diagnosis (competing explanations)."),
+    ] = False,
+    report: Annotated[
+        Path | None,
+        typer.Option("--report", metavar="FILE", help="The fit's report with the plan."),
+    ] = None,
+    posterior: Annotated[
+        bool, typer.Option("--posterior", help="Sample the fit's posterior too (emcee).")
+    ] = False,
+    overwrite: OverwriteOpt = False,
+    fix: FixOpt = None,
+    json_out: JsonOpt = False,
+    effects_file: EffectsFileOpt = None,
+    quiet: QuietOpt = False,
+    thrust: ThrustOpt = None,
+    force_sign: ForceSignOpt = None,
+    vertical: VerticalOpt = "auto",
+    columns: ColumnsOpt = None,
+    g: GOpt = G_DEFAULT,
+    accel_unit: AccelUnitOpt = "auto",
+    window: WindowOpt = None,
+) -> None:
+    """The trials to record next: those that shrink the widest interval most.
+
+    Example: balancer-id plan sample_logs/paper_balancer.csv --param A
+    """
+    from balancer_id.workflows.plan import plan as run_plan
+
+    at_least(count, 1, "--count")
+    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    check_outputs({"--report": report}, inputs_of(logs, effects_file, None), overwrite)
+    if report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(report, logs)
+    with stage("fitting and planning the next trials"):
+        result = run_plan(
+            _load(logs, options, None),
+            model=model,
+            fixed=assignments(fix, "--fix"),
+            effects_files=tuple(str(p) for p in effects_file or ()),
+            param=param,
+            count=count,
+            separate=not no_separate,
+            posterior=posterior,
+        )
+    if report is not None:
+        with stage(f"writing {report}"):
+            result.write_report(report)
+        typer.echo(f"wrote {report}", err=True)
+    _render(result.to_dict(), json_out, "print_plan")
+
+
+@app.command(cls=Command)
+@guarded
 def improve(
     logs: LogsArg,
     start: Annotated[
@@ -936,6 +1100,15 @@ def batch(
             "--report", metavar="FILE", help="FILE.html or FILE.pdf: the fleet view of the logs."
         ),
     ] = None,
+    per_log: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--per-log",
+            metavar="NAME...",
+            help="Then fit the counted logs together: NAME each log's own, the rest "
+            "shared (a fleet of one type); writes OUT/shared_fit.json.",
+        ),
+    ] = None,
     quiet: QuietOpt = False,
     force_sign: ForceSignOpt = None,
     vertical: VerticalOpt = "auto",
@@ -976,13 +1149,31 @@ def batch(
             diagnose=diagnose_logs,
             tick=tick,
         )
+    shared = None
+    own = [n.strip() for item in per_log or [] for n in item.split(",") if n.strip()]
+    if own:
+        from balancer_id.batch.shared import SHARED_NAME, fit_fleet_shared
+
+        with stage(f"fitting the counted logs together ({', '.join(own)} per log)"):
+            shared = fit_fleet_shared(
+                result.rows,
+                out,
+                own,
+                model=model,
+                fixed=assignments(fix, "--fix"),
+                options=options,
+                effects_files=effects_file or (),
+                trajectory=trajectory(trajectory_text),
+            )
+        said = shared.get("error") or f"shared fit: {shared.get('verdict')}"
+        typer.echo(f"{one_line(said)}; wrote {out / SHARED_NAME}", err=True)
     if fleet_report is not None:
         from balancer_id.report.fleet import write_fleet_report
 
-        write_fleet_report(result.rows, fleet_report)
+        write_fleet_report(result.rows, fleet_report, shared)
         typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
-        emit_json(result.to_dict())
+        emit_json({**result.to_dict(), **({"shared_fit": shared} if shared else {})})
     else:
         typer.echo(
             f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",

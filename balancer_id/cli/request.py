@@ -26,12 +26,16 @@ class FitRequest:
         How the logs are read.
     per_trial : bool
         ``--per-trial``.
-    starts : int
-        ``--starts``.
+    starts : int or None
+        ``--starts`` (None: the default search).
     trajectory : str or None
         ``--trajectory`` as given.
     effects_files : tuple of str
         ``--effects-file`` paths.
+    track : tuple of str
+        ``--track`` parameters.
+    per_log : tuple of str
+        ``--per-log`` parameters.
     """
 
     logs: tuple[str, ...]
@@ -39,9 +43,11 @@ class FitRequest:
     fixed: dict[str, float] = field(default_factory=dict)
     options: ReadOptions = field(default_factory=ReadOptions)
     per_trial: bool = False
-    starts: int = 1
+    starts: int | None = None
     trajectory: str | None = None
     effects_files: tuple[str, ...] = ()
+    track: tuple[str, ...] = ()
+    per_log: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, JSON-ready (no field can be left out: they are walked)."""

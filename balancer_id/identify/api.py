@@ -7,11 +7,14 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.identify.basins import scaled_starts
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
+from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
+from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
 from balancer_id.model.registry import Registry
@@ -82,7 +85,8 @@ def from_parameters(
     Raises
     ------
     UsageError
-        A name that is not one of the model's parameters, or a value that is not finite.
+        A name that is not one of the model's parameters, a value that is not finite, or
+        an ``expr`` tie (never dropped in silence).
     """
     import math
 
@@ -94,6 +98,13 @@ def from_parameters(
             raise UsageError(
                 f"params: {name} is not a parameter of '{model.spec}' "
                 f"(its parameters: {', '.join(model.param_names)})"
+            )
+        expr = getattr(p, "expr", None)
+        if expr:  # a tie would be held at its current value in silence: refuse it
+            raise UsageError(
+                f"params: {name} has expr {expr!r} (a tie to other parameters), which the "
+                "fit cannot honour; give it a value with vary=True (fitted) or vary=False "
+                "(held), or choose a model without that parameter"
             )
         value = float(p.value)
         if not math.isfinite(value):
@@ -120,14 +131,19 @@ def fit(
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
     per_trial: bool = False,
-    n_starts: int = 1,
+    n_starts: int | None = None,
     seed: int = 0,
     max_nfev: int = 2000,
     profile: bool = True,
     start: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     params: Any = None,
-) -> FitResult:
+    track: Sequence[str] = (),
+    per_log: Sequence[str] = (),
+    held_out: bool = True,
+    posterior: bool = False,
+    priors: Sequence[Any] = (),
+) -> FitResult | PerLogFit:
     """Identify a balancer from its step trials: the paper's method, then simulation matching.
 
     Parameters
@@ -150,8 +166,10 @@ def fit(
         The robot's reference move (``servo``) when ``trials`` holds paths.
     per_trial : bool
         Also fit each trial alone, so drift with thrust and direction shows.
-    n_starts : int
-        Optimizer starts (see :func:`~balancer_id.identify.matching.match_trials`).
+    n_starts : int or None
+        Optimizer starts (see :func:`~balancer_id.identify.matching.match_trials`);
+        None (default): one from the data, plus spread ones where the model has limits,
+        friction or delays or the first ends suspect (issue 31).
     seed : int
         Seed of the extra starts.
     max_nfev : int
@@ -168,10 +186,29 @@ def fit(
         or a held value (``vary=False``), and its ``min``/``max`` bound the fit where
         they are narrower than the model's own. ``fixed``, ``start`` and ``bounds`` win
         over it. The result's :attr:`~FitResult.params` gives Parameters back.
+    track : sequence of str
+        Parameters to track in time within the session (``--track``): each as a function
+        of time with a 95 % band, in :attr:`FitResult.tracking`
+        (:func:`~balancer_id.identify.tracking.track_parameters`).
+    per_log : sequence of str
+        Parameters each log has its own value of, the rest shared over all logs
+        (``--per-log``): one fit over all logs, compared with everything shared and
+        nothing shared; returns a :class:`~balancer_id.identify.per_log.PerLogFit`.
+    held_out : bool
+        With ``per_log``: also score the sharings on held-out halves of logs.
+    posterior : bool
+        Also sample the posterior of the free parameters with emcee (issue 34.2; tens of
+        seconds): credible intervals beside the Wald and profile ones, convergence
+        figures, and the response band drawn from the samples.
+    priors : sequence of Prior or str
+        Normal priors for the posterior (``"m_a=normal:15,1"`` or
+        :class:`~balancer_id.identify.posterior.Prior`; giving any implies
+        ``posterior``); the others are uniform inside the bounds.
 
     Returns
     -------
-    FitResult
+    FitResult or PerLogFit
+        A :class:`PerLogFit` when ``per_log`` is given.
 
     Raises
     ------
@@ -184,6 +221,22 @@ def fit(
         fixed = {**held, **(fixed or {})}
         start = {**starts, **(start or {})}
         bounds = {**spans, **(bounds or {})}
+    if isinstance(track, str):
+        track = [track]
+    if isinstance(per_log, str):
+        per_log = [per_log]
+    if per_log and track:
+        raise UsageError("--per-log and --track: give one of them")
+    if track:
+        from balancer_id.identify.tracking import check_tracked
+
+        check_tracked(mdl, track, dict(fixed or {}))  # before any log is read
+    for name in per_log:
+        if name not in mdl.param_names:
+            raise UsageError(
+                f"--per-log {name}: not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
@@ -194,13 +247,17 @@ def fit(
     user_start = dict(start or {})
     auto_start, start_notes = fit_start(mdl, data, classic)
     notes: list[Note | str] = [*start_notes]
-    start = {**auto_start, **user_start}
+    start = {**scaled_starts(mdl, data), **auto_start, **user_start}
     for name in [*user_start, *(bounds or {})]:
         if name not in mdl.param_names:
             raise UsageError(
                 f"{name} is not a parameter of '{mdl.spec}' "
                 f"(its parameters: {', '.join(mdl.param_names)})"
             )
+    if per_log:
+        from balancer_id.identify.per_log import fit_per_log
+
+        return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
     if mdl.needs_reference_move and ts.trajectory is not None:
         from balancer_id.segment.move import start_given
 
@@ -238,6 +295,7 @@ def fit(
             "give the stretches where only the measured force acts with --window, or hold "
             "known values with --fix)"
         )
+    match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals
 
@@ -258,6 +316,18 @@ def fit(
                     "the model misfits; its standard error is no uncertainty)"
                 )
             notes.append(Note("fit.other", note, subject=name, severity="info"))
+    tracking = None
+    if track:
+        from balancer_id.identify.tracking import track_parameters
+
+        tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
+    post = None
+    if posterior or priors:  # issue 34.2: only on request (tens of seconds)
+        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+        post = sample_posterior(match, priors=given, seed=seed)
+        notes.extend(post.notes)
     return fit_match(
         match,
         ts,
@@ -266,4 +336,6 @@ def fit(
         effects_files=effects_files,
         warnings=notes,
         per_trial=per_trial,
+        tracking=tracking,
+        posterior=post,
     )

@@ -25,6 +25,8 @@ if TYPE_CHECKING:
     import pandas as pd
     from matplotlib.figure import Figure
 
+    from balancer_id.identify.band import ResponseBand
+
 
 class ShownFit(Protocol):
     """What the display reads of a fit: a
@@ -50,19 +52,33 @@ class ShownFit(Protocol):
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]
 
 
-def match_frame(match: ShownFit) -> pd.DataFrame:
+#: The band columns of :func:`match_frame` (and ``--series``), with the band's arrays.
+BAND_COLUMNS = {
+    "model_low": "model_low",
+    "model_high": "model_high",
+    "noise_low": "noise_low",
+    "noise_high": "noise_high",
+}
+
+
+def match_frame(match: ShownFit, band: ResponseBand | None = None) -> pd.DataFrame:
     """Measured, simulated and residual acceleration of every trial, one row per sample.
 
     Parameters
     ----------
     match : ShownFit
         A simulation-matching fit.
+    band : ResponseBand, optional
+        The fit's 95 % bands on its own trials; their columns are added.
 
     Returns
     -------
     pandas.DataFrame
         Columns ``trial``, ``source``, ``thrust_N``, ``direction``, ``time`` (s),
-        ``measured``, ``simulated``, ``residual`` (m/s^2).
+        ``measured``, ``simulated``, ``residual`` (m/s^2); with a band also
+        ``model_low``, ``model_high`` (the 95 % band of the simulated response from the
+        parameters' uncertainty) and ``noise_low``, ``noise_high`` (that band widened by
+        the noise: where 95 % of the measured samples should fall).
     """
     import pandas as pd
 
@@ -70,23 +86,24 @@ def match_frame(match: ShownFit) -> pd.DataFrame:
     for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
         y, ym = match.y[sl], match.y_model[sl]
         n = len(y)
-        parts.append(
-            pd.DataFrame(
-                {
-                    "trial": np.full(n, td.index),
-                    "source": [td.source] * n,
-                    "thrust_N": np.full(n, td.thrust_N),
-                    "direction": [td.direction] * n,
-                    "time": np.asarray(td.time, dtype=float)[:n],
-                    "measured": y,
-                    "simulated": ym,
-                    "residual": y - ym,
-                }
-            )
-        )
+        cols: dict[str, Any] = {
+            "trial": np.full(n, td.index),
+            "source": [td.source] * n,
+            "thrust_N": np.full(n, td.thrust_N),
+            "direction": [td.direction] * n,
+            "time": np.asarray(td.time, dtype=float)[:n],
+            "measured": y,
+            "simulated": ym,
+            "residual": y - ym,
+        }
+        if band is not None:
+            for col, attr in BAND_COLUMNS.items():
+                cols[col] = np.asarray(getattr(band, attr))[sl]
+        parts.append(pd.DataFrame(cols))
     if not parts:
-        cols = ["trial", "source", "thrust_N", "direction", "time", "measured"]
-        return pd.DataFrame(columns=[*cols, "simulated", "residual"])
+        cols_ = ["trial", "source", "thrust_N", "direction", "time", "measured"]
+        extra = list(BAND_COLUMNS) if band is not None else []
+        return pd.DataFrame(columns=[*cols_, "simulated", "residual", *extra])
     return pd.concat(parts, ignore_index=True)
 
 
@@ -96,7 +113,7 @@ MAX_PLOTTED_TRIALS = 12
 PANELS_PER_ROW = 6
 
 
-def match_plot(match: ShownFit, title: str = "") -> Figure:
+def match_plot(match: ShownFit, title: str = "", band: ResponseBand | None = None) -> Figure:
     """Measured and simulated acceleration of each trial, with its residual below.
 
     One column of two panels per trial (small multiples), each titled by the trial's
@@ -109,6 +126,9 @@ def match_plot(match: ShownFit, title: str = "") -> Figure:
         A simulation-matching fit.
     title : str
         The figure's title.
+    band : ResponseBand, optional
+        The fit's 95 % bands: the model band shaded around the simulation, the noise
+        band as its thin outline.
 
     Returns
     -------
@@ -130,6 +150,18 @@ def match_plot(match: ShownFit, title: str = "") -> Figure:
         t = np.asarray(td.time, dtype=float)[: sl.stop - sl.start] - td.t_step
         ax.plot(t, match.y[sl], color="C0", lw=0.8, alpha=0.7, label="measured")
         ax.plot(t, match.y_model[sl], color="C1", lw=1.4, ls="--", label="simulated")
+        if band is not None:
+            ax.fill_between(
+                t,
+                band.model_low[sl],
+                band.model_high[sl],
+                color="C1",
+                alpha=0.35,
+                lw=0,
+                label="95 % band",
+            )
+            for edge in (band.noise_low[sl], band.noise_high[sl]):
+                ax.plot(t, edge, color="C1", lw=0.5, alpha=0.6)
         ax.set_title(f"trial {td.index}: {td.thrust_N:+.3g} N {td.direction}", fontsize="small")
         ax_r.axhline(0.0, color="0.5", lw=0.6)
         ax_r.plot(t, match.y[sl] - match.y_model[sl], color="C2", lw=0.8)
@@ -327,17 +359,42 @@ class Displayable:
         -------
         matplotlib.figure.Figure
         """
-        return match_plot(self._shown_match(), title)
+        return match_plot(self._shown_match(), title, self.band())
 
     def to_frame(self) -> Any:
         """One row per sample: trial, source, thrust, direction, time, measured, simulated,
-        residual.
+        residual, and the 95 % bands (``model_low``/``model_high``,
+        ``noise_low``/``noise_high``).
 
         Returns
         -------
         pandas.DataFrame
         """
-        return match_frame(self._shown_match())
+        return match_frame(self._shown_match(), self.band())
+
+    def _band_samples(self) -> dict[str, Any]:
+        """Posterior samples to draw the band from (none by default)."""
+        return {}
+
+    def band(self, trials: Sequence[Any] | None = None) -> ResponseBand:
+        """The 95 % bands of the simulated acceleration (issue 34).
+
+        The model band: the parameters' covariance carried through the simulated
+        sensitivities (or the posterior samples' responses, when there are some); the
+        noise band: it widened by the residual's standard deviation.
+
+        Parameters
+        ----------
+        trials : sequence of TrialData, optional
+            Other trials to predict (held-out ones); None: the fit's own.
+
+        Returns
+        -------
+        ResponseBand
+        """
+        from balancer_id.identify.band import response_band
+
+        return response_band(self._shown_match(), trials, **self._band_samples())
 
 
 class CallableText(str):

@@ -169,7 +169,7 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     if spec.min >= 0 and est.value > 0:
         if spec.min > 0:  # 0 is a physical null worth reaching (no viscosity, no friction)
             lo_end = max(spec.min, est.value / PROFILE_FACTOR)
-        hi_end = min(spec.max, est.value * PROFILE_FACTOR)
+        hi_end = min(spec.max, max(est.value, step0) * PROFILE_FACTOR)
 
     def end(side: int) -> tuple[float, bool]:
         bound = lo_end if side < 0 else hi_end
@@ -219,7 +219,7 @@ def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[st
     """
     done = []
     for name, est in match.parameters.items():
-        if not wald_crosses_bound(match, name):
+        if est.not_reached or not wald_crosses_bound(match, name):  # a bound has its own
             continue
         iv = profile_interval(match, name, level)
         est.profile = (iv.low, iv.high)

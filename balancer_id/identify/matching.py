@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.identify import basins
 from balancer_id.identify.data import FitData, TrialData, thrust_levels
 from balancer_id.identify.display import Displayable
 from balancer_id.identify.metrics import correlation_time, error_metrics
@@ -33,6 +34,19 @@ class ParameterEstimate:
     #: The profile-likelihood 95 % interval, where the Wald one crosses a bound
     #: (:func:`~balancer_id.identify.intervals.attach_profile_intervals`).
     profile: tuple[float, float] | None = None
+    #: ``"above"`` (a limit above every value reached) or ``"below"`` (a friction or
+    #: delay below what the data resolve): the estimate is the bound its profile
+    #: interval's inner end gives, not a value (:mod:`~balancer_id.identify.reach`).
+    not_reached: str | None = None
+
+    @property
+    def claim(self) -> str | None:
+        """``">= 3.4"`` or ``"<= 0.02"`` for a parameter not reached, else None."""
+        if self.not_reached is None or self.profile is None:
+            return None
+        if self.not_reached == "above":
+            return f">= {self.profile[0]:.3g}"
+        return f"<= {self.profile[1]:.3g}"
 
     @property
     def wald_ci95(self) -> tuple[float, float] | None:
@@ -63,6 +77,8 @@ class ParameterEstimate:
             "ci95": list(self.ci95) if self.ci95 else None,
             "ci95_method": self.ci95_method,
             "at_bound": self.at_bound,
+            "not_reached": self.not_reached,
+            "claim": self.claim,
         }
 
 
@@ -82,6 +98,8 @@ class MatchResult(Displayable):
     message: str
     nfev: int
     warnings: list[Note | str] = field(default_factory=list)
+    #: The distinct optima of a multi-start fit, best first (empty for one start).
+    optima: list[basins.Optimum] = field(default_factory=list)
 
     def _shown_match(self) -> MatchResult:
         return self
@@ -477,7 +495,7 @@ def match_trials(
     *,
     start: Mapping[str, float] | None = None,
     fixed: Mapping[str, float] | None = None,
-    n_starts: int = 1,
+    n_starts: int | None = 1,
     seed: int = 0,
     max_nfev: int = 2000,
     diff_step: float | None = None,
@@ -495,9 +513,13 @@ def match_trials(
         Start values (the paper's method gives ``m_a`` and ``T_a``).
     fixed : mapping, optional
         Parameters held at the given values (``--fix``).
-    n_starts : int
-        Starts in all; the extra ones are drawn around ``start`` (seeded) and the lowest
-        cost wins, for costs with more than one minimum.
+    n_starts : int or None
+        Starts in all; the extra ones are spread around ``start``
+        (:func:`~balancer_id.identify.basins.spread_starts`) and the lowest cost wins,
+        for costs with more than one minimum. None: the default search, one start plus
+        :data:`~balancer_id.identify.basins.DEFAULT_SPREAD` spread ones where the model
+        has limits, friction or delays, or where the first ends on a bound it did not
+        choose or undetermined.
     seed : int
         Seed of the extra starts.
     max_nfev : int
@@ -536,8 +558,10 @@ def match_trials(
                     "fit.not_identifiable",
                     f"{name} is only identifiable from trials at two or more thrust levels "
                     f"(found {len(levels)}: {', '.join(f'{x:g} N' for x in levels)}); "
-                    f"held at {value:g}",
+                    f"held at {value:g}, a guess: the values it trades with (D0) are no "
+                    "identification; give --fix with a known value or record more levels",
                     subject=name,
+                    severity="error",
                 )
             )
     values = dict(start or {})
@@ -584,14 +608,13 @@ def match_trials(
             f"model '{model.spec}' gives a non-finite acceleration at its start values; "
             "check the effects' terms (a user effect returning NaN or inf?)"
         )
+    free_names = [names[i] for i in free]
+    auto = n_starts is None
+    spread = basins.DEFAULT_SPREAD if auto and basins.wants_spread(model, free_names) else 0
+    count = spread if auto else max(int(n_starts or 1), 1) - 1
     starts = [base[free]]
-    rng = np.random.default_rng(seed) if n_starts > 1 else None
-    for _ in range(max(n_starts, 1) - 1):
-        assert rng is not None
-        x = base[free].copy()
-        for j in range(x.size):
-            x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else rng.normal(0.0, 0.1)
-        starts.append(np.clip(x, lo, hi))
+    starts += basins.spread_starts(model, free_names, base[free], lo, hi, count, trials, seed)
+    mirrored = not auto
 
     stopped: list[np.ndarray] = []
 
@@ -608,7 +631,22 @@ def match_trials(
     if not free:
         r = problem.residual(base[free])
         best = _Outcome(base[free], r, np.zeros((0, 0)), True, "no free parameter", 1)
-    for k, x0 in enumerate(starts if free else [], 1):
+    k = 0
+    while free:
+        if k == len(starts) and not mirrored and best is not None:
+            mirrored = True  # the lag and the viscous time swapped answer a step alike
+            mirror = basins.mirror_start(model, free_names, best.x, trials)
+            if mirror is not None:
+                starts.append(basins.inside(mirror, lo, hi))
+        if k == len(starts):
+            if not (auto and not spread and _suspect(problem, best, free_names)):
+                break
+            spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
+            starts += basins.spread_starts(
+                model, free_names, base[free], lo, hi, spread, trials, seed
+            )
+        x0 = starts[k]
+        k += 1
         if len(starts) > 1:
             tell(f"start {k}/{len(starts)}")
         used = problem.nfev
@@ -663,10 +701,53 @@ def match_trials(
         )
     best.nfev = problem.nfev
     result = _collect(model, best, problem, data, notes)
-    disagreement = _starts_disagree(result, best, ends, [model.param_names[i] for i in free])
+    disagreement = _starts_disagree(result, best, ends, free_names)
     if disagreement is not None:
         result.warnings.insert(0, disagreement)
+    if len(ends) > 1:
+        stderr = [result.parameters[n].stderr or np.nan for n in free_names]
+        result.optima = basins.distinct_optima(
+            [(e.x, e.chisqr) for e in ends], free_names, stderr, result.y.size
+        )
+        if len(result.optima) > 1:
+            result.warnings.append(_optima_note(result.optima, len(ends)))
     return result
+
+
+def _suspect(problem: _Problem, out: _Outcome | None, free_names: list[str]) -> bool:
+    """Whether a start's end may be the wrong basin: a parameter on a bound the user did
+    not set (other than a drive lag at the samples' floor), or one whose standard error
+    exceeds its value."""
+    if out is None:
+        return True
+    for j, name in enumerate(free_names):
+        side = _at_bound(float(out.x[j]), float(problem.lo[j]), float(problem.hi[j]))
+        if side and name not in problem.user_bounds and not (
+            side == "min" and name in problem.model.drive_lag_names
+        ):
+            return True
+    cov = _covariance(out)
+    if cov is None:
+        return True
+    se = np.sqrt(np.abs(np.diag(cov)))
+    return bool(np.any(~np.isfinite(se) | (se > np.abs(out.x))))
+
+
+def _optima_note(optima: list[basins.Optimum], n_starts: int) -> Note:
+    """The distinct optima the starts ended at, best first, with their costs."""
+    best = optima[0]
+    others = "; ".join(
+        ", ".join(f"{k} {v:.4g}" for k, v in list(o.values.items())[:3])
+        + f" (cost +{o.delta_sigma2:.3g} noise variances)"
+        for o in optima[1:4]
+    )
+    lead = ", ".join(f"{k} {v:.4g}" for k, v in list(best.values.items())[:3])
+    return Note(
+        "fit.optima",
+        f"{n_starts} starts ended at {len(optima)} distinct optima: the best ({lead}) is "
+        f"reported; the others: {others}",
+        severity="info",
+    )
 
 
 def _starts_disagree(
@@ -745,8 +826,40 @@ def _at_bound(value: float, lo: float, hi: float) -> str | None:
     return None
 
 
-def _bound_note(model: Model, name: str, value: float, side: str, problem: _Problem) -> Note:
-    """What a parameter at a bound means: below resolution, absent, chosen, or untrusted."""
+#: A parameter on its physical limit (0) whose unconstrained estimate lies more than this
+#: many standard errors past it is held there against the data, not "none of it".
+PULL_PAST_LIMIT = 3.0
+
+
+def _pull_past(problem: _Problem, out: _Outcome, j: int, tau: float) -> float:
+    """How many standard errors past its bound the ``j``-th free parameter's
+    unconstrained Gauss-Newton estimate lies (its step over its standard error, signed
+    away from the bound: positive means the data would take it further)."""
+    try:
+        problem.fun(out.x)
+        jac, fun = problem._jac, problem._fun
+        with np.errstate(all="ignore"):
+            hess = jac.T @ jac
+            step = -np.linalg.solve(hess, jac.T @ fun)
+            n, k = out.residual.size, len(problem.free)
+            var = np.linalg.inv(hess)[j, j] * out.chisqr / max(n - k, 1) * max(tau, 1.0)
+    except (np.linalg.LinAlgError, ValueError):
+        return 0.0
+    if not (np.isfinite(var) and var > 0 and np.isfinite(step[j])):
+        return 0.0
+    side = -1.0 if out.x[j] - problem.lo[j] <= problem.hi[j] - out.x[j] else 1.0
+    return float(side * step[j] / np.sqrt(var))
+
+
+def _bound_note(
+    model: Model, name: str, value: float, side: str, problem: _Problem, pull: float = 0.0
+) -> Note:
+    """What a parameter at a bound means: below resolution, absent, chosen, or untrusted.
+
+    ``pull`` is :func:`_pull_past`: a parameter on its physical limit that the data would
+    take more than :data:`PULL_PAST_LIMIT` standard errors further is held there against
+    them (a wrong basin, or a force the model lacks), not absent.
+    """
     spec = model.param(name)
     where = f"{name} = {value:.4g} {spec.unit}"
     if name in problem.user_bounds:
@@ -758,6 +871,16 @@ def _bound_note(model: Model, name: str, value: float, side: str, problem: _Prob
         )
     if side == "min" and name in model.drive_lag_names and problem.lag_floor > 0:
         return _unresolved_lag_note(name, value, problem.lag_floor)
+    if side == "min" and spec.min == 0.0 and pull > PULL_PAST_LIMIT:
+        return Note(
+            "fit.at_bound",
+            f"{name} = 0 {spec.unit} is held at its physical limit against the data (they "
+            f"would take it {pull:.0f} standard errors below 0): the model cannot follow "
+            "these trials at this optimum (another basin, or a force the model lacks); "
+            "this fit cannot be trusted: try --starts 8, or 'balancer-id diagnose'",
+            subject=name,
+            severity="error",
+        )
     if side == "min" and spec.min == 0.0:
         return Note(
             "fit.at_bound",
@@ -865,7 +988,8 @@ def _collect(
             spec.name, value, stderr, spec.unit, vary, at_bound
         )
         if at_bound:
-            notes.append(_bound_note(model, spec.name, value, at_bound, problem))
+            pull = _pull_past(problem, out, problem.free.index(i), tau)
+            notes.append(_bound_note(model, spec.name, value, at_bound, problem, pull))
         elif vary and spec.name in model.drive_lag_names and value < 2 * problem.lag_floor:
             notes.append(_unresolved_lag_note(spec.name, value, problem.lag_floor))
     poorly = [
@@ -874,7 +998,8 @@ def _collect(
         if e.vary
         and e.at_bound is None
         and (e.stderr is None or not np.isfinite(e.stderr) or e.stderr > abs(e.value))
-    ]
+        and not (e.name in model.drive_lag_names and e.value < 2 * problem.lag_floor)
+    ]  # a lag below one sample interval is a bound (fit.below_resolution), not a value
     if poorly:
         notes.append(
             Note(
@@ -883,6 +1008,18 @@ def _collect(
                 "the value or undefined); fix them with --fix NAME=VALUE or add trials that "
                 "excite them",
                 subject=poorly[0] if len(poorly) == 1 else None,
+                severity="error",
+            )
+        )
+    fit_percent = float(metrics.get("nrmse_fit_percent", np.nan))
+    if n_free and np.isfinite(fit_percent) and fit_percent < 0:
+        notes.append(
+            Note(
+                "fit.worse_than_mean",
+                f"fit {fit_percent:.1f} %: the model follows the acceleration worse than its "
+                "mean does, so its values describe nothing measured; check the trials with "
+                "'balancer-id inspect --plot' and the model with 'balancer-id diagnose'",
+                severity="error",
             )
         )
     strong = sorted(

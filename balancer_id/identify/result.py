@@ -28,6 +28,7 @@ from balancer_id.trials import TrialSet
 
 if TYPE_CHECKING:
     from balancer_id.identify.advice import Advice
+    from balancer_id.identify.posterior import Posterior
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
@@ -56,10 +57,15 @@ class FitResult(Displayable):
         Per-trial refits, once computed (:meth:`per_trial_fits`).
     include_per_trial : bool
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
+    tracking : Tracking or None
+        Parameters tracked in time within the session (``fit --track``, issue 33).
     warnings : list of Note
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
         The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
+    posterior : Posterior or None
+        Posterior samples of the free parameters (``fit(..., posterior=True)``,
+        ``fit --posterior``); the band is then drawn from them.
 
     Notes
     -----
@@ -80,6 +86,8 @@ class FitResult(Displayable):
     per_trial: list[PerTrialFit] = field(default_factory=list)
     include_per_trial: bool = False
     warnings: list[Note | str] = field(default_factory=list)
+    tracking: Any = None
+    posterior: Posterior | None = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
@@ -106,6 +114,17 @@ class FitResult(Displayable):
     def _summary_warnings(self) -> list[str]:
         return texts(self.all_notes)
 
+    def _band_samples(self) -> dict[str, Any]:
+        if self.posterior is None:
+            return {}
+        return {"samples": self.posterior.samples, "sample_names": self.posterior.names}
+
+    def _summary_extra(self) -> list[str]:
+        lines = self.tracking.lines() if self.tracking is not None else []
+        if self.posterior is not None:
+            lines += self.posterior.lines()
+        return lines
+
     @property
     def all_notes(self) -> list[Note | str]:
         """The fit's notes, those that make it untrusted first (then in order)."""
@@ -117,8 +136,25 @@ class FitResult(Displayable):
     @property
     def trusted(self) -> bool:
         """False when a note says the fit cannot be trusted (a bound the data did not
-        choose, starts that disagree): the values are then no identification."""
-        return not any(isinstance(n, Note) and n.severity == "error" for n in self.all_notes)
+        choose, starts that disagree, a parameter the data cannot determine, a fit below
+        0 %): the values are then no identification."""
+        return not self.untrusted_because
+
+    @property
+    def untrusted_because(self) -> list[str]:
+        """Why the fit is not trusted: the texts of its ``error`` notes (empty: trusted)."""
+        return [n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"]
+
+    @property
+    def stuck(self) -> bool:
+        """Whether a parameter ended on a bound the data did not choose, or the starts
+        ended at different optima: the fit's point itself is no optimum to build on."""
+        return any(
+            isinstance(n, Note)
+            and n.severity == "error"
+            and n.code in ("fit.at_bound", "fit.starts_disagree")
+            for n in self.all_notes
+        )
 
     @property
     def model(self) -> str:
@@ -300,15 +336,18 @@ class FitResult(Displayable):
             "warnings": texts(self.all_notes),
             "notes": notes_json([*self.all_notes, *sampling]),
             "trusted": self.trusted,
-            "untrusted_because": [
-                n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"
-            ],
+            "untrusted_because": self.untrusted_because,
+            "optima": [o.to_dict() for o in self.match.optima],
         }
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()
             out["advice"] = self.advice.to_dict() if self.advice is not None else None
         if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
+        if self.tracking is not None:
+            out["tracking"] = self.tracking.to_dict()
+        if self.posterior is not None:
+            out["posterior"] = self.posterior.to_dict()
         return json_ready(out)
 
 
@@ -349,6 +388,8 @@ def fit_match(
     effects_files: Sequence[str | Path] = (),
     warnings: Sequence[Note | str] = (),
     per_trial: bool = False,
+    tracking: Any = None,
+    posterior: Posterior | None = None,
 ) -> FitResult:
     """A :class:`FitResult` around a ready simulation-matching fit.
 
@@ -372,6 +413,10 @@ def fit_match(
         Notes of the identification around the fit (a string becomes ``fit.other``).
     per_trial : bool
         Fit each trial alone now and show the fits in :meth:`FitResult.to_dict`.
+    tracking : Tracking, optional
+        Parameters tracked in time (``fit --track``).
+    posterior : Posterior, optional
+        Posterior samples of the fit (:func:`~balancer_id.identify.posterior.sample_posterior`).
 
     Returns
     -------
@@ -387,6 +432,8 @@ def fit_match(
         coupling=robot_coupling(match.model, match.values(), [t.input for t in match.data.trials]),
         include_per_trial=per_trial,
         warnings=list(warnings),
+        tracking=tracking,
+        posterior=posterior,
     )
     if per_trial:
         result.per_trial_fits()

@@ -14,7 +14,7 @@ warning says so.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,13 +23,21 @@ from balancer_id.constants import FORCE_RANGE_N
 from balancer_id.errors import LogReadError
 from balancer_id.notes import Note
 from balancer_id.read.header import TIME_UNITS
+from balancer_id.read.inference import Inference
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Recording
 from balancer_id.read.resample import onto_times
 from balancer_id.read.table import Table
-from balancer_id.read.timebase import TimeBase, to_seconds
+from balancer_id.read.timebase import TimeBase, time_inference, to_seconds
 from balancer_id.read.units import UnitMismatch, resolve_accel
-from balancer_id.read.validate import check_time, count_saturated, find_gaps, sample_rate
+from balancer_id.read.validate import (
+    check_time,
+    count_saturated,
+    find_gaps,
+    pinned_extremes,
+    repeat_factor,
+    sample_rate,
+)
 
 #: Force and acceleration of one run share a time base when this share of rows is common.
 COMMON_SHARE = 0.75
@@ -56,6 +64,7 @@ def build_recordings(
     *,
     accel_unit: str,
     g: float,
+    inferences: list[Inference] | None = None,
 ) -> tuple[list[Recording], list[str | Note]]:
     """Build the recordings of a log.
 
@@ -73,6 +82,9 @@ def build_recordings(
         ``"auto"``, ``"m/s^2"`` or ``"g"``.
     g : float
         Gravity (m/s^2).
+    inferences : list of Inference, optional
+        Filled with each run's decisions (time unit, acceleration unit, gravity) and
+        their evidence.
 
     Returns
     -------
@@ -89,6 +101,7 @@ def build_recordings(
     """
     recordings: list[Recording] = []
     warnings: list[str | Note] = []
+    said_list: list[Inference] = inferences if inferences is not None else []
     stated: set[str] = set()
     warnings.extend(table.notes)
     for col, (line, cell) in table.dropped.items():
@@ -121,11 +134,13 @@ def build_recordings(
             stated.add(said)
             subject = header[plan.time]
             warnings.append(Note("read.time_unit", said, subject=subject, severity="info"))
+        said_list.append(time_inference(base, header[plan.time], plan.name))
         force_time = time
         if plan.force_time is not None:
             force_time = table.columns[plan.force_time] * plan.force_time_scale
             if base.started_at is not None:
                 force_time = force_time - base.started_at
+        _refuse_untimed(path, plan, table, header, time, force_time)
         sets, notes = _channel_sets(plan, table, time, force_time)
         warnings.extend(f"{plan.name}: {note}" for note in notes)
         sets, restarts = _split_restarts(sets, time, table, plan.name)
@@ -143,6 +158,7 @@ def build_recordings(
                 g=g,
                 force_time=force_time,
                 time_unit=base.unit,
+                inferences=said_list,
             )
             warnings.extend(rec_warnings)
             if rec is not None:
@@ -228,6 +244,45 @@ def _split_restarts(
     return out, notes
 
 
+#: A channel with more than this share of its values without a time is on another clock.
+UNTIMED_SHARE = 0.5
+
+
+def _refuse_untimed(
+    path: Path,
+    plan: RunPlan,
+    table: Table,
+    header: list[str],
+    time: np.ndarray,
+    force_time: np.ndarray,
+) -> None:
+    """Refuse a channel most of whose values have no time: it runs on another clock.
+
+    Cutting the run to the rows with a time (a photogate's event rows) would drop most
+    of the channel's samples and report the events' spacing as its rate.
+    """
+    channels = [(plan.force, force_time)] if plan.force is not None else []
+    channels += [(c, time) for c in plan.accel[:1]]
+    for col, clock in channels:
+        values = np.isfinite(table.columns[col])
+        n = int(np.count_nonzero(values))
+        timed = int(np.count_nonzero(values & np.isfinite(clock)))
+        if n >= MIN_BLOCK and n - timed > UNTIMED_SHARE * n:
+            column = header[
+                plan.force_time if col == plan.force and plan.force_time is not None else plan.time
+            ]
+            raise LogReadError(
+                path,
+                f"{plan.name}: '{header[col]}' has {n} values but only {timed} of them a time "
+                f"in '{column}': the channels run on clocks of their own (event-timed rows "
+                "beside sampled ones?); cutting the run to the timed rows would drop "
+                f"{100 * (n - timed) / n:.0f} % of the samples",
+                column=header[col],
+                hint="export each sensor with its own time column, or give the channel's own "
+                "time with --columns time=...",
+            )
+
+
 def _channel_sets(
     plan: RunPlan, table: Table, time: np.ndarray, force_time: np.ndarray
 ) -> tuple[list[_ChannelSet], list[str]]:
@@ -246,7 +301,14 @@ def _channel_sets(
         timed["acceleration"] = ok & has_time
     counts = {k: int(np.count_nonzero(m)) for k, m in timed.items()}
     for key in [k for k, n in counts.items() if n == 0]:
-        notes.append(f"the {key} column is empty; ignored")
+        untimed = int(np.count_nonzero(masks[key]))
+        if untimed:
+            notes.append(
+                f"the {key} column has {untimed} value(s) but none on a row with a time "
+                "(a clock of its own?); ignored"
+            )
+        else:
+            notes.append(f"the {key} column is empty; ignored")
         del masks[key], counts[key], timed[key]
     if masks:
         no_time = sum(int(np.count_nonzero(masks[k] & ~timed[k])) for k in masks)
@@ -277,6 +339,7 @@ def _build_one(
     g: float,
     force_time: np.ndarray,
     time_unit: str = "s",
+    inferences: list[Inference] | None = None,
 ) -> tuple[Recording | None, list[str | Note]]:
     warnings: list[str | Note] = []
     count = int(np.count_nonzero(chosen.rows))
@@ -313,18 +376,21 @@ def _build_one(
     if chosen.accel and plan.accel:
         raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
         try:
-            accel, includes_gravity, said = resolve_accel(
+            accel, includes_gravity, said, decided = resolve_accel(
                 raw,
                 header_unit=plan.accel_unit,
                 includes_gravity=plan.includes_gravity,
                 accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
                 g=g,
+                gravity_given=plan.gravity_given,
             )
+            if inferences is not None:
+                inferences.extend(replace(d, run=name) for d in decided)
         except UnitMismatch as exc:
             hint = exc.hint
-            if exc.counts_per_g is not None:
+            if exc.spec:
                 hint = "give the scale in the column map: --columns " + _counts_map(
-                    plan, header, exc.counts_per_g
+                    plan, header, exc.spec, exc.counts_per_g is not None
                 )
             raise LogReadError(
                 path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
@@ -372,6 +438,36 @@ def _build_one(
                 subject=name,
             )
         )
+    elif accel is not None:
+        pinned = pinned_extremes(accel)
+        if pinned:
+            saturated["accel"] = sum(p[2] for p in pinned)
+            axes = plan.accel_axes
+            where = "; ".join(
+                f"{samples} on {axes[j] if j < len(axes) else j} at {value:.4g} m/s^2 "
+                f"({value / g:+.3g} g, {runs} runs)"
+                for j, value, samples, runs in pinned
+            )
+            warnings.append(
+                Note(
+                    "read.sensor_limit",
+                    f"{name}: acceleration pinned at one extreme value in runs of equal "
+                    f"samples ({where}): the sensor's range was reached, those samples are "
+                    "clipped",
+                    subject=name,
+                )
+            )
+    repeats = repeat_factor(accel if accel is not None else force if force is not None else time)
+    if repeats > 1:
+        warnings.append(
+            Note(
+                "read.rate",
+                f"{name}: every value is repeated {repeats} times in a row: the sensor ran at "
+                f"1/{repeats} of the export's {rate:.4g} Hz ({rate / repeats:.4g} Hz); the "
+                "repeats carry no new information",
+                subject=name,
+            )
+        )
     rec = Recording(
         name=name,
         time=time,
@@ -408,16 +504,15 @@ def _rate_note(name: str, rate: float, column: str, unit: str) -> Note:
     return Note("read.rate", text, subject=name)
 
 
-def _counts_map(plan: RunPlan, header: list[str], per_g: int) -> str:
-    """The ``--columns`` value that reads raw counts at ``per_g`` counts per g."""
+def _counts_map(plan: RunPlan, header: list[str], spec: str, counts: bool) -> str:
+    """The ``--columns`` value that reads the acceleration with the scale ``spec``."""
     roles = ["a"] if len(plan.accel) == 1 else [f"a{axis}" for axis in plan.accel_axes]
     parts = [f"time={header[plan.time]}"]
     if plan.force is not None:
         parts.append(f"force={header[plan.force]}")
-    parts += [
-        f"{role}={header[col]}:counts/{per_g}g" for role, col in zip(roles, plan.accel, strict=True)
-    ]
-    return ",".join(parts) + "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
+    parts += [f"{role}={header[col]}:{spec}" for role, col in zip(roles, plan.accel, strict=True)]
+    tail = "; counts per g follow the sensor's range: 16384 at ±2 g, 8192 at ±4 g"
+    return ",".join(parts) + (tail if counts else "")
 
 
 def _force_onto_accel(
@@ -439,6 +534,16 @@ def _force_onto_accel(
     t_accel = time_all[idx]
     if fidx.size < 2:
         return None, idx, "the force has fewer than 2 samples; left out"
+    if t_accel.size and (t_force[-1] < t_accel[0] or t_accel[-1] < t_force[0]):
+        raise LogReadError(
+            path,
+            f"{plan.name}: the force's clock ({t_force[0]:.4g}-{t_force[-1]:.4g} s in "
+            f"'{column}') and the acceleration's ({t_accel[0]:.4g}-{t_accel[-1]:.4g} s in "
+            f"'{header[plan.time]}') do not overlap: channels on disjoint clocks cannot be "
+            "joined",
+            column=column,
+            hint="export both sensors on one clock, or read each with --columns",
+        )
     res = onto_times(t_force, force_all[fidx], t_accel)
     how = (
         "averaged over each acceleration sample period (low-pass)"

@@ -14,27 +14,27 @@ from pathlib import Path
 import numpy as np
 
 from balancer_id.errors import LogReadError, UsageError
-from balancer_id.read.header import ACCEL_WORDS, FORCE_WORDS, TIME_WORDS, Column, split_name
-from balancer_id.read.plan import RunPlan, set_time_unit
+from balancer_id.read.header import Column, name_tokens
+from balancer_id.read.plan import RunPlan, plan_from_columns, plans_by_time, set_time_unit
 from balancer_id.read.timebase import canonical
 
 #: Keys a column map may use.
-MAP_KEYS = ("time", "force", "ax", "ay", "az", "a")
+MAP_KEYS = ("time", "force", "ax", "ay", "az", "a", "gravity")
+#: Values of the map's ``gravity`` entry: does the acceleration include gravity?
+_GRAVITY_VALUES = {
+    "yes": True,
+    "no": False,
+    "true": True,
+    "false": False,
+    "with": True,
+    "without": False,
+}
 #: Name of the single run of a generic log.
 RUN_NAME = "Run 1"
 #: What to tell a user whose columns cannot be found.
 COLUMNS_HINT = "pass --columns time=...,force=...,ax=...,ay=...,az=... (or a=... for one axis)"
 
 _MAX_LISTED = 20
-_TIME_TOKENS = TIME_WORDS | {"sec", "secs", "seconds", "elapsed", "zeit_s"}
-_FORCE_TOKENS = {*FORCE_WORDS, "f", "load", "fz"}
-_ACCEL_TOKENS = {*ACCEL_WORDS, "a", "acc", "accel", "accelerometer", "acceleration", "accz"}
-_AXIS_TOKENS = {"ax": "x", "ay": "y", "az": "z", "accx": "x", "accy": "y", "accz": "z"}
-
-
-def _tokens(name: str) -> list[str]:
-    name = re.sub(r"([a-z])([A-Z])", r"\1 \2", name)
-    return [t for t in re.split(r"[^\w²^]+|_", name.lower()) if t]
 
 
 def listed_columns(columns: list[Column]) -> str:
@@ -165,7 +165,8 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     columns : list of Column
         The classified header.
     mapping : dict
-        Role -> column name (with an optional ``:SPEC``); roles are :data:`MAP_KEYS`.
+        Role -> column name (with an optional ``:SPEC``); roles are :data:`MAP_KEYS`
+        (``gravity=yes|no`` says whether the acceleration includes gravity).
 
     Returns
     -------
@@ -194,6 +195,9 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
         raise UsageError("the column map gives both a and ax/ay/az; give one or the other")
     if "force" not in roles and "a" not in roles and not axes:
         raise UsageError("the column map needs force=NAME or acceleration (ax=,ay=,az= or a=)")
+    gravity = roles.pop("gravity", None)
+    if gravity is not None and str(gravity).strip().lower() not in _GRAVITY_VALUES:
+        raise UsageError("--columns gravity=...: give yes (gravity in the values) or no")
     found: dict[str, Column] = {}
     specs: dict[str, tuple[str, float, float]] = {}
     for role, name in roles.items():
@@ -221,6 +225,9 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
         plan.accel_axes = tuple(k[1] for k in axes)
         accel_roles = list(axes)
     _set_accel(plan, accel_cols)
+    if gravity is not None:
+        plan.includes_gravity = _GRAVITY_VALUES[str(gravity).strip().lower()]
+        plan.gravity_given = True
     given = [specs[r] for r in accel_roles if r in specs]
     if given:
         if len(given) != len(accel_roles) or len({u for u, _, _ in given}) != 1:
@@ -239,25 +246,31 @@ def _set_accel(plan: RunPlan, cols: list[Column]) -> None:
     plan.accel = tuple(c.index for c in cols)
     if not cols:
         return
-    units = {_unit_of(c) for c in cols}
+    units = {c.accel_unit for c in cols}
     plan.accel_unit = units.pop() if len(units) == 1 else ""
     if any(c.linear for c in cols):
         plan.includes_gravity = False
 
 
-def _unit_of(col: Column) -> str:
-    if col.accel_unit:
-        return col.accel_unit
-    tokens = _tokens(col.raw)
-    if tokens and tokens[-1] == "g":
-        return "g"
-    if tokens and tokens[-1] in ("ms2", "mps2"):
-        return "m/s^2"
-    return ""
+#: Words in a time column's name that make it the run's time rather than a clock.
+_ELAPSED_WORDS = frozenset({"elapsed", "relative", "rel", "since", "start"})
+
+
+def _run_time(times: list[Column]) -> Column:
+    """The time column of a run: one counted from the start when the file has several."""
+    for col in times:
+        if set(name_tokens(col.quantity)) & _ELAPSED_WORDS:
+            return col
+    return times[0]
 
 
 def guess_plan(columns: list[Column]) -> list[RunPlan]:
-    """Guess time, force and acceleration from the column names.
+    """Plan a file no layout claims from its classified columns.
+
+    The columns' kinds come from :func:`~balancer_id.read.header.classify`, the one
+    column recognition every layout uses; the run is built by
+    :func:`~balancer_id.read.plan.plan_from_columns` as for every layout (axis
+    families grouped by their axis letter whatever their naming).
 
     Parameters
     ----------
@@ -270,60 +283,31 @@ def guess_plan(columns: list[Column]) -> list[RunPlan]:
         One plan, or an empty list when no time column or neither force nor acceleration
         can be recognised.
     """
-    time = force = None
-    axes: dict[str, Column] = {}
-    single = None
-    for col in columns:
-        quantity = split_name(col.raw)[0]
-        tokens = _tokens(quantity) or _tokens(col.raw)
-        if not tokens:
-            continue
-        if time is None and (col.kind == "time" or tokens[0] in _TIME_TOKENS):
-            time = col
-            continue
-        if col.kind in ("ignore", "gyro", "datetime"):
-            continue
-        if force is None and (col.kind == "force" or any(t in _FORCE_TOKENS for t in tokens)):
-            force = col
-            continue
-        axis = _accel_axis(col, tokens)
-        if axis and axis not in axes:
-            axes[axis] = col
-        elif axis == "" and single is None:
-            single = col
-    if time is None or (force is None and not axes and single is None):
+    times = [c for c in columns if c.kind == "time"]
+    if not times:
         return []
-    plan = RunPlan(name=RUN_NAME, time=time.index)
-    set_time_unit(plan, time)
-    if force is not None:
-        plan.force = force.index
-    if len(axes) == 3:
-        plan.accel_axes = ("x", "y", "z")
-        _set_accel(plan, [axes[a] for a in plan.accel_axes])
-    elif single is not None:
-        plan.accel_axes = ("z",)
-        _set_accel(plan, [single])
-    elif len(axes) == 1:
-        (axis, col), *_ = axes.items()
-        plan.accel_axes = (axis,)
-        _set_accel(plan, [col])
-    plan.guessed = True
-    return [plan] if plan.has_signal else []
+    if _own_clocks(columns, times):
+        plans = plans_by_time(RUN_NAME, columns)
+    else:
+        time = _run_time(times)
+        members = [c for c in columns if c.kind not in ("time", "datetime", "ignore")]
+        plans = [plan_from_columns(RUN_NAME, time, members)]
+    for plan in plans:
+        plan.extra = {}  # a generic log keeps time, force and acceleration
+        plan.guessed = True
+    return [p for p in plans if p.has_signal]
 
 
-def _accel_axis(col: Column, tokens: list[str]) -> str | None:
-    """Return the axis of an acceleration column, ``""`` for one without axis, else None."""
-    if col.kind == "accel" and (col.axis or not any(t in ("x", "y", "z") for t in tokens[1:])):
-        return col.axis
-    if len(tokens) == 1 and tokens[0] in _AXIS_TOKENS:
-        return _AXIS_TOKENS[tokens[0]]
-    if tokens[0] in _ACCEL_TOKENS or any(t.startswith("accel") for t in tokens):
-        rest = [t for t in tokens[1:] if t in ("x", "y", "z")]
-        if rest:
-            return rest[0]
-        if len(tokens) == 1 or all(t in ("g", "ms2", "mps2", "m", "s", "s2") for t in tokens[1:]):
-            return ""
-    return None
+def _own_clocks(columns: list[Column], times: list[Column]) -> bool:
+    """True when measurement columns follow more than one time column (each its clock)."""
+    followed = 0
+    current = None
+    for col in columns:
+        if col.kind == "time":
+            current = col
+        elif col.kind in ("force", "accel") and current is not None:
+            followed |= 1 << times.index(current)
+    return bin(followed).count("1") > 1
 
 
 def no_columns_error(path: Path, columns: list[Column], what: str) -> LogReadError:

@@ -21,21 +21,50 @@ _RUN_ONLY = re.compile(r"^(?P<q>.*?)\s+(?P<r>Run\s*#?\s*\d+)$", re.IGNORECASE)
 _DATETIME = re.compile(r"^(date\s*(and|&)\s*time|date/time|datetime|date|clock time)\b", re.I)
 
 TIME_WORDS = frozenset(
-    {"time", "t", "zeit", "tiempo", "czas", "temps", "tempo", "tijd", "timestamp", "elapsed time"}
+    {
+        "time",
+        "t",
+        "zeit",
+        "tiempo",
+        "czas",
+        "temps",
+        "tempo",
+        "tijd",
+        "tid",
+        "aika",
+        "время",
+        "timestamp",
+        "elapsed time",
+    }
 )
-FORCE_WORDS = ("force", "kraft", "fuerza", "siła", "sila", "forza")
+FORCE_WORDS = ("force", "kraft", "fuerza", "siła", "sila", "forza", "força", "kracht", "сила")
 ACCEL_WORDS = (
     "accel",
     "beschleunigung",
     "aceleración",
     "aceleracion",
+    "aceleração",
+    "aceleracao",
     "przyspieszenie",
     "accélération",
     "acceleration",
     "accelerazione",
+    "versnelling",
+    "acceleratie",
+    "acceleración",
+    "ускорение",
+    "ivme",
 )
 #: Words that mark a magnitude column (|a|), which the readers ignore.
-MAGNITUDE_WORDS = ("resultant", "absolute", "magnitude", "norm", "total", "betrag")
+MAGNITUDE_WORDS = (
+    "resultant",
+    "absolu",
+    "magnitude",
+    "norm",
+    "total",
+    "betrag",
+    "bezwzgl",
+)
 GYRO_WORDS = ("gyro", "angular velocity", "rotation rate")
 
 _ACCEL_UNITS = {
@@ -49,6 +78,8 @@ _ACCEL_UNITS = {
     "m/sec^2": "m/s^2",
     "g": "g",
 }
+#: Unit words that may end an acceleration column's name (``acc_x_g``).
+_NAME_ACCEL_UNITS = {"g": "g", "ms2": "m/s^2", "mps2": "m/s^2", "m/s²": "m/s^2"}
 #: Time units -> factor to seconds (headers, column names and the column map).
 TIME_UNITS = {
     "s": 1.0,
@@ -68,9 +99,6 @@ TIME_UNITS = {
 }
 _TIME_UNITS = TIME_UNITS
 _GYRO_UNITS = ("rad/s", "deg/s", "°/s", "dps")
-_AXIS = re.compile(r"(?:^|[\s\-_:,(])([xyz])(?:[\s\-_]?axis)?$")
-#: Vernier's ``X-axis acceleration``: the axis first.
-_AXIS_FIRST = re.compile(r"^([xyz])[\s\-_]?axis\b")
 
 
 @dataclass(frozen=True)
@@ -113,8 +141,15 @@ class Column:
 
     @property
     def accel_unit(self) -> str:
-        """Normalised acceleration unit, ``"m/s^2"``, ``"g"`` or ``""`` when unknown."""
-        return normalize_accel_unit(self.unit)
+        """Normalised acceleration unit, ``"m/s^2"``, ``"g"`` or ``""`` when unknown.
+
+        From the unit in parentheses, else from a unit word ending the name
+        (``acc_x_g``, ``AccX_ms2``).
+        """
+        if self.unit:
+            return normalize_accel_unit(self.unit)
+        last = name_tokens(self.quantity)[-1:]
+        return _NAME_ACCEL_UNITS.get(last[0], "") if last else ""
 
     @property
     def time_scale(self) -> float:
@@ -181,8 +216,108 @@ def _has_word(text: str, words: tuple[str, ...] | frozenset[str]) -> bool:
     return any(w in text for w in words)
 
 
+def name_tokens(text: str) -> list[str]:
+    """Split a column name into lower-case words, whatever the separator or naming.
+
+    ``"AccelerationX"`` -> ``["acceleration", "x"]``, ``"acc_x"`` -> ``["acc", "x"]``,
+    ``"Time sec"`` -> ``["time", "sec"]``, ``"Linear Acceleration x"`` ->
+    ``["linear", "acceleration", "x"]``.
+
+    Parameters
+    ----------
+    text : str
+        The name (without its unit and run).
+
+    Returns
+    -------
+    list of str
+        The words, in order.
+    """
+    text = re.sub(r"([a-zà-ÿ])([A-Z])", r"\1 \2", text)
+    return [t for t in re.split(r"[^\w²^µμ]+|_", text.lower()) if t]
+
+
+#: Words (whole tokens) that name a time column.
+TIME_TOKENS = TIME_WORDS | {
+    "sec",
+    "secs",
+    "seconds",
+    "elapsed",
+    "timestamp",
+    "timestamps",
+    "millis",
+    "micros",
+    "nanos",
+    "msec",
+}
+#: Words (whole tokens) that name a force column.
+FORCE_TOKENS = frozenset({*FORCE_WORDS, "f", "load", "fz", "loadcell"})
+#: A token that names an acceleration axis by itself: ``ax``, ``accX``, ``accelz``.
+_AXIS_TOKEN = re.compile(r"^(?:a|acc|accel|acceleration)([xyz])$")
+#: A g-force column (``gFx``, ``g-force z``, ``TgF`` its total): acceleration in g.
+_G_FORCE = re.compile(r"^(t)?g-?f(?:orce)?[-_]?([xyz])?$")
+#: Words that mark the gravity vector of a phone (iOS ``gravityX``): not an acceleration.
+GRAVITY_WORDS = frozenset({"gravity", "grav", "schwerkraft"})
+#: Words that mark an acceleration without gravity (phyphox, iOS ``userAcceleration``).
+LINEAR_WORDS = frozenset(
+    {
+        "linear",
+        "lin",
+        "user",
+        "linacc",
+        "lineare",
+        "lineal",
+        "linéaire",
+        "lineaire",
+        "liniowe",
+        "lineair",
+        "linear_acceleration",
+    }
+)
+_FORCE_UNITS = ("n", "kn", "mn", "lbf", "kgf", "")
+
+
+def _is_accel_word(token: str) -> bool:
+    """``acc``, ``accel...``, ``accx`` or a word of :data:`ACCEL_WORDS` (not ``accuracy``)."""
+    return (
+        token in ("acc", "accs")
+        or _AXIS_TOKEN.match(token) is not None
+        or _has_word(token, ACCEL_WORDS)
+    )
+
+
+def _axis_of(tokens: list[str]) -> str:
+    """The axis a name's words give (``x``, ``y``, ``z``), ``""`` when none."""
+    for token in tokens:
+        if token in ("x", "y", "z"):
+            return token
+        found = _AXIS_TOKEN.match(token)
+        if found:
+            return found.group(1)
+    return ""
+
+
+def _time_like(tokens: list[str], unit: str) -> bool:
+    """True for a time column's name: a time word, the rest time words or units."""
+    if not tokens or not (unit in TIME_UNITS or unit == ""):
+        return False
+    words = set(tokens)
+    if not words & TIME_TOKENS:
+        return False
+    if unit:  # a time word and a time unit: "accelerometerTimestamp_sinceReboot (s)"
+        return True
+    allowed = TIME_TOKENS | set(TIME_UNITS) | {"since", "start", "relative", "rel", "run"}
+    return tokens[0] in TIME_TOKENS or words <= allowed
+
+
 def classify(index: int, raw: str) -> Column:
-    """Parse and classify one header cell.
+    """Parse and classify one header cell: the one column recognition of every layout.
+
+    The name is split into words whatever its separator or naming (``AccelerationX``,
+    ``acc_x``, ``Acceleration - x``, ``X-axis acceleration``); the words and the unit
+    suggest what the column holds. Names only suggest: the units and whether gravity is
+    included are decided from the values (:mod:`~balancer_id.read.units`,
+    :mod:`~balancer_id.read.timebase`).
 
     Parameters
     ----------
@@ -200,24 +335,43 @@ def classify(index: int, raw: str) -> Column:
     quantity, unit, run = split_name(raw)
     q = quantity.lower().strip()
     u = unit.strip().lower()
+    tokens = name_tokens(quantity)
+    words = set(tokens)
     kind = "other"
     axis = ""
     linear = False
     accel_unit = normalize_accel_unit(unit)
+    gforce = _G_FORCE.match(q.replace(" ", ""))
+    if gforce and (not u or accel_unit == "g"):  # Physics Toolbox's gFx, gFy, gFz, TgF
+        total = gforce.group(1) == "t" or not gforce.group(2)
+        kind = "ignore" if total else "accel"
+        axis = "" if total else gforce.group(2)
+        return Column(index, raw, quantity, unit or "g", run, kind, axis, False)
     if _DATETIME.match(q):
         kind = "datetime"
-    elif q in TIME_WORDS and (u in _TIME_UNITS or u == ""):
+    elif (q in TIME_WORDS and (u in _TIME_UNITS or u == "")) or _time_like(tokens, u):
         kind = "time"
-    elif _has_word(q, FORCE_WORDS) and u in ("n", ""):
+    elif (words & FORCE_TOKENS or _has_word(q, FORCE_WORDS)) and u in _FORCE_UNITS:
         kind = "force"
-    elif _has_word(q, GYRO_WORDS) or u in _GYRO_UNITS:
+    elif _has_word(q, GYRO_WORDS) or u in _GYRO_UNITS or "rotation" in words:
         kind = "gyro"
-    elif _has_word(q, ACCEL_WORDS) or (q in ("x", "y", "z") and accel_unit == "m/s^2"):
-        kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) else "accel"
-        linear = "linear" in q
+    elif words & GRAVITY_WORDS:
+        kind = "other"
+    elif (
+        any(_is_accel_word(t) for t in tokens)
+        or _has_word(q, ACCEL_WORDS)
+        or (len(tokens) == 1 and _AXIS_TOKEN.match(tokens[0]) is not None)
+        or (tokens in (["x"], ["y"], ["z"]) and accel_unit != "")
+        or (
+            tokens[:1] == ["a"]
+            and (accel_unit or not u)
+            and (len(tokens) == 1 or _axis_of(tokens[1:]) != "")
+        )
+    ):
+        kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) or "abs" in words else "accel"
+        linear = bool(words & LINEAR_WORDS)
     if kind in ("accel", "gyro"):
-        found = _AXIS.search(q) or _AXIS_FIRST.search(q)
-        axis = found.group(1) if found else ""
+        axis = _axis_of(tokens)
     return Column(index, raw, quantity, unit, run, kind, axis, linear)
 
 

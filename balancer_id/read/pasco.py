@@ -12,11 +12,12 @@ import re
 from pathlib import Path
 
 from balancer_id.errors import LogReadError
-from balancer_id.read.header import TIME_UNITS, Column
-from balancer_id.read.plan import RunPlan, plan_from_columns
+from balancer_id.read.header import Column
+from balancer_id.read.plan import RunPlan, join_rates, plan_from_columns
 
 _SHARED_RUNS = ("", "auto")
-_CAPSTONE_RUN = re.compile(r"^run\s*#\s*\d+$", re.IGNORECASE)
+#: Capstone's run suffix in any language: ``Run #1``, ``Lauf #1``, ``Ejecución #1``.
+_CAPSTONE_RUN = re.compile(r"^[^\W\d_]+\s*#\s*\d+$", re.IGNORECASE)
 _SPARKVUE_RUN = re.compile(r"^run\s+\d+$", re.IGNORECASE)
 
 
@@ -33,17 +34,15 @@ def looks_like_pasco(columns: list[Column]) -> str | None:
     str or None
         ``"pasco-sparkvue"``, ``"pasco-capstone"`` or None when the header is not PASCO's.
     """
-    kinds = {c.kind for c in columns}
-    if "datetime" in kinds and "time" in kinds:
-        return "pasco-sparkvue"
     runs = [c.run for c in columns if c.run]
+    dated = [c for c in columns if c.kind == "datetime"]
+    timed = any(c.kind == "time" and c.run for c in columns)
+    if dated and timed and any(c.run for c in dated):  # "Date and Time Run 1", "Time (s) Run 1"
+        return "pasco-sparkvue"
     if any(_CAPSTONE_RUN.match(r) for r in runs) or any(r.lower() == "auto" for r in runs):
         return "pasco-capstone"
     if any(_SPARKVUE_RUN.match(r) for r in runs):
         return "pasco-sparkvue"
-    units = " ".join(c.unit for c in columns)
-    if "²" in units and "time" in kinds:
-        return "pasco-capstone"
     return None
 
 
@@ -116,7 +115,7 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
     for key, by_time in groups.items():
         name = _run_name(key, groups)
         run_plans = [plan_from_columns(name, by_index[t], cols) for t, cols in by_time.items()]
-        run_plans = _join_rates([p for p in run_plans if p.has_signal])
+        run_plans = join_rates([p for p in run_plans if p.has_signal])
         for k, plan in enumerate(run_plans[1:], start=2):
             if plan.force is not None and not plan.accel:
                 plan.name = f"{name} (force)"
@@ -126,27 +125,6 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
                 plan.name = f"{name} ({k})"
         plans.extend(run_plans)
     return plans
-
-
-def _join_rates(plans: list[RunPlan]) -> list[RunPlan]:
-    """Join a force-only plan into the acceleration-only plan of the same run."""
-    force = next((p for p in plans if p.force is not None and not p.accel), None)
-    accel = next((p for p in plans if p.accel and p.force is None), None)
-    if force is None or accel is None:
-        return plans
-    accel.force, accel.force_time, accel.force_time_scale = (
-        force.force,
-        force.time,
-        TIME_UNITS.get(force.time_unit, 1.0),
-    )
-    accel.notes.extend(force.notes)
-    if force.extra:
-        accel.notes.append(
-            "channel(s) "
-            + ", ".join(f"'{k}'" for k in force.extra)
-            + " on the force's time column ignored"
-        )
-    return [p for p in plans if p is not force]
 
 
 def _run_name(key: str, members: dict[str, dict[int, list[Column]]]) -> str:

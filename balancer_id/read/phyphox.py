@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from balancer_id.read.header import ACCEL_WORDS, Column
-from balancer_id.read.plan import RunPlan, plan_from_columns
+from balancer_id.read.plan import RunPlan, plan_from_columns, plans_by_time
 
 #: Name of phyphox's single run.
 RUN_NAME = "Run 1"
@@ -64,5 +64,7 @@ def plan_phyphox(path: Path, columns: list[Column]) -> list[RunPlan]:
     with_g: bool | None = True if named else None
     if not named and "linear" in path.stem.lower():
         with_g = False
+    if any(c.kind == "time" for c in columns[1:]):  # channels under time columns of their own
+        return plans_by_time(RUN_NAME, columns, with_gravity_name=with_g)
     plan = plan_from_columns(RUN_NAME, time, members, with_gravity_name=with_g)
     return [plan] if plan.has_signal else []

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from balancer_id.read.header import Column
+from balancer_id.read.header import TIME_UNITS, Column
 from balancer_id.read.timebase import unit_of_column
 
 _AXES = ("x", "y", "z")
@@ -51,6 +51,9 @@ class RunPlan:
     accel_unit_given : bool
         True when the column map gave the acceleration's unit: it is then taken as
         forced (checked against the resting magnitude, never guessed).
+    gravity_given : bool
+        True when the column map said whether the acceleration includes gravity
+        (``gravity=yes|no``): never overruled by the data.
     scales : dict
         Column index -> ``(factor, offset)`` from the column map: value = raw * factor +
         offset, in the unit of ``time_unit``/``accel_unit`` (N for force).
@@ -80,6 +83,7 @@ class RunPlan:
     time_unit: str = ""
     time_unit_from: str = ""
     accel_unit_given: bool = False
+    gravity_given: bool = False
     scales: dict[int, tuple[float, float]] = field(default_factory=dict)
     clock: int | None = None
     clock_start: float | None = None
@@ -178,6 +182,9 @@ def plan_from_columns(
     if chosen:
         units = {c.accel_unit for c in chosen}
         plan.accel_unit = units.pop() if len(units) == 1 else ""
+        if all(c.unit.strip().lower() == "mg" for c in chosen):  # thousandths of g
+            plan.accel_unit = "g"
+            plan.scales.update({c.index: (1e-3, 0.0) for c in chosen})
         if any(c.linear for c in chosen):
             plan.includes_gravity = False
         elif with_gravity_name is not None and len(chosen) == 3:
@@ -203,3 +210,85 @@ def _unique(existing: dict[str, int], label: str) -> str:
     while key in existing:
         key, n = f"{label} #{n}", n + 1
     return key
+
+
+def plans_by_time(
+    name: str, columns: list[Column], *, with_gravity_name: bool | None = None
+) -> list[RunPlan]:
+    """Plan one run whose channels may sit under time columns of their own.
+
+    Each measurement column takes the time column that comes last before it (the
+    first time column when none does): a force on its own clock beside an event-timed
+    photogate, or sensors at different rates, each keep their own time. A force-only
+    plan is joined to the acceleration-only plan (the force brought onto the
+    acceleration's times, :func:`join_rates`); other groups with a force or an
+    acceleration make runs of their own (``"<name> (2)"``).
+
+    Parameters
+    ----------
+    name : str
+        The run's name.
+    columns : list of Column
+        Its columns, time columns included, in file order.
+    with_gravity_name : bool, optional
+        Passed to :func:`plan_from_columns`.
+
+    Returns
+    -------
+    list of RunPlan
+        The plans with a force or an acceleration (empty when none has one).
+    """
+    times = [c for c in columns if c.kind == "time"]
+    if not times:
+        return []
+    groups: dict[int, list[Column]] = {}
+    current = times[0]
+    for col in columns:
+        if col.kind == "time":
+            current = col
+            continue
+        if col.kind in ("datetime", "ignore"):
+            continue
+        groups.setdefault(current.index, []).append(col)
+    by_index = {c.index: c for c in times}
+    plans = [
+        plan_from_columns(name, by_index[t], cols, with_gravity_name=with_gravity_name)
+        for t, cols in groups.items()
+    ]
+    plans = join_rates([p for p in plans if p.has_signal])
+    for k, plan in enumerate(plans[1:], start=2):
+        plan.name = f"{name} ({k})"
+    return plans
+
+
+def join_rates(plans: list[RunPlan]) -> list[RunPlan]:
+    """Join a force-only plan into the acceleration-only plan of the same run.
+
+    Parameters
+    ----------
+    plans : list of RunPlan
+        The plans of one run, one per time column.
+
+    Returns
+    -------
+    list of RunPlan
+        The plans, the force-only one folded into the acceleration-only one (its force
+        and the force's own time column, :attr:`RunPlan.force_time`).
+    """
+    force = next((p for p in plans if p.force is not None and not p.accel), None)
+    accel = next((p for p in plans if p.accel and p.force is None), None)
+    if force is None or accel is None:
+        return plans
+    accel.force, accel.force_time, accel.force_time_scale = (
+        force.force,
+        force.time,
+        TIME_UNITS.get(force.time_unit, 1.0),
+    )
+    accel.notes.extend(force.notes)
+    if force.extra:
+        accel.notes.append(
+            "channel(s) "
+            + ", ".join(f"'{k}'" for k in force.extra)
+            + " on the force's time column ignored"
+        )
+    return [p for p in plans if p is not force]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,12 +12,14 @@ from balancer_id.constants import G_DEFAULT
 from balancer_id.errors import LogReadError
 from balancer_id.notes import Note, as_note, texts
 from balancer_id.read.assemble import build_recordings
+from balancer_id.read.evidence import columns_inference, layout_inference
 from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
 from balancer_id.read.header import Column, classify_header
 from balancer_id.read.layouts import detect_layout
 from balancer_id.read.orientation import orientations, turned_note_text
 from balancer_id.read.plan import RunPlan
 from balancer_id.read.recording import Log
+from balancer_id.read.scale import refuse_headerless, refuse_no_scale
 from balancer_id.read.sniff import Sniffed, sniff
 from balancer_id.read.table import Table, read_table
 from balancer_id.read.timebase import first_wall_clock
@@ -31,7 +34,6 @@ NOTES_ONLY = frozenset({"read.column_guess"})
 SIGNAL_BOUND = 1e6
 
 
-
 def _rows_with_a_value(table: Table) -> int:
     """Rows of the table with a number in at least one of its columns."""
     if not table.columns:
@@ -44,6 +46,7 @@ def _rows_with_a_value(table: Table) -> int:
 
 #: Fewer data rows than this hold no run (no rate, no rest, no step).
 MIN_ROWS_OF_A_RUN = 3
+
 
 def read_log(
     path: str | os.PathLike[str],
@@ -94,8 +97,19 @@ def read_log(
     """
     accel_unit = check_accel_unit(accel_unit)
     sniffed = sniff(path, max_bytes)
+    refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
+    if (
+        fmt == "phyphox"
+        and any(p.force is not None for p in plans)
+        and not _phyphox_numbers(sniffed)
+    ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
+        fmt = "generic"
+    elif fmt == "generic" and not columns and _phyphox_like(header, sniffed):
+        fmt = "phyphox"  # another phyphox experiment (Elevator: 'Acceleration (m/s²)')
+    inferences = [layout_inference(fmt, header, columns)]
+    inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
     _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
@@ -109,9 +123,16 @@ def read_log(
                 factor, offset = plan.scales.get(col, (1.0, 0.0))
                 limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
     table = read_table(sniffed, wanted, optional, limits)
+    refuse_no_scale(sniffed, plans, table)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(
-            sniffed.path, plans, table, sniffed.header, accel_unit=accel_unit, g=g
+            sniffed.path,
+            plans,
+            table,
+            sniffed.header,
+            accel_unit=accel_unit,
+            g=g,
+            inferences=inferences,
         )
     if not recordings:
         n_filled = _rows_with_a_value(table)
@@ -125,7 +146,7 @@ def read_log(
             )
         raise LogReadError(
             sniffed.path,
-            "no usable data rows: every run's time, force and acceleration cells are blank",
+            "no usable data rows: " + _blank_cause(plans, table, sniffed.header),
             line=sniffed.header_line + 1,
             hint="check that the export includes the measurements",
         )
@@ -141,6 +162,44 @@ def read_log(
         recordings=recordings,
         warnings=texts(n for n in found if n.code not in NOTES_ONLY),
         notes=found,
+        inferences=inferences,
+    )
+
+
+_PHYPHOX_NUMBER = re.compile(rb"-?\d[.,]\d{9}E[-+]?\d+")
+
+
+def _phyphox_numbers(sniffed: Sniffed) -> bool:
+    """True when the first data line's numbers are written as phyphox writes them."""
+    end = sniffed.data.find(b"\n", sniffed.data_start)
+    line = sniffed.data[sniffed.data_start : end if end >= 0 else None]
+    return _PHYPHOX_NUMBER.search(line) is not None
+
+
+def _blank_cause(plans: list[RunPlan], table: Table, header: list[str]) -> str:
+    """Why no run has a row: the columns are blank, or their filled rows never meet."""
+    for plan in plans:
+        signals = [c for c in (plan.force, *plan.accel[:1]) if c is not None]
+        time = np.isfinite(table.columns[plan.time])
+        for col in signals:
+            values = np.isfinite(table.columns[col])
+            if time.any() and values.any() and not (time & values).any():
+                return (
+                    f"'{header[plan.time]}' ({int(time.sum())} values) and "
+                    f"'{header[col]}' ({int(values.sum())} values) are never filled on the "
+                    "same row: channels on clocks of their own"
+                )
+    return "every run's time, force and acceleration cells are blank"
+
+
+def _phyphox_like(header: list[Column], sniffed: Sniffed) -> bool:
+    """A header phyphox writes (time first, no runs, no force) over phyphox's numbers."""
+    return (
+        bool(header)
+        and header[0].kind == "time"
+        and not any(c.run for c in header)
+        and not any(c.kind == "force" for c in header)
+        and _phyphox_numbers(sniffed)
     )
 
 

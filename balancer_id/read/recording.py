@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from balancer_id.notes import Note
+from balancer_id.read.inference import Inference
 
 #: The layouts a reader may report (CONTRACT.md, ``inspect --json`` ``format``).
 FORMATS = (
@@ -117,6 +118,10 @@ class Log:
         Run name -> how its vertical was found, once the log was segmented:
         ``{"vertical": "+z, 12 deg off", "vertical_sign_known": bool,
         "vertical_axis_known": bool}`` (``inspect`` shows it with or without trials).
+    inferences : list of Inference
+        What the reader decided that the file does not state outright (layout, columns,
+        time unit, acceleration unit, gravity), each with its evidence and the option
+        that overrides it (:mod:`~balancer_id.read.inference`).
     """
 
     path: Path
@@ -125,6 +130,7 @@ class Log:
     warnings: list[str] = field(default_factory=list)
     notes: list[Note] = field(default_factory=list)
     verticals: dict[str, dict[str, object]] = field(default_factory=dict)
+    inferences: list[Inference] = field(default_factory=list)
     #: True once the runs' force, acceleration and extra channels were released
     #: (:meth:`without_channels`).
     channels_released: bool = False
@@ -147,9 +153,7 @@ class Log:
         Log
             A new log; this one is unchanged.
         """
-        runs = [
-            dataclasses.replace(r, force=None, accel=None, extra={}) for r in self.recordings
-        ]
+        runs = [dataclasses.replace(r, force=None, accel=None, extra={}) for r in self.recordings]
         return dataclasses.replace(self, recordings=runs, channels_released=True)
 
     @property

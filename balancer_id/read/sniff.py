@@ -478,8 +478,14 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
             "every line of the file is one quoted field (re-saved by a spreadsheet); "
             "the quotes around each line were removed",
         )
-    # The header is the first line that is not blank.
-    start = 0
+    # The header is the first line that is not blank (after metadata lines, if any).
+    start, skipped = _after_preamble(data)
+    if skipped:
+        notes = (
+            *notes,
+            f"{len(skipped)} line(s) before the header skipped as metadata "
+            f"({'; '.join(repr(x[:40]) for x in skipped[:3])})",
+        )
     while True:
         end = data.find(b"\n", start)
         line_end = len(data) if end < 0 else end
@@ -547,6 +553,52 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
         cut_last=cut_last,
         notes=notes,
     )
+
+
+_CELL_NUMBER = re.compile(r"^[+-]?(?:\d+[.,]?\d*|[.,]\d+)(?:[eE][+-]?\d+)?$")
+#: Lines looked at for metadata above the header.
+_PREAMBLE_LINES = 40
+
+
+_MISSING = frozenset({"nan", "-nan", "na", "n/a", "null", "none", "-", "inf", "-inf"})
+
+
+def _numeric_row(cells: list[str]) -> bool:
+    filled = [c.strip().strip('"') for c in cells if c.strip().strip('"')]
+    filled = [c for c in filled if c.lower() not in _MISSING]
+    return len(cells) >= 2 and (
+        sum(bool(_CELL_NUMBER.match(c)) for c in filled) > 0.5 * len(filled) or not filled
+    )
+
+
+def _after_preamble(data: bytes) -> tuple[int, list[str]]:
+    """Offset of the header line, past metadata lines above it, and the lines skipped.
+
+    The header is the first line that is not a numeric row and has as many cells as the
+    numeric rows that follow it (an app's "Device: ...", "Rate: 100 Hz" lines above the
+    table are skipped). When no line fits, the first non-blank line is the header.
+    """
+    text = data[: 1 << 16].decode("utf-8", "replace")
+    lines = text.split("\n")[:_PREAMBLE_LINES]
+    offsets, pos = [], 0
+    for line in lines:
+        offsets.append(pos)
+        pos += len(line.encode("utf-8")) + 1
+    kept = [(k, ln.strip("\r")) for k, ln in enumerate(lines) if ln.strip()]
+    for j in range(len(kept) - 2):
+        k, line = kept[j]
+        if any(_numeric_row(_fields(line, d)) for d in _DELIMITERS):
+            return 0, []  # the data begin: no header after them
+        for delimiter in _DELIMITERS:
+            cells = _fields(line, delimiter)
+            if len(cells) < 2:
+                continue
+            rows = [_fields(kept[j + m][1], delimiter) for m in (1, 2)]
+            if all(len(r) == len(cells) and _numeric_row(r) for r in rows):
+                if j == 0:
+                    return 0, []
+                return offsets[k], [ln for _, ln in kept[:j]]
+    return 0, []
 
 
 def _rows_quoted_whole(data: bytes) -> bool:

@@ -48,6 +48,9 @@ class Table:
     notes : list of str
         What was done to the numbers (a cut last line dropped, values beyond the column's
         bound or infinite treated as missing).
+    beyond : dict
+        Header index -> the column as read, for columns with values beyond their bound
+        (the reader names values at no physical scale from them).
     """
 
     columns: dict[int, np.ndarray]
@@ -55,6 +58,7 @@ class Table:
     first_line: int
     dropped: dict[int, tuple[int, str]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    beyond: dict[int, np.ndarray] = field(default_factory=dict)
 
     def line_of(self, row: int | np.integer) -> int:
         """Return the file line number of data row ``row``.
@@ -238,6 +242,7 @@ def _finish(sniffed: Sniffed, table: Table, limits: dict[int, float]) -> Table:
             bad = np.abs(values) > bound  # NaN compares False; inf is beyond any bound
         n_bad = int(np.count_nonzero(bad))
         if n_bad:
+            table.beyond[col] = values.copy()  # as read: the size of values at no scale
             first = int(np.argmax(bad))
             table.notes.append(
                 f"column '{sniffed.header[col]}': {n_bad} value(s) infinite or beyond "

@@ -26,6 +26,7 @@ from datetime import UTC, datetime
 import numpy as np
 
 from balancer_id.read.header import TIME_UNITS, Column
+from balancer_id.read.inference import Inference
 
 #: A time beyond this (s) counts from 1970: a clock time, not a time since the start.
 EPOCH_MIN_S = 1e8
@@ -74,6 +75,8 @@ def unit_of_column(col: Column) -> tuple[str, str]:
     for word in reversed(words[1:] if len(words) > 1 else []):
         if word.lower() in TIME_UNITS:
             return canonical(word), "name"
+    if len(words) == 1 and words[0].lower() in ("millis", "micros", "nanos", "msec"):
+        return canonical(words[0]), "name"  # Arduino's millis()
     return "", ""
 
 
@@ -94,6 +97,10 @@ class TimeBase:
         For a clock time, the first sample's time in seconds since 1970 (UTC).
     clock : str
         The column ``started_at`` was read from when it is not the time column.
+    stated : str
+        The unit the header or name stated when the spacing overruled it (``"s"``).
+    spacing : float
+        The median step between samples as read (in ``unit``).
     """
 
     seconds: np.ndarray
@@ -101,6 +108,8 @@ class TimeBase:
     source: str
     started_at: float | None = None
     clock: str = ""
+    stated: str = ""
+    spacing: float = float("nan")
 
     def note(self, column: str) -> str | None:
         """The ``read.time_unit`` sentence, or None when the time is plain seconds.
@@ -123,8 +132,14 @@ class TimeBase:
             "name": "from the column's name",
             "values": "from the size of its values",
             "default": "no unit stated",
+            "spacing": f"from its spacing: whole numbers {self.spacing:.4g} apart",
         }[self.source]
         text = f"time column '{column}' read in {self.unit} ({where})"
+        if self.stated:
+            text += (
+                f"; the header says {self.stated}, but {self.spacing:.4g} s apart would be "
+                f"{1.0 / self.spacing:.3g} Hz, no force or acceleration log's rate"
+            )
         if self.started_at is not None:
             stamp = datetime.fromtimestamp(self.started_at, tz=UTC)
             if self.clock:
@@ -163,12 +178,120 @@ def to_seconds(raw: np.ndarray, unit: str = "", source: str = "") -> TimeBase:
         unit, source = next(((u, "values") for bound, u in _VALUE_UNITS if top > bound), ("s", ""))
         source = source or "default"
     unit = canonical(unit)
+    stated = ""
+    if source in ("header", "name", "default") and unit == "s":
+        by_spacing = unit_from_spacing(finite)
+        if by_spacing is not None:
+            stated = "s" if source != "default" else ""
+            unit, source = by_spacing, "spacing"
     scale = TIME_UNITS.get(unit, 1.0)
     if finite.size and EPOCH_MIN_S < float(np.min(finite)) * scale < EPOCH_MAX_S:
         first = float(finite[0])
-        return TimeBase((raw - first) * scale, unit, source, started_at=first * scale)
+        return TimeBase(
+            (raw - first) * scale,
+            unit,
+            source,
+            started_at=first * scale,
+            stated=stated,
+            spacing=_spacing(finite),
+        )
     seconds = raw if scale == 1.0 else raw * scale
-    return TimeBase(seconds, unit, source)
+    return TimeBase(seconds, unit, source, stated=stated, spacing=_spacing(finite))
+
+
+#: A log's rate lies in this range (Hz); the spacing of a time in s beyond it is checked.
+RATE_RANGE_HZ = (1.0, 100_000.0)
+
+
+def _spacing(finite: np.ndarray) -> float:
+    """The median step between successive finite times (NaN with fewer than 2)."""
+    if finite.size < 2:
+        return float("nan")
+    steps = np.diff(finite[:200_000])
+    steps = steps[steps > 0]
+    return float(np.median(steps)) if steps.size else float("nan")
+
+
+def unit_from_spacing(finite: np.ndarray) -> str | None:
+    """The unit of a time read as seconds whose spacing says it is not in seconds.
+
+    Whole numbers spaced more than a second apart (below 1 Hz in s: no force or
+    acceleration log) are a counter in ms, µs or ns: the unit that brings the rate
+    nearest 100 Hz within 1 Hz-100 kHz is taken.
+
+    Parameters
+    ----------
+    finite : numpy.ndarray
+        The time column's finite values as read.
+
+    Returns
+    -------
+    str or None
+        ``"ms"``, ``"us"`` or ``"ns"``; None when seconds fit (or nothing fits better).
+    """
+    step = _spacing(finite)
+    if not np.isfinite(step) or step <= 1.0:
+        return None
+    head = finite[:10_000]
+    if not np.all(head == np.round(head)):
+        return None
+    if EPOCH_MIN_S < float(np.min(finite)) < EPOCH_MAX_S:  # a clock in whole seconds
+        return None
+    low, high = RATE_RANGE_HZ
+    options = [
+        (abs(np.log10(1.0 / (step * scale)) - 2.0), u)
+        for u, scale in (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9))
+        if low <= 1.0 / (step * scale) <= high
+    ]
+    return min(options)[1] if options else None
+
+
+def time_inference(base: TimeBase, column: str, run: str) -> Inference:
+    """The ``time unit`` inference of a run: the unit, what it rests on, how to override.
+
+    Parameters
+    ----------
+    base : TimeBase
+        The converted time column.
+    column : str
+        Its name as written.
+    run : str
+        The run.
+
+    Returns
+    -------
+    Inference
+        E.g. ``time unit: ms (whole numbers 5 apart: 0.2 Hz in s, 200 Hz in ms; ...)``.
+    """
+    where = {
+        "map": "given in the column map",
+        "layout": "the export's layout states it",
+        "header": "the header states it",
+        "name": "the column's name states it",
+        "values": "the size of its values (a clock time)",
+        "default": "no unit stated",
+        "spacing": "from its spacing",
+    }[base.source]
+    step = base.spacing
+    evidence = where
+    if np.isfinite(step) and step > 0:
+        rate = 1.0 / (step * TIME_UNITS.get(base.unit, 1.0))
+        evidence += f"; samples {step:.4g} apart: {rate:.4g} Hz"
+        if base.source == "spacing":
+            evidence += f" in {base.unit}, {1.0 / step:.3g} Hz in s"
+            if base.stated:
+                evidence += f"; the header says {base.stated}, which its spacing contradicts"
+    if base.started_at is not None:
+        evidence += "; a clock time, counted from the first sample"
+    low, high = RATE_RANGE_HZ
+    rate_ok = (
+        np.isfinite(step)
+        and step > 0
+        and low <= 1.0 / (step * TIME_UNITS.get(base.unit, 1.0)) <= high
+    )
+    weak = base.source == "default" and not rate_ok
+    override = "" if base.source == "map" else f"--columns time={column}:<s|ms|us|ns>,..."
+    return Inference("time unit", base.unit, evidence, override, weak=weak, run=run)
 
 
 #: Wall-clock formats of a date-and-time column (SPARKvue writes the first).

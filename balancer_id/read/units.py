@@ -28,10 +28,13 @@ Plausibility (the resting magnitude against the unit and ``g``), never fitted si
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from balancer_id.errors import UsageError
 from balancer_id.notes import Note
+from balancer_id.read.inference import Inference
 
 #: Values ``accel_unit`` accepts.
 ACCEL_UNITS = ("auto", "m/s^2", "g")
@@ -56,11 +59,14 @@ class UnitMismatch(ValueError):
         What to do.
     """
 
-    def __init__(self, message: str, hint: str, counts_per_g: int | None = None) -> None:
+    def __init__(
+        self, message: str, hint: str, counts_per_g: int | None = None, spec: str = ""
+    ) -> None:
         super().__init__(message)
         self.message = message
         self.hint = hint
         self.counts_per_g = counts_per_g
+        self.spec = spec or (f"counts/{counts_per_g}g" if counts_per_g else "")
 
 
 def _near(value: float, target: float) -> bool:
@@ -92,6 +98,172 @@ def check_accel_unit(accel_unit: str) -> str:
     return key
 
 
+@dataclass(frozen=True)
+class Rest:
+    """How an acceleration rests: the evidence for its unit and for gravity.
+
+    Attributes
+    ----------
+    level : float
+        Median magnitude of the vector over the quietest quarter of the log's windows
+        (in the values' own unit).
+    spread : float
+        Median size of the vector's fluctuation inside those windows.
+    coherence : float
+        Median over those windows of ``|mean vector| / mean magnitude``: near 1 when the
+        vector holds one direction at rest (gravity), small when it wanders (noise of an
+        acceleration without gravity).
+    constancy : float
+        Relative robust spread of the mean vector's length from one resting window to
+        another: small for gravity, large for the slow sway of a hand.
+    """
+
+    level: float
+    spread: float
+    coherence: float
+    constancy: float = 0.0
+
+    @property
+    def steady(self) -> bool:
+        """True when the resting vector holds one direction and one length (gravity)."""
+        return self.coherence >= STEADY_COHERENCE and self.constancy <= STEADY_LENGTH
+
+    def said(self, unit: str = "") -> str:
+        """The evidence in words: ``"resting magnitude 0.998 ± 0.004, constant direction"``.
+
+        Parameters
+        ----------
+        unit : str
+            Unit written after the numbers (``""``: none).
+
+        Returns
+        -------
+        str
+        """
+        tail = f" {unit}" if unit else ""
+        if self.steady:
+            how = "constant direction"
+        elif self.coherence < STEADY_COHERENCE:
+            how = f"no constant direction (coherence {self.coherence:.2f})"
+        else:
+            how = f"its length changes from rest to rest by {100 * self.constancy:.0f} %"
+        size = (
+            f"{self.level:.3f} ± {self.spread:.3f}"
+            if self.level < 100
+            else (f"{self.level:.4g} ± {self.spread:.2g}")
+        )
+        return f"resting magnitude {size}{tail}, {how}"
+
+
+#: A resting vector whose windows keep ``|mean| / mean |a|`` above this holds one direction.
+STEADY_COHERENCE = 0.8
+#: ... and gravity's length changes from one resting window to another by less than this
+#: (relative robust spread); a hand-held sway of a gravity-free acceleration does not.
+STEADY_LENGTH = 0.15
+
+
+def rest_of(block: np.ndarray) -> Rest:
+    """Measure how an acceleration block rests (see :class:`Rest`).
+
+    The block is cut into windows (at least 40 of them, 5 to 200 samples each); the
+    quietest quarter (smallest fluctuation of the vector) is where the sensor rests.
+
+    Parameters
+    ----------
+    block : numpy.ndarray
+        Shape ``(n, k)``; rows with a NaN are left out.
+
+    Returns
+    -------
+    Rest
+        Level, spread and coherence; NaN when the block has no finite row.
+    """
+    rows = block[np.all(np.isfinite(block), axis=1)]
+    n, k = rows.shape
+    if n == 0:
+        return Rest(float("nan"), float("nan"), float("nan"))
+    width = int(min(200, max(5, n // 40)))
+    count = max(1, n // width)
+    width = min(width, n)
+    x = rows[: count * width].reshape(count, width, k)
+    magnitude = np.sqrt(np.einsum("mwk,mwk->mw", x, x)).mean(axis=1)
+    motion = np.sqrt((x.std(axis=1) ** 2).sum(axis=1))
+    quiet = motion <= np.quantile(motion, 0.25)
+    mean_vec = np.linalg.norm(x.mean(axis=1), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coherence = np.where(magnitude > 0, mean_vec / magnitude, 0.0)
+    lengths = mean_vec[quiet]
+    middle = float(np.median(lengths))
+    spread = float(np.median(np.abs(lengths - middle))) * 1.4826
+    return Rest(
+        float(np.median(magnitude[quiet])),
+        float(np.median(motion[quiet])),
+        float(np.median(coherence[quiet])),
+        spread / middle if middle > 0 else float("inf"),
+    )
+
+
+def _scale_of(level: float) -> tuple[str, str, str] | None:
+    """A level a power of ten away from gravity: ``(what, factor, spec)``, else None.
+
+    ``9.87e9`` is 9.8 m/s^2 times 1e9 (a spreadsheet's scaling); ``1000`` is 1 g in mg.
+    """
+    options = []
+    for base, unit in ((_G_STANDARD, "m/s^2"), (1.0, "g")):
+        power = float(np.log10(level / base))
+        k = round(power)
+        if k >= 2 and abs(power - k) < 0.06:
+            options.append((abs(power - k), unit, k))
+    if not options:
+        return None
+    _, unit, k = min(options)
+    return unit, f"1e{k}", f"1e-{k}{unit}"
+
+
+def raw_scale_error(level: float) -> UnitMismatch:
+    """The refusal of an acceleration resting at ``level`` > :data:`RAW_COUNTS_MIN`.
+
+    A power of ten from gravity (``9.87e9``: m/s^2 times a billion; ``1000``: mg) is
+    named as such; anything else is taken for raw counts (a power of two per g).
+
+    Parameters
+    ----------
+    level : float
+        The resting magnitude as read.
+
+    Returns
+    -------
+    UnitMismatch
+        With the scale to give in the column map.
+    """
+    scaled = _scale_of(level)
+    if scaled is not None:
+        unit, factor, spec = scaled
+        words = {"1e3": "a thousand", "1e6": "a million", "1e9": "a billion"}
+        size = words.get(factor, f"{factor}")
+        if unit == "g" and factor == "1e3":
+            return UnitMismatch(
+                f"the acceleration rests at a magnitude of {level:.4g}: values in mg "
+                "(thousandths of g), at no physical scale as g or m/s^2",
+                "give the unit in the column map, e.g. ax=NAME:mg",
+                spec="mg",
+            )
+        return UnitMismatch(
+            f"the acceleration rests at a magnitude of {level:.4g}: {size} times too large "
+            f"for {unit} (values at no physical scale: {level / float(factor):.3g} {unit} "
+            f"× {factor}; a spreadsheet's re-export?)",
+            f"export the values again unscaled, or give the scale: ax=NAME:{spec}",
+            spec=spec,
+        )
+    per_g = int(2 ** round(np.log2(level)))
+    return UnitMismatch(
+        f"the acceleration rests at a magnitude of {level:.4g}, neither ~9.8 (m/s^2) nor "
+        f"~1 (g): raw sensor counts (~{per_g} counts per g?) or another unit",
+        f"give the scale in the column map, e.g. ax=NAME:counts/{per_g}g",
+        counts_per_g=per_g,
+    )
+
+
 def resolve_accel(
     accel: np.ndarray,
     *,
@@ -99,8 +271,14 @@ def resolve_accel(
     includes_gravity: bool | None,
     accel_unit: str,
     g: float,
-) -> tuple[np.ndarray, bool, str | Note | None]:
+    gravity_given: bool = False,
+) -> tuple[np.ndarray, bool, str | Note | None, list[Inference]]:
     """Convert an acceleration block to m/s^2 and decide whether it includes gravity.
+
+    Decided by content, names only suggest: the resting vector (:func:`rest_of`) holds
+    one direction and a magnitude near 1 (g) or 9.8 (m/s^2) when gravity is in it; an
+    acceleration without gravity rests near 0 in no fixed direction and is never scaled
+    as g.
 
     Parameters
     ----------
@@ -114,6 +292,8 @@ def resolve_accel(
         The user's choice, one of :data:`ACCEL_UNITS`.
     g : float
         Gravity (m/s^2) used to convert g.
+    gravity_given : bool
+        True when the user's column map gave ``includes_gravity`` (never overruled).
 
     Returns
     -------
@@ -124,32 +304,38 @@ def resolve_accel(
     warning : Note, str or None
         A message when the unit was guessed from the values, or a header unit or the
         header's with/without g was contradicted by them (``read.gravity_header``).
+    inferences : list of Inference
+        The unit and gravity decisions with their evidence.
 
     Raises
     ------
     UnitMismatch
         The resting magnitude contradicts a unit the user forced, or ``g``, or (auto)
-        is beyond 25 (2.5 g): raw counts, refused with the scale to give.
+        is beyond 25 (2.5 g): raw counts or values at no physical scale, refused with the
+        scale to give.
     """
+    said: list[Inference] = []
     if accel.size == 0:
-        return accel, bool(includes_gravity) if includes_gravity is not None else True, None
+        return accel, bool(includes_gravity) if includes_gravity is not None else True, None, said
     sub = accel[:: max(1, accel.shape[0] // 1_000_000)]  # a million samples tell the level
-    if accel.shape[1] == 1:
-        level = float(np.abs(np.median(sub[:, 0])))
-    else:
-        level = float(np.median(np.sqrt(np.einsum("ij,ij->i", sub, sub))))
+    rest = rest_of(sub)
+    level = rest.level
+    if not np.isfinite(level):
+        return accel, bool(includes_gravity) if includes_gravity is not None else True, None, said
     explicit_g = accel_unit == "g" or (accel_unit == "auto" and header_unit == "g")
     if level > RAW_COUNTS_MIN:  # in any unit: no log's acceleration sits at 2.5 g
-        per_g = int(2 ** round(np.log2(level)))
-        raise UnitMismatch(
-            f"the acceleration rests at a magnitude of {level:.4g}, neither ~9.8 (m/s^2) nor "
-            f"~1 (g): raw sensor counts (~{per_g} counts per g?) or another unit",
-            f"give the scale in the column map, e.g. ax=NAME:counts/{per_g}g",
-            counts_per_g=per_g,
-        )
+        raise raw_scale_error(level)
     gravity_note = None
-    if accel_unit == "auto" and includes_gravity is not None and accel.shape[1] == 3:
+    from_header = includes_gravity is not None
+    if (
+        accel_unit == "auto"
+        and includes_gravity is not None
+        and accel.shape[1] == 3
+        and not gravity_given
+    ):
         includes_gravity, gravity_note = _check_gravity_claim(sub, level, includes_gravity)
+        from_header = gravity_note is None
+    unit_override = "--accel-unit g"
     if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
         if accel_unit == "g":
             raise UnitMismatch(
@@ -157,7 +343,6 @@ def resolve_accel(
                 "the values are in m/s^2, not g",
                 "pass --accel-unit m/s^2 or auto",
             )
-        explicit_g = False
         note = (
             f"the header says g but the acceleration rests at {level:.2f} "
             f"({level * g:.0f} m/s^2 as g): the values are taken as m/s^2, not converted"
@@ -165,35 +350,95 @@ def resolve_accel(
         if includes_gravity is None:
             includes_gravity = True
         _check_g(level, g)
-        return accel, includes_gravity, note
+        said.append(
+            Inference(
+                "acceleration unit", "m/s^2", rest.said() + "; the header says g", "--accel-unit g"
+            )
+        )
+        said.append(_gravity_inference(True, rest, "m/s^2", from_header, gravity_given))
+        return accel, includes_gravity, note, said
     if explicit_g:
+        where = "given with --accel-unit" if accel_unit == "g" else "the header says g"
         accel = accel * g
         level *= g
         if includes_gravity is None:
-            includes_gravity = level > g / 2
+            includes_gravity = level > g / 2 and (rest.steady or accel.shape[1] == 1)
         if includes_gravity:
             _check_g(level, g)
-        return accel, includes_gravity, gravity_note
+        said.append(
+            Inference(
+                "acceleration unit",
+                "g",
+                f"{where}; {rest.said('g')}",
+                "" if accel_unit == "g" else "--accel-unit m/s^2",
+            )
+        )
+        said.append(_gravity_inference(includes_gravity, rest, "g", from_header, gravity_given))
+        return accel, includes_gravity, gravity_note, said
     if (
         accel_unit == "m/s^2"
         and accel.shape[1] > 1
         and includes_gravity is not False
         and _G_LOW < level < _G_HIGH
+        and rest.steady
     ):
         raise UnitMismatch(
-            f"the acceleration rests at a magnitude of {level:.2f} m/s^2; an accelerometer "
-            "that includes gravity reads ~9.8 m/s^2 at rest: the values look like g",
+            f"the acceleration rests at a magnitude of {level:.2f} m/s^2 in a constant "
+            "direction; an accelerometer that includes gravity reads ~9.8 m/s^2 at rest: "
+            "the values look like g",
             "pass --accel-unit g or auto",
         )
+    looks_like_g = _G_LOW < level < _G_HIGH and rest.steady
+    if (
+        accel.shape[1] == 1
+        and accel_unit == "auto"
+        and not header_unit
+        and includes_gravity is not False
+        and rest.steady
+        and 0.8 < level < 1.2
+    ):  # one axis resting steadily at ~1: gravity in g (a kinematic acceleration rests at 0)
+        said.append(
+            Inference(
+                "acceleration unit",
+                "g",
+                f"no unit stated; one axis {rest.said()}: gravity in g, since a "
+                "kinematic acceleration rests at 0",
+                "--accel-unit m/s^2",
+            )
+        )
+        said.append(_gravity_inference(True, rest, "g", from_header, gravity_given))
+        warning = (
+            f"the one acceleration axis rests steadily at {level:.2f}: gravity in g; "
+            "converted to m/s^2 (pass --accel-unit m/s^2 if wrong)"
+        )
+        return accel * g, True, warning, said
     if accel_unit == "m/s^2" or accel.shape[1] == 1:
         if includes_gravity is None:
-            includes_gravity = level > g / 2
+            includes_gravity = level > g / 2 and rest.steady
         if includes_gravity:
             _check_g(level, g)
-        return accel, includes_gravity, None
-    looks_like_g = _G_LOW < level < _G_HIGH
+        where = (
+            "given with --accel-unit"
+            if accel_unit == "m/s^2"
+            else (
+                "the header says m/s^2"
+                if header_unit == "m/s^2"
+                else "no unit stated; one axis is never taken for g from its values"
+            )
+        )
+        said.append(
+            Inference(
+                "acceleration unit",
+                "m/s^2",
+                f"{where}; {rest.said()}",
+                "" if accel_unit == "m/s^2" else "--accel-unit g",
+                weak=not header_unit and accel_unit == "auto" and not includes_gravity,
+            )
+        )
+        said.append(_gravity_inference(includes_gravity, rest, "m/s^2", from_header, gravity_given))
+        return accel, includes_gravity, None, said
     if includes_gravity is None:
-        includes_gravity = level >= _WITH_G_MIN or looks_like_g
+        includes_gravity = (level >= _WITH_G_MIN and rest.steady) or looks_like_g
     if includes_gravity and not looks_like_g:
         _check_g(level, g)
     if includes_gravity and looks_like_g:
@@ -202,8 +447,47 @@ def resolve_accel(
             f"acceleration magnitude at rest is {level:.2f}, which looks like g rather than "
             "m/s^2; converted to m/s^2 (pass accel_unit='m/s^2' or --accel-unit m/s^2 if wrong)"
         )
-        return accel * g, True, warning
-    return accel, includes_gravity, gravity_note
+        said.append(
+            Inference(
+                "acceleration unit",
+                "g",
+                rest.said() + ("; the header says m/s^2" if header_unit == "m/s^2" else ""),
+                "--accel-unit m/s^2",
+            )
+        )
+        said.append(_gravity_inference(True, rest, "g", from_header, gravity_given))
+        return accel * g, True, warning, said
+    weak = not includes_gravity and not header_unit
+    said.append(
+        Inference(
+            "acceleration unit",
+            "m/s^2",
+            (
+                f"the header says m/s^2; {rest.said()}"
+                if header_unit == "m/s^2"
+                else f"no unit stated; {rest.said()}"
+                + ("" if includes_gravity else ": no gravity to scale against, taken as m/s^2")
+            ),
+            unit_override,
+            weak=weak,
+        )
+    )
+    said.append(_gravity_inference(includes_gravity, rest, "m/s^2", from_header, gravity_given))
+    return accel, includes_gravity, gravity_note, said
+
+
+def _gravity_inference(
+    with_g: bool, rest: Rest, unit: str, from_header: bool, given: bool
+) -> Inference:
+    """The ``gravity`` inference: in or out, from the column map, the header or the data."""
+    decision = "included" if with_g else "removed (acceleration without g)"
+    if given:
+        return Inference("gravity", decision, "given in the column map")
+    source = "the header names it; " if from_header else ""
+    override = "--columns ...,gravity=" + ("no" if with_g else "yes")
+    looks_with_g = rest.steady and (_near(rest.level, 1.0) or _near(rest.level, _G_STANDARD))
+    weak = with_g != looks_with_g and not from_header
+    return Inference("gravity", decision, source + rest.said(unit), override, weak=weak)
 
 
 def _check_gravity_claim(sub: np.ndarray, level: float, claimed: bool) -> tuple[bool, Note | None]:

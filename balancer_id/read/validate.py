@@ -145,3 +145,85 @@ def count_saturated(
         if n:
             out["accel"] = n
     return out
+
+
+#: A run of at least this many equal samples at a channel's extreme is the sensor pinned.
+PINNED_RUN = 3
+
+
+def _runs(mask: np.ndarray) -> np.ndarray:
+    """Lengths of the runs of True in a boolean array."""
+    padded = np.concatenate(([False], mask, [False])).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return edges[1::2] - edges[::2]
+
+
+def pinned_extremes(values: np.ndarray) -> list[tuple[int, float, int, int]]:
+    """Find where a channel sits pinned at one extreme value: a sensor at its range.
+
+    At any range (±2 g, ±8 g, a load cell's span): the channel's largest (or smallest)
+    value, far from its median (over 30 % of its span), held by runs of at least
+    :data:`PINNED_RUN` equal samples, twice or more (or once for 5 samples and more).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Shape ``(n,)`` or ``(n, k)``; NaN ignored.
+
+    Returns
+    -------
+    list of tuple
+        ``(axis, value, samples, runs)`` per pinned extreme: the axis index, the value it
+        is pinned at, how many samples and in how many runs.
+    """
+    block = values.reshape(values.shape[0], -1)
+    found = []
+    for j in range(block.shape[1]):
+        x = block[:, j]
+        finite = x[np.isfinite(x)]
+        if finite.size < 10:
+            continue
+        hi, lo, med = float(finite.max()), float(finite.min()), float(np.median(finite))
+        span = hi - lo
+        if span <= 0:
+            continue
+        for ext in (hi, lo):
+            if abs(ext - med) < 0.3 * span:
+                continue
+            lengths = _runs(x == ext)
+            held = lengths[lengths >= PINNED_RUN]
+            if held.size >= 2 or (held.size == 1 and held[0] >= 5):
+                found.append((j, ext, int(held.sum()), int(held.size)))
+    return found
+
+
+def repeat_factor(values: np.ndarray) -> int:
+    """How many times each sample is repeated in a row (1: none), when nearly all are.
+
+    A 20 Hz export of a 10 Hz sensor writes each value twice: runs of equal rows of one
+    length (2) make up at least 80 % of the rows.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Shape ``(n,)`` or ``(n, k)``.
+
+    Returns
+    -------
+    int
+        The repeat length, or 1 when the rows are not repeated that way.
+    """
+    block = values.reshape(values.shape[0], -1)
+    if block.shape[0] < 20:
+        return 1
+    same = np.all(block[1:] == block[:-1], axis=1)
+    if not same.any():
+        return 1
+    lengths = _runs(same) + 1
+    if lengths.size < 10:  # a constant stretch is no repeated export
+        return 1
+    k = int(np.median(lengths))
+    covered = int(lengths[lengths == k].sum())
+    if k >= 2 and covered >= 0.8 * block.shape[0]:
+        return k
+    return 1

@@ -14,7 +14,7 @@ import re
 from pathlib import Path
 
 from balancer_id.read.header import Column, classify
-from balancer_id.read.plan import RunPlan, plan_from_columns
+from balancer_id.read.plan import RunPlan, plans_by_time
 
 _PREFIX = re.compile(r"^(?P<set>[^:]{1,40}?)\s*:\s*(?P<rest>.+)$")
 
@@ -62,7 +62,10 @@ def plan_vernier(path: Path, columns: list[Column]) -> list[RunPlan]:
     Returns
     -------
     list of RunPlan
-        One plan per data set with a time and a force or acceleration column.
+        One plan per data set with a time and a force or acceleration column; a data
+        set whose channels sit under time columns of their own (a force beside a
+        photogate's event times) keeps each on its own time
+        (:func:`~balancer_id.read.plan.plans_by_time`).
     """
     sets: dict[str, list[Column]] = {}
     for col in columns:
@@ -71,11 +74,5 @@ def plan_vernier(path: Path, columns: list[Column]) -> list[RunPlan]:
             sets.setdefault(split[0], []).append(split[1])
     plans = []
     for name, members in sets.items():
-        time = next((c for c in members if c.kind == "time"), None)
-        if time is None:
-            continue
-        rest = [c for c in members if c is not time]
-        plan = plan_from_columns(name, time, rest)
-        if plan.has_signal:
-            plans.append(plan)
+        plans.extend(plans_by_time(name, members))
     return plans

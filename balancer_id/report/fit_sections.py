@@ -29,6 +29,7 @@ from balancer_id.report.blocks import (
 )
 from balancer_id.report.plots import (
     model_curves,
+    plot_corner,
     plot_coupling,
     plot_paper_method,
     plot_per_trial,
@@ -75,7 +76,13 @@ def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[S
     ]
     if result.per_trial:
         sections.append(_per_trial_section(result))
+    if result.tracking is not None:
+        from balancer_id.report.tracking_plot import tracking_section
+
+        sections.append(tracking_section(result.tracking))
     sections.append(_correlation_section(result))
+    if result.posterior is not None:
+        sections.append(_posterior_section(result))
     if result.coupling is not None:
         sections.append(_coupling_section(result))
     return sections
@@ -178,9 +185,13 @@ def _summary_section(result: FitResult) -> Section:
         f"The paper's method gives m_a = {format_number(c.m_a)} kg and "
         f"T_a = {format_number(c.T_a, 3)} s." + ("" if n_warn else " No warnings.")
     )
+    untrusted = "".join(
+        f'<p class="alert"><b>NOT TRUSTED:</b> {_e(why)}</p>'
+        for why in result.untrusted_because
+    )
     return Section(
         "Summary",
-        html=f'<div class="cards">{"".join(cards)}</div>{warn_html}',
+        html=f'{untrusted}<div class="cards">{"".join(cards)}</div>{warn_html}',
         blocks=[intro, _parameter_table(result), errors],
     )
 
@@ -369,18 +380,116 @@ def _trials_section(result: FitResult) -> Section:
         "Errors per trial" + (" (the worst one marked)." if len(trials) > 1 else "."),
     )
     blocks: list[Block] = [table]
+    band = result.band()
+    stretches = band.stretches(match.y)
     for start in range(0, len(trials), TRIALS_PER_FIGURE):
         stop = min(start + TRIALS_PER_FIGURE, len(trials))
         chunk = [(label, list(curves[start:stop]))]
         blocks.append(
             Plot(
-                plot_trials(trials[start:stop], chunk),
+                plot_trials(trials[start:stop], chunk, bands=[band], stretches=stretches),
                 f"Trials {trials[start].index} to {trials[stop - 1].index}: measured (grey) "
-                f"and simulated ({label}) acceleration; beneath, the residual (thin) and its "
+                f"and simulated ({label}) acceleration, shaded: its 95 % band from the "
+                f"parameters' uncertainty ({_band_method(band.method)}), dotted: that band "
+                f"widened by the noise (σ = {format_number(band.sigma, 3)} m/s²), red: "
+                "where the measurement leaves it; beneath, the residual (thin) and its "
                 "0.25 s moving mean (thick). Time is counted from the onset of the thrust.",
             )
         )
+    blocks.append(_where_it_fails(band, stretches, match.y))
     return Section("Trials: measured vs simulated", blocks=blocks)
+
+
+def _posterior_section(result: FitResult) -> Section:
+    """Credible intervals beside the Wald and profile ones, the chain's health, the corner."""
+    post = result.posterior
+    assert post is not None
+    cred, med = post.credible(), post.median()
+    units = {n: p.unit for n, p in result.match.parameters.items()}
+
+    def span(iv) -> str:
+        return f"{format_number(iv[0], 4)} .. {format_number(iv[1], 4)}" if iv else "-"
+
+    rows: list[list[str | Cell]] = []
+    disagree = {n.subject for n in post.notes if n.code == "fit.posterior_disagrees"}
+    for n in post.names:
+        rows.append(
+            [
+                Cell(n, "strong"),
+                format_number(post.fitted[n], 4),
+                format_number(med[n], 4),
+                span(post.wald.get(n)),
+                span(post.profile.get(n)),
+                Cell(span(cred[n]), "warn") if n in disagree else span(cred[n]),
+                units.get(n, ""),
+            ]
+        )
+    table = Table(
+        [
+            "parameter",
+            "fitted",
+            "posterior median",
+            "Wald 95 %",
+            "profile 95 %",
+            "credible 95 %",
+            "unit",
+        ],
+        rows,
+        "The posterior sampled with emcee (likelihood of the fit's own noise variance and "
+        "residual correlation; uniform priors inside the bounds"
+        + (", normal priors as given" if post.priors else "")
+        + "). A credible interval marked differs from the Wald one by more than a quarter "
+        "of its width: the uncertainty is not Gaussian there.",
+    )
+    blocks: list[Block] = [table, Paragraph(post.diagnostics_text())]
+    blocks += [Paragraph(f"⚠ {n.text}") for n in post.notes]
+    blocks.append(
+        Plot(
+            plot_corner(post),
+            "Corner plot of the posterior samples: each parameter's histogram (2.5, 50 and "
+            "97.5 % quantiles dashed in blue, the Wald interval dashed in grey) and each "
+            "pair's joint samples; orange lines: the least-squares optimum.",
+        )
+    )
+    return Section("Posterior", blocks=blocks)
+
+
+def _band_method(method: str) -> str:
+    return {
+        "covariance": "the covariance through the simulated sensitivities",
+        "posterior": "quantiles of the posterior samples' responses",
+    }.get(method, "no covariance: the band is the noise alone")
+
+
+def _where_it_fails(band, stretches, measured: np.ndarray) -> Block:
+    """Where the measurement leaves the 95 % band widened by the noise."""
+    inside = band.coverage(measured)
+    head = (
+        f"Where it fails: {100 * inside:.1f} % of the measured samples lie inside the 95 % "
+        "band widened by the noise (95 % expected when the model holds). "
+    )
+    if not stretches:
+        return Paragraph(
+            head + "No stretch of 0.1 s or more leaves it (at least half of a 0.25 s window "
+            "outside): the residual is noise and parameter uncertainty."
+        )
+    rows: list[list[str | Cell]] = [
+        [
+            str(s.trial),
+            f"{s.t_start:.2f}",
+            f"{s.t_end:.2f}",
+            f"{s.t_end - s.t_start:.2f}",
+            f"{100 * s.share_outside:.0f} %",
+            f"measured {s.side}",
+        ]
+        for s in stretches
+    ]
+    return Table(
+        ["trial", "from (s)", "to (s)", "length (s)", "samples outside", "side"],
+        rows,
+        head + "Stretches where the measurement leaves it (at least half of a 0.25 s window "
+        "outside, shaded red in the figures): the model fails there.",
+    )
 
 
 def _per_trial_section(result: FitResult) -> Section:

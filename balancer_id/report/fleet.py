@@ -6,6 +6,12 @@ trend against the time each log was recorded (the export's own clock when it has
 else the file's time: the report says which), and the logs whose diagnosis says an
 effect is missing, each with its top suggestion (``batch --diagnose``).
 
+Only what the view trusts is counted (issue 33): a log whose fit is not trusted (a
+parameter at a bound the data did not choose, starts that disagree, ...) or whose own
+diagnosis says an effect is missing is listed apart, with its reason, and kept out of
+the statistics, the outlier rule and the trends; its values stay in the table of logs,
+marked.
+
 Outliers follow a robust rule: a value more than 3.5 scaled median absolute deviations
 from the fleet's median (the modified z-score of Iglewicz and Hoaglin), and more than 3
 of its own standard errors from it; it needs at least five logs. A trend is a Theil-Sen
@@ -134,7 +140,39 @@ def _when(doc: dict[str, Any]) -> tuple[datetime | None, str | None]:
     return stamp, rec.get("source")
 
 
-def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
+def not_counted(row: BatchRow, doc: dict[str, Any]) -> str | None:
+    """Why an identified log is kept out of the fleet's statistics, or None to count it.
+
+    Parameters
+    ----------
+    row : BatchRow
+        An identified log's row.
+    doc : dict
+        Its JSON (``trusted``, ``untrusted_because``, ``diagnosis``).
+
+    Returns
+    -------
+    str or None
+        The reason: the fit is not trusted (and why), or its diagnosis says an effect is
+        missing (its values describe a model the log contradicts).
+    """
+    if not row.trusted or doc.get("trusted") is False:
+        why = doc.get("untrusted_because") or []
+        first = str(why[0]) if isinstance(why, list) and why else ""
+        return "fit not trusted" + (f": {first}" if first else "")
+    diagnosis = doc.get("diagnosis")
+    verdict = diagnosis.get("verdict") if isinstance(diagnosis, dict) else None
+    if (verdict or row.diagnosis_verdict) == _MISSING:
+        return (
+            "its diagnosis says an effect is missing: the values are those of a model the "
+            "log contradicts"
+        )
+    return None
+
+
+def fleet_sections(
+    rows: Sequence[BatchRow], shared: dict[str, Any] | None = None
+) -> list[Section]:
     """The sections of the fleet report of a batch's rows.
 
     Parameters
@@ -142,15 +180,20 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     rows : sequence of BatchRow
         A batch's rows (:attr:`balancer_id.batch.BatchResult.rows`); their per-log JSON
         supply the recording times and the diagnoses.
+    shared : dict, optional
+        The fleet's shared fit (``batch --per-log``: ``shared_fit.json``), shown as a
+        section of its own.
 
     Returns
     -------
     list of Section
     """
     docs = [_load(r) for r in rows]
-    ok = [k for k, r in enumerate(rows) if r.ok]
+    identified = [k for k, r in enumerate(rows) if r.ok]
+    apart = {k: why for k in identified if (why := not_counted(rows[k], docs[k])) is not None}
+    ok = [k for k in identified if k not in apart]  # counted: trusted, nothing missing
     names: list[str] = []
-    for k in ok:
+    for k in identified:
         names += [n for n in rows[k].parameters if n not in names]
     values = {
         n: np.array(
@@ -170,11 +213,13 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
     units = {n: _unit(docs, ok, n) for n in names}
     times = [_when(docs[k]) for k in ok]
     sources = {s for _, s in times if s}
-    diagnosed = [k for k in ok if isinstance(docs[k].get("diagnosis"), dict)]
+    diagnosed = [k for k in identified if isinstance(docs[k].get("diagnosis"), dict)]
 
-    failed = len(rows) - len(ok)
+    failed = len(rows) - len(identified)
     lead = (
-        f"{len(rows)} log(s): {len(ok)} identified, {failed} failed. "
+        f"{len(rows)} log(s): {len(identified)} identified, {failed} failed; "
+        f"{len(ok)} counted in the statistics below"
+        + (f", {len(apart)} listed apart (not trusted or an effect missing). " if apart else ". ")
         + (
             f"{len(diagnosed)} diagnosed; "
             f"{sum(docs[k]['diagnosis'].get('verdict') == _MISSING for k in diagnosed)} "
@@ -186,7 +231,11 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
         f"fleet's median (modified z-score), flagged from {MIN_LOGS_FOR_OUTLIERS} logs on."
     )
     sections = [Section("Fleet", blocks=[Paragraph(lead), _summary_table(names, values, flagged)])]
-    sections.append(Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged)]))
+    sections.append(
+        Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged, apart)])
+    )
+    if apart:
+        sections.append(Section("Not counted", blocks=_apart_blocks(rows, apart)))
     if names and ok:
         sections.append(
             Section(
@@ -196,7 +245,120 @@ def fleet_sections(rows: Sequence[BatchRow]) -> list[Section]:
         )
     if diagnosed:
         sections.append(Section("Effect missing", blocks=_missing_blocks(rows, docs, diagnosed)))
+    if shared is not None:
+        sections.insert(1, Section("Shared over the fleet", blocks=shared_blocks(shared)))
     return sections
+
+
+def _ci(p: dict[str, Any]) -> str:
+    ci = p.get("ci95")
+    if not ci:
+        return "held" if p.get("vary") is False else "-"
+    return f"{format_number(float(ci[0]))} .. {format_number(float(ci[1]))}"
+
+
+def shared_blocks(shared: dict[str, Any]) -> list[Any]:
+    """The fleet's shared fit: verdict, the shared values (their intervals beside the
+    median interval of the logs fitted alone) and each log's own values.
+
+    Parameters
+    ----------
+    shared : dict
+        ``shared_fit.json`` (the ``fit --per-log`` JSON plus ``left_out``).
+
+    Returns
+    -------
+    list of blocks
+    """
+    blocks: list[Any] = []
+    left = shared.get("left_out") or []
+    if "error" in shared:
+        blocks.append(Paragraph(str(shared["error"])))
+    else:
+        own_names = list(shared.get("per_log") or [])
+        logs = shared.get("logs") or []
+        blocks.append(
+            Paragraph(
+                f"The {len(logs)} counted logs fitted together: {', '.join(own_names)} each "
+                f"log's own, the rest shared. Verdict: {shared.get('verdict', '-')}."
+            )
+        )
+        body: list[list[str | Cell]] = []
+        for name, p in (shared.get("shared") or {}).items():
+            alone = [
+                float(row["alone"][name]["ci95"][1] - row["alone"][name]["ci95"][0])
+                for row in logs
+                if (row.get("alone") or {}).get(name, {}).get("ci95")
+            ]
+            width = (
+                f"{format_number(float(np.median(alone)))}" if alone else "-"
+            )
+            ci = p.get("ci95")
+            body.append(
+                [
+                    name,
+                    format_number(float(p["value"])),
+                    _ci(p),
+                    format_number(float(ci[1] - ci[0])) if ci else "-",
+                    width,
+                    str(p.get("unit", "")),
+                ]
+            )
+        blocks.append(
+            Table(
+                ["parameter", "shared value", "95 % interval", "width", "width alone "
+                 "(median log)", "unit"],
+                body,
+                caption="Shared parameters, pinned by every counted log at once; beside them "
+                "the median width of the same interval from each log fitted alone.",
+            )
+        )
+        own_body: list[list[str | Cell]] = []
+        for row in logs:
+            cells: list[str | Cell] = [str(row.get("file", ""))]
+            for name in own_names:
+                p = (row.get("own") or {}).get(name, {})
+                a = (row.get("alone") or {}).get(name, {})
+                cells.append(
+                    f"{format_number(float(p['value']))} ({_ci(p)}); alone {_ci(a)}"
+                    if p else "-"
+                )
+            own_body.append(cells)
+        blocks.append(
+            Table(
+                ["log", *[f"{n} own (95 %); alone" for n in own_names]],
+                own_body,
+                caption="Each log's own values in the shared fit, and the log fitted alone.",
+            )
+        )
+        comparison = shared.get("comparison") or {}
+        blocks.append(
+            Table(
+                ["sharing", "BIC", "parameters", "held-out RMSE (m/s²)"],
+                [
+                    [
+                        name,
+                        format_number(float(s.get("bic"))) if s.get("bic") is not None else "-",
+                        str(s.get("n_free", "-")),
+                        format_number(float(s["held_out_rmse"]))
+                        if s.get("held_out_rmse") is not None
+                        else "-",
+                    ]
+                    for name, s in comparison.items()
+                ],
+                caption="All shared, partly shared and all separate compared: BIC on the "
+                "effective samples, and the error predicting held-out halves of logs.",
+            )
+        )
+    if left:
+        blocks.append(
+            Paragraph(
+                "Left out of the shared fit: "
+                + "; ".join(f"{x.get('file')} ({x.get('why')})" for x in left)
+                + "."
+            )
+        )
+    return blocks
 
 
 def _unit(docs: list[dict[str, Any]], ok: list[int], name: str) -> str:
@@ -236,16 +398,39 @@ def _summary_table(
     )
 
 
+def _apart_blocks(rows: Sequence[BatchRow], apart: dict[int, str]) -> list[Any]:
+    body: list[list[str | Cell]] = [[rows[k].file, Cell(why, "warn")] for k, why in apart.items()]
+    return [
+        Paragraph(
+            f"{len(apart)} identified log(s) kept out of the statistics, the outlier rule and "
+            "the trends: their values are no measurement of the balancer as the model "
+            "describes it."
+        ),
+        Table(["log", "why not counted"], body),
+    ]
+
+
 def _log_table(
     rows: Sequence[BatchRow],
     ok: list[int],
     names: list[str],
     values: dict[str, np.ndarray],
     flagged: dict[str, np.ndarray],
+    apart: dict[int, str] | None = None,
 ) -> Table:
     pos = {k: j for j, k in enumerate(ok)}
+    apart = apart or {}
     body: list[list[str | Cell]] = []
     for k, row in enumerate(rows):
+        if k in apart:
+            cells_apart: list[str | Cell] = [row.file, Cell("not counted", "warn")]
+            for n in names:
+                x = row.parameters.get(n, {}).get("value")
+                cells_apart.append(
+                    format_number(float(x)) + " (not counted)" if x is not None else "-"
+                )
+            body.append(cells_apart)
+            continue
         if k not in pos:
             body.append([row.file, Cell("failed", "bad"), *["-"] * len(names)])
             continue
@@ -256,7 +441,12 @@ def _log_table(
             text = format_number(float(x)) if np.isfinite(x) else "-"
             cells.append(Cell(text + " (outlier)", "warn") if flagged[n][j] else text)
         body.append(cells)
-    return Table(["log", "status", *names], body, caption="Values flagged as outliers are marked.")
+    return Table(
+        ["log", "status", *names],
+        body,
+        caption="Values flagged as outliers are marked; logs not counted (see below) are "
+        "marked and left out of every statistic.",
+    )
 
 
 def _plots(
@@ -383,7 +573,9 @@ def _helps(suggestion: dict[str, Any]) -> bool:
     return drop is None or (isinstance(drop, int | float) and drop > 0)
 
 
-def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
+def write_fleet_report(
+    rows: Sequence[BatchRow], path: str | Path, shared: dict[str, Any] | None = None
+) -> Path:
     """Write the fleet report of a batch as FILE.html (or FILE.pdf).
 
     Parameters
@@ -392,6 +584,8 @@ def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
         A batch's rows.
     path : str or Path
         The report file; written whole or not at all.
+    shared : dict, optional
+        The fleet's shared fit (``batch --per-log``).
 
     Returns
     -------
@@ -402,7 +596,7 @@ def write_fleet_report(rows: Sequence[BatchRow], path: str | Path) -> Path:
 
     return write_report(
         "Fleet report",
-        fleet_sections(rows),
+        fleet_sections(rows, shared),
         path,
         inputs=[r.file for r in rows],
         subtitle=f"{len(rows)} log(s) identified one by one",

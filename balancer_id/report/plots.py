@@ -26,10 +26,12 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+    from balancer_id.identify.band import ResponseBand, Stretch
     from balancer_id.identify.classic import ClassicResult
     from balancer_id.identify.coupling import Coupling
     from balancer_id.identify.data import TrialData
     from balancer_id.identify.matching import MatchResult
+    from balancer_id.identify.posterior import Posterior
     from balancer_id.identify.result import PerTrialFit
 
 #: One model's simulated acceleration, per trial: ``(label, [y_model of trial 0, ...])``.
@@ -142,6 +144,7 @@ def _sig(x: float, digits: int) -> str:
     """``x`` to ``digits`` significant digits, trailing zeros kept (0.0300)."""
     return format_number(x, digits)
 
+
 def _rmse(y: np.ndarray, y_model: np.ndarray) -> float:
     r = np.asarray(y, float) - np.asarray(y_model, float)
     r = r[np.isfinite(r)]
@@ -155,6 +158,8 @@ def plot_trials(
     *,
     columns: int = TRIAL_COLUMNS,
     title: str | None = None,
+    bands: Sequence[ResponseBand | None] | None = None,
+    stretches: Sequence[Stretch] = (),
 ) -> Figure | Path:
     """Measured vs simulated acceleration of each trial, with the residual beneath.
 
@@ -178,6 +183,11 @@ def plot_trials(
         Trials per row.
     title : str, optional
         Title over all panels.
+    bands : sequence of ResponseBand or None, optional
+        Each model's 95 % bands over the same ``trials`` (in ``models``' order): the model
+        band shaded around its curve, the band widened by the noise as dotted edges.
+    stretches : sequence of Stretch
+        Where the measurement leaves the noise band (shaded red on its trial's panels).
 
     Returns
     -------
@@ -233,6 +243,20 @@ def plot_trials(
         ax = fig.add_subplot(inner[0])
         axr = fig.add_subplot(inner[1], sharex=ax)
         _draw_trial(ax, axr, td, [(lbl, curves[k]) for lbl, curves in models])
+        for j, band in enumerate(bands or ()):
+            if band is not None:
+                _draw_band(ax, td, band, MODEL_COLORS[j % len(MODEL_COLORS)])
+        for s in stretches:
+            if s.trial == td.index:
+                for a in (ax, axr):
+                    a.axvspan(
+                        s.t_start - td.t_step,
+                        s.t_end - td.t_step,
+                        color="#D55E00",
+                        alpha=0.15,
+                        lw=0,
+                        zorder=1,
+                    )
         if k % columns == 0:
             ax.set_ylabel("acceleration (m/s²)", fontsize=8)
             axr.set_ylabel("residual (m/s²)", fontsize=8)
@@ -284,6 +308,22 @@ def _draw_trial(
     lim = np.nanmax(np.abs(axr.get_ylim()))
     if np.isfinite(lim) and lim > 0:
         axr.set_ylim(-lim, lim)
+
+
+def _draw_band(ax: Axes, td: TrialData, band: ResponseBand, color: str) -> None:
+    """The 95 % model band of one trial (shaded) and the noise band's edges (dotted)."""
+    for k, other in enumerate(band.trials):
+        if other is td or (other.index == td.index and other.source == td.source):
+            sl = band.slices()[k]
+            break
+    else:
+        return
+    t = np.asarray(td.time, float)[: sl.stop - sl.start] - float(td.t_step)
+    ax.fill_between(
+        t, band.model_low[sl], band.model_high[sl], color=color, alpha=0.3, lw=0, zorder=2.5
+    )
+    for edge in (band.noise_low[sl], band.noise_high[sl]):
+        ax.plot(t, edge, color=color, lw=0.6, ls=":", zorder=2.6)
 
 
 _Corner = Literal["upper right", "upper left", "lower left", "lower right"]
@@ -770,4 +810,51 @@ def plot_coupling(
         ax.set_ylabel("servo stiffness k_r (N/m)", fontsize=9)
         ax.set_title(f"Routh-Hurwitz (D = D0 = {D:.3g} kg/s)", fontsize=9, loc="left")
         ax.legend(fontsize=7, loc="upper left")
+    return _finish(fig, path)
+
+
+# --------------------------------------------------------------------------------------
+# the posterior: a corner plot
+# --------------------------------------------------------------------------------------
+def plot_corner(posterior: Posterior, path: str | Path | None = None) -> Figure | Path:
+    """The posterior's corner plot: each parameter's histogram and each pair's samples.
+
+    The least-squares optimum is marked (lines) and the Wald 95 % interval drawn as dashed
+    lines on the diagonal, so a curved or one-sided posterior stands out against them.
+
+    Parameters
+    ----------
+    posterior : Posterior
+        Samples (:func:`~balancer_id.identify.posterior.sample_posterior`).
+    path : str or Path, optional
+        Write a PNG here instead of returning the figure.
+
+    Returns
+    -------
+    Figure or Path
+    """
+    import corner
+
+    k = len(posterior.names)
+    size = max(2.0, min(2.2 * k, 9.0))
+    fig = _new_figure(size, size, layout=None)
+    corner.corner(
+        posterior.samples,
+        labels=list(posterior.names),
+        truths=[posterior.fitted[n] for n in posterior.names],
+        truth_color=MODEL_COLORS[1],
+        quantiles=[0.025, 0.5, 0.975],
+        show_titles=True,
+        title_fmt=".4g",
+        title_kwargs={"fontsize": 8},
+        label_kwargs={"fontsize": 9},
+        fig=fig,
+        color=MODEL_COLORS[0],
+    )
+    axes = np.array(fig.axes).reshape(k, k)
+    for j, name in enumerate(posterior.names):
+        wald = posterior.wald.get(name)
+        if wald is not None:
+            for end in wald:
+                axes[j, j].axvline(end, color="0.3", ls="--", lw=0.8)
     return _finish(fig, path)

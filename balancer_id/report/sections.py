@@ -25,7 +25,8 @@ if TYPE_CHECKING:
 
 
 def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None = None) -> Any:
-    """Measured vs simulated per trial with every compared model overlaid, residuals beneath.
+    """Measured vs simulated per trial with every compared model overlaid, residuals beneath;
+    each model's 95 % band shaded, the band widened by the noise dotted.
 
     Parameters
     ----------
@@ -44,7 +45,8 @@ def plot_comparison(results: Sequence[ModelComparison], path: str | Path | None 
 
     trials = results[0].match.data.trials
     curves = [model_curves(r.match) for r in results]
-    return plot_trials(trials, curves, path, title="models compared")
+    bands = [r.band() for r in results]
+    return plot_trials(trials, curves, path, title="models compared", bands=bands)
 
 
 def diagnosis_section(diagnosis: Diagnosis) -> Section:

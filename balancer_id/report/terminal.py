@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from balancer_id.metric_fields import FIT_METRICS, metric_line
@@ -36,6 +37,7 @@ def print_command(console: Console, command: str, indent: str = "    ") -> None:
 
 def _fmt(x: Any, digits: int = 4) -> str:
     return format_number(x, digits) if isinstance(x, float) else ("-" if x is None else str(x))
+
 
 def print_inspection(console: Console, info: dict[str, Any]) -> None:
     """Print what ``inspect`` read and the trials it found.
@@ -70,6 +72,7 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
                 if run.get("vertical_sign_known", True):
                     known = "the axis is a guess (its sign fixed): give it with --vertical"
             console.print(f"    vertical (up): {run['vertical']} ({known})")
+    print_inferences(console, info.get("inferences", []))
     for w in info.get("warnings", []):  # the trials' warnings are there, named
         _stderr(console).print(f"  [yellow]warning:[/yellow] {w}")
     table = Table(title=trials_title(info["trials"]))
@@ -90,9 +93,31 @@ def print_inspection(console: Console, info: dict[str, Any]) -> None:
     console.print(table)
 
 
-_KIND_TITLES = {"step": ("step trial", "step trials"), "move": ("robot move", "robot moves"),
-                "guided": ("guided move", "guided moves"),
-                "window": ("given window", "given windows")}
+def print_inferences(console: Console, inferences: list[dict[str, Any]]) -> None:
+    """Print what the reader decided, with its evidence and the option that overrides it.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    inferences : list of dict
+        The ``inspect`` object's ``inferences`` (CONTRACT.md).
+    """
+    if not inferences:
+        return
+    console.print("  read as:")
+    for item in inferences:
+        run = f"[{item['run']}] " if item.get("run") else ""
+        mark = "[yellow]?[/yellow] " if item.get("weak") else ""
+        console.print(f"    {mark}{escape(run + item['text'])}", highlight=False)
+
+
+_KIND_TITLES = {
+    "step": ("step trial", "step trials"),
+    "move": ("robot move", "robot moves"),
+    "guided": ("guided move", "guided moves"),
+    "window": ("given window", "given windows"),
+}
 
 
 def trials_title(trials: list[dict[str, Any]]) -> str:
@@ -140,14 +165,20 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
         for why in result.get("untrusted_because", []):
             _stderr(console).print(f"[bold red]NOT TRUSTED:[/bold red] {why}")
     table = Table(title=f"model {result['model']}: simulation matching over all trials")
-    for col in ("parameter", "value", "std. error", "95% interval", "unit", "note"):
+    post = result.get("posterior") or {}
+    credible = {n: q.get("credible95") for n, q in post.get("parameters", {}).items()}
+    cols = ["parameter", "value", "std. error", "95% interval"]
+    cols += ["95% credible"] if post else []
+    for col in (*cols, "unit", "note"):
         table.add_column(col)
     for name, p in result["parameters"].items():
         ci = p.get("ci95")
         note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
-        table.add_row(
+        if p.get("claim"):  # a bound, not a value (issue 31)
+            note = "not reached" if p.get("not_reached") == "above" else "not resolved"
+        cells = [
             name,
-            _fmt(p["value"]),
+            p["claim"] if p.get("claim") else _fmt(p["value"]),
             _fmt(p["stderr"], 2),
             (
                 f"{ci[0]:.4g} .. {ci[1]:.4g}"
@@ -155,10 +186,19 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             )
             if ci
             else "-",
-            p.get("unit", ""),
-            note,
-        )
+        ]
+        if post:
+            cr = credible.get(name)
+            cells.append(f"{cr[0]:.4g} .. {cr[1]:.4g}" if cr else "-")
+        table.add_row(*cells, p.get("unit", ""), note)
     console.print(table)
+    if post:  # issue 34.2: how well the chain mixed
+        console.print(
+            f"posterior: {post['n_walkers']} walkers x {post['n_steps']} steps, "
+            f"acceptance {post['acceptance']:.2f}, "
+            f"autocorrelation {max((q['tau_steps'] or 0) for q in post['parameters'].values()):.0f}"
+            f" steps: {'converged' if post['converged'] else 'NOT converged (rough intervals)'}"
+        )
     c = result["classic"]
     console.print(
         f"paper's method: m_a = {_fmt(c['m_a'])} kg (± {_fmt(c.get('m_a_stderr'), 2)}), "
@@ -178,6 +218,11 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             f"{_fmt(cp['damping_ratio'], 3)}, stability margin {_fmt(cp['stability_margin'], 3)}"
         )
         _print_robot(console, result)
+    if result.get("tracking"):
+        from balancer_id.identify.tracking import tracking_lines
+
+        for line in tracking_lines(result["tracking"]):
+            console.print(line, markup=False, soft_wrap=True)
     if result.get("per_trial"):
         per = Table(title="each trial alone (--per-trial)")
         names = list(result["parameters"])
@@ -443,3 +488,37 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
         )
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
+
+
+def print_per_log(console: Console, result: dict[str, Any]) -> None:
+    """Print a fit with per-log parameters (``fit --per-log``): the shared values, each
+    log's own, the sharings compared and the verdict.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The ``fit --per-log`` JSON object (:meth:`PerLogFit.to_dict`).
+    """
+    from balancer_id.identify.per_log import per_log_lines
+
+    for line in per_log_lines(result):
+        console.print(line, markup=False, soft_wrap=True)
+
+
+def print_plan(console: Console, result: dict[str, Any]) -> None:
+    """Print a plan: the trials to record next and the intervals predicted after each.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The CONTRACT.md ``plan`` object (:meth:`~balancer_id.workflows.plan.Plan.to_dict`).
+    """
+    lines = result.get("text") or []
+    if lines:
+        console.print(f"[bold]{lines[0]}[/bold]", highlight=False)
+    for line in lines[1:]:
+        console.print(line, highlight=False)

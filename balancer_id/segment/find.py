@@ -13,6 +13,7 @@ from balancer_id.notes import Note, has_code
 from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient, vertical_name
+from balancer_id.segment.events import standing_out, without_onset
 from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
@@ -121,10 +122,16 @@ def find_trials(
         )
     if given is None and any(st.source == "accel" for r in runs for st in r.steps):
         # without force and without thrusts the onsets are no usable step trials
+        missed = _events_hint(runs)
+        advice = (
+            "give one thrust per onset, in order, with --thrust F1,F2,..."
+            if not missed
+            else "check every motion with inspect --plot before giving thrusts (one per step "
+            "kept, --thrust F1,F2,...; a missed step's stretch with --window START:END)"
+        )
         raise NoTrialError(
             f"{log.path}: no step trial found (no force channel and no thrusts given: the "
-            f"acceleration shows {total} onset(s) at {_onsets(runs)}; give one thrust per "
-            "onset, in order, with --thrust F1,F2,...)"
+            f"acceleration shows {total} onset(s) at {_onsets(runs)}{missed}; {advice})"
         )
     empty = [r for r in runs if not r.steps]  # a run without a trial says why
     for r in empty:
@@ -198,6 +205,23 @@ def _check_arguments(
     if not all(np.isfinite(v) and v != 0 for v in values):
         raise UsageError(f"thrusts must be finite and non-zero (N), got {values}")
     return values
+
+
+def _events_hint(runs: list[Run]) -> str:
+    """``"; 3 more motion(s) stand out with no onset: ..."``, or ``""`` when none do."""
+    missed = []
+    for r in runs:
+        if r.motion is None:
+            continue
+        onsets = [float(r.rec.time[st.onset]) for st in r.steps]
+        missed += without_onset(standing_out(r.rec.time, r.motion.accel), onsets)
+    if not missed:
+        return ""
+    shown = ", ".join(e.text for e in missed[:8]) + (", ..." if len(missed) > 8 else "")
+    return (
+        f"; {len(missed)} more motion(s) stand out with no onset ({shown}): the log may hold "
+        "more steps than the onsets listed"
+    )
 
 
 def _onsets(runs: list[Run]) -> str:

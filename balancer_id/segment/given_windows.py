@@ -39,6 +39,63 @@ def _quietest(x: np.ndarray, width: int, stop: int) -> slice:
     return slice(k, k + width)
 
 
+def force_zero(
+    time: np.ndarray, force: np.ndarray, accel: np.ndarray, f_ref: float, lo: int, hi: int
+) -> str | None:
+    """Why the force's rest reading is not its zero in a window, or None when it is.
+
+    A force's zero is known only where nothing pushes. The reading at the rest before a
+    window is taken as the zero when the load there rested on the force alone (a weight
+    on a bungee: the rest reads its weight, which gravity's removal balances); but a rest
+    held against a tension or a preload (a cart held back on a string, a spring pressed by
+    hand), or no rest at all, reads a force that goes on acting. The motion tells them
+    apart: within the window ``a = (F - z) / m - (D / m) v`` is fitted for the zero ``z``
+    (least squares on the force, the velocity and a constant). The rest reading is kept
+    when ``z`` lies nearer it than 0; otherwise, or when the force does not explain the
+    motion at all (a constant tension), the absolute force is the one that acts.
+
+    Parameters
+    ----------
+    time, force, accel : numpy.ndarray
+        The run's samples (force as read, vertical acceleration less its rest level).
+    f_ref : float
+        The force read at the rest before the window.
+    lo, hi : int
+        The window's samples.
+
+    Returns
+    -------
+    str or None
+        Why the absolute force drives the window; None: the rest reading is the zero.
+    """
+    t, f, a = time[lo:hi], force[lo:hi], accel[lo:hi]
+    if t.size < 10:
+        return None
+    v = np.concatenate([[0.0], np.cumsum(0.5 * (a[1:] + a[:-1]) * np.diff(t))])
+    design = np.column_stack([f, v, np.ones_like(f)])
+    coef, *_ = np.linalg.lstsq(design, a, rcond=None)
+    b_f, c = float(coef[0]), float(coef[2])
+    explained = 1.0 - float(np.var(a - design @ coef)) / max(float(np.var(a)), 1e-300)
+    if not (np.isfinite(b_f) and b_f > 0 and explained > 0.3):
+        return (
+            f"the force ({f_ref:.3g} N at rest) does not follow the motion, as a constant "
+            "tension that goes on pulling"
+        )
+    z = -c / b_f
+    if abs(z - f_ref) <= abs(z):
+        return None
+    return (
+        f"the rest before it holds {f_ref:.3g} N, and the motion shows the zero near "
+        f"{z:.3g} N: a tension or preload that goes on acting, not an offset"
+    )
+
+
+def _noise(x: np.ndarray) -> float:
+    """The white noise's standard deviation in ``x`` (median absolute first difference)."""
+    d = np.abs(np.diff(x[np.isfinite(x)]))
+    return float(np.median(d) / (0.6745 * np.sqrt(2.0))) if d.size else 0.0
+
+
 def check_windows(windows: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
     """The windows sorted, each with START < END and none overlapping.
 
@@ -148,6 +205,10 @@ def _run_windows(
         ac = accel[inside] - np.mean(accel[inside])
         orientation = float(np.sign(fc @ ac)) or 1.0
         how = "force sign from the motion"
+        corr = abs(fc @ ac) / max(float(np.sqrt((fc @ fc) * (ac @ ac))), 1e-300)
+        if corr < 0.3:  # a force that hardly varies (a tension): its level moves the load
+            orientation = float(np.sign(np.mean(force[inside]) * np.mean(accel[inside]))) or 1.0
+            how = "force sign from the mean force and motion (the force hardly varies)"
     else:
         orientation = float(force_sign)
         how = "force sign as given"
@@ -160,6 +221,20 @@ def _run_windows(
         rest = _quietest(smooth(force, 3), width, lo)
         f_ref = float(np.median(force[rest]))
         a_ref = float(np.median(accel[rest]))
+        if lo < width:  # no rest before it: the acceleration's zero is g's removal
+            a_ref = 0.0
+        zero = force_zero(time, force, accel - a_ref, f_ref, lo, hi)
+        if zero is None and lo < width:
+            zero = "no rest before it (it starts with the run)"
+        where = f"window {a:g}:{b:g} s of {rec.name}"
+        notes = []
+        if zero is not None:  # issue 31: the force's zero is known only where nothing pushes
+            f_ref = 0.0
+            notes.append(
+                f"warning: {where}: {zero}; the absolute force drives the model (zero the "
+                "sensor before recording, or give a window with a rest before it where "
+                "nothing but the measured force holds the load)"
+            )
         # the velocity at the window's start: the measured motion since that rest
         k0 = rest.stop
         seg_t, seg_a = time[k0 : lo + 1], accel[k0 : lo + 1] - a_ref
@@ -181,8 +256,13 @@ def _run_windows(
                 end_reason="window",
                 source=source,
                 notes=[
-                    f"window {a:g}:{b:g} s given: the measured force drives the model; {how}; "
-                    f"rest levels from {time[rest.start]:.2f}-{time[rest.stop - 1]:.2f} s"
+                    f"{where} given: the measured force drives the model; {how}; "
+                    + (
+                        f"rest levels from {time[rest.start]:.2f}-{time[rest.stop - 1]:.2f} s"
+                        if zero is None
+                        else "the absolute force (its zero unknown)"
+                    ),
+                    *notes,
                 ],
                 kind="window",
                 vertical=vertical_name(motion, rec.accel_axes),

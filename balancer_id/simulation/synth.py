@@ -134,7 +134,7 @@ def synthetic_recordings(
         if trajectory is not None:
             z_ref, v_ref = trajectory.evaluate(time)
         inputs.append(TrialInput(time, Thrust.step(rest_s, float(f_in)), z_ref, v_ref))
-    sims = simulate_many(model, params, inputs)
+    sims = settled_simulation(model, params, inputs, dt)
     recordings = []
     for k, sim in enumerate(sims):
         specific = (sim.accel + sensor.g)[:, None] * up[None, :]
@@ -159,6 +159,95 @@ def synthetic_recordings(
             )
         )
     return recordings
+
+
+#: RK4 steps are taken this fine against the fastest time constant of the model (RK4
+#: is stable below about 2.8 and accurate to 1e-4 of a step response below 0.5).
+STEP_OF_FASTEST = 0.25
+
+#: Most RK4 steps per sample interval a simulated log takes before it refuses.
+MAX_SUBSTEPS = 4096
+
+
+def fastest_rate(model: Model, params: Mapping[str, float]) -> float:
+    """The model's fastest rate (1/s) at ``params``: its shortest positive lag, its
+    viscosity over its mass, a servo's natural frequency.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    params : mapping of str to float
+        Every parameter's value.
+
+    Returns
+    -------
+    float
+        0 when the model has none of these.
+    """
+    full = model.resolve(dict(params))
+    rates = [1.0 / full[n] for n in model.drive_lag_names if full.get(n, 0.0) > 0]
+    m_a = float(full.get("m_a", 1.0))
+    if m_a > 0:
+        for name in ("D0", "c_r"):
+            if full.get(name, 0.0) > 0:
+                rates.append(float(full[name]) / m_a)
+        if full.get("k_r", 0.0) > 0:
+            rates.append(float(np.sqrt(full["k_r"] / m_a)))
+    return max(rates, default=0.0)
+
+
+def settled_simulation(
+    model: Model, params: Mapping[str, float], inputs: Sequence[TrialInput], dt: float
+) -> list:
+    """Simulate ``inputs`` with RK4 steps fine enough for the model's fastest rate.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    params : mapping of str to float
+        Its values.
+    inputs : sequence of TrialInput
+        The runs.
+    dt : float
+        The sample interval (s).
+
+    Returns
+    -------
+    list of Simulation
+
+    Raises
+    ------
+    UsageError
+        When even :data:`MAX_SUBSTEPS` steps per sample leave a non-finite or diverging
+        acceleration: no diverged log is ever written.
+    """
+    from balancer_id.errors import UsageError
+
+    rate = fastest_rate(model, params)
+    substeps = int(np.clip(np.ceil(dt * rate / STEP_OF_FASTEST), 1, MAX_SUBSTEPS))
+    sims = simulate_many(model, params, inputs, substeps=substeps)
+    bad = [k for k, sim in enumerate(sims) if not _settled(sim.accel)]
+    if bad:
+        raise UsageError(
+            f"the simulation of '{model.spec}' diverges at these values (run {bad[0] + 1}: "
+            f"acceleration not finite or growing without bound, with {substeps} RK4 steps "
+            f"per sample of {dt * 1e3:.3g} ms); give gentler values (a longer lag, a "
+            "smaller viscosity or stiffness for the mass) or check the effect's terms"
+        )
+    return sims
+
+
+def _settled(accel: np.ndarray) -> bool:
+    """Whether a simulated acceleration is finite and not growing without bound (its
+    last second's peak no more than 1e3 times the whole run's median magnitude plus
+    1 m/s^2)."""
+    if not np.all(np.isfinite(accel)):
+        return False
+    mag = np.abs(accel)
+    tail = mag[-max(mag.size // 10, 1) :]
+    return bool(np.max(tail) <= 1e3 * (np.median(mag) + 1.0) and np.max(mag) < 1e9)
 
 
 def keep_mask(n: int, drop_fraction: float, rng: np.random.Generator) -> np.ndarray:

@@ -52,7 +52,7 @@ class Discovered(ExplanationKind):
             if not (inp.tests_failed and discovery.challenges(best, inp.match.model.registry)):
                 return []
             margin = discovery.CHALLENGE_BIC  # the library's law reached the floor
-        if not fit.trusted:  # a fit stuck on a bound: a force found would only patch it
+        if fit.stuck:  # a fit stuck on a bound: a force found would only patch it
             return []
         command = fit.command(subcommand="improve") + " --discover --effects-out discovered.py"
         try:

@@ -1,0 +1,404 @@
+"""Which trial to record next: experiment design from the fit's Fisher information (issue 34.3).
+
+The information the trials already hold is ``I0 = J^T J / (sigma^2 tau)`` (``J`` the
+simulated sensitivities of the fitted samples, ``sigma^2 tau`` the noise variance widened
+for the residual's correlation, as the standard errors are: ``inv(I0)`` is the fit's
+covariance). A candidate step trial (a thrust level and direction, a rest before the step,
+a duration after it, at the fit's sample rate) simulated at the fitted values adds
+``I_c = J_c^T J_c / (sigma^2 tau)``, so the interval predicted after recording it is
+``1.96 sqrt(diag(inv(I0 + I_c)))``. Trials are chosen one after another (each given what
+the earlier ones add) to shrink the target: one parameter's variance (the one the user
+names, or by default the widest interval relative to its value) or, for ``"all"``, the
+determinant of the covariance (D-optimal).
+
+Candidates move the load at most :data:`TRAVEL_FACTOR` times as far as the recorded trials
+did (the hoist's travel is finite). A limit or friction the data do not reach
+(``not_reached``) has no sensitivity at the end of its range; it is evaluated at the bound
+the data leave open (``v_max >= 0.46``: at 0.46), so a trial that reaches that far gets
+the information and is proposed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.errors import UsageError
+from balancer_id.identify.band import Z95
+from balancer_id.identify.data import TrialData
+from balancer_id.identify.matching import MatchResult
+from balancer_id.simulation.engine import PackedTrials, TrialInput
+from balancer_id.simulation.inputs import Thrust
+
+__all__ = ["Candidate", "Design", "Proposal", "candidate_grid", "design_trials"]
+
+#: Thrust levels tried, as multiples of the largest level recorded.
+LEVEL_FACTORS = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
+#: Durations after the step tried, as multiples of the median recorded (and the cap, s).
+DURATION_FACTORS = (0.5, 1.0, 2.0, 4.0)
+MAX_DURATION_S = 120.0
+#: Rests before the step tried (s).
+RESTS_S = (1.0, 3.0)
+#: A trial may move the load at most this many times the farthest the recorded trials
+#: moved it (the hoist's travel is finite, and unknown here).
+TRAVEL_FACTOR = 1.5
+#: A trial proposed to reach a speed limit goes this much faster than the bound the data
+#: leave open and than every recorded trial.
+REACH_MARGIN = 1.2
+#: A prior information so weak it only keeps an unseen direction finite: a standard
+#: deviation this many times the parameter's scale.
+VAGUE = 1e3
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One step trial that could be recorded.
+
+    Attributes
+    ----------
+    thrust_N : float
+        Signed thrust (N, up positive).
+    rest_s : float
+        Rest before the step (s).
+    duration_s : float
+        Recording after the step (s).
+    rate_hz : float
+        Sample rate (the fit's).
+    """
+
+    thrust_N: float
+    rest_s: float
+    duration_s: float
+    rate_hz: float
+
+    @property
+    def direction(self) -> str:
+        """``"up"`` or ``"down"``."""
+        return "up" if self.thrust_N > 0 else "down"
+
+    def trial_input(self) -> TrialInput:
+        """The simulated trial: rest, then the step, from rest."""
+        dt = 1.0 / self.rate_hz
+        t = np.arange(round((self.rest_s + self.duration_s) / dt) + 1) * dt
+        return TrialInput(t, Thrust.step(self.rest_s, self.thrust_N))
+
+    def sentence(self) -> str:
+        """How to record it, in words."""
+        return (
+            f"a step of {self.thrust_N:+.3g} N ({self.direction}) after {self.rest_s:g} s at "
+            f"rest, recorded {self.duration_s:.3g} s after the step"
+        )
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "thrust_N": self.thrust_N,
+            "direction": self.direction,
+            "rest_s": self.rest_s,
+            "duration_s": self.duration_s,
+            "rate_hz": self.rate_hz,
+        }
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """A trial to record next and what it is predicted to do.
+
+    Attributes
+    ----------
+    candidate : Candidate
+        The trial.
+    target : str
+        The parameter it was chosen for, or ``"all"`` (D-optimal).
+    before, after : dict of str to float
+        Each parameter's predicted 95 % half-width before and after recording it (and
+        the proposals before it).
+    peak_speed : float
+        The largest speed the trial reaches in the fitted model (m/s; a limit not
+        reached is at the end of its range there, so this is the speed it would reach
+        without it).
+    reaches : str or None
+        The parameter not reached so far that it is chosen to reach.
+    """
+
+    candidate: Candidate
+    target: str
+    before: dict[str, float]
+    after: dict[str, float]
+    peak_speed: float
+    reaches: str | None = None
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            **self.candidate.to_dict(),
+            "target": self.target,
+            "halfwidth_before": self.before,
+            "halfwidth_after": self.after,
+            "peak_speed": self.peak_speed,
+            "reaches": self.reaches,
+        }
+
+
+@dataclass(frozen=True)
+class Design:
+    """The proposals, in the order to record them.
+
+    Attributes
+    ----------
+    target : str
+        The criterion: a parameter, or ``"all"`` (D-optimal).
+    names : list of str
+        The parameters the information is over.
+    values : dict of str to float
+        The point the sensitivities are taken at (fitted values; an unreached parameter
+        at the bound its data leave open).
+    now : dict of str to float
+        Each parameter's predicted 95 % half-width from the trials recorded.
+    proposals : list of Proposal
+    unreached : list of str
+        Parameters the data do not reach.
+    fastest : float
+        The largest speed the recorded trials reach in the fitted model (m/s).
+    """
+
+    target: str
+    names: list[str]
+    values: dict[str, float]
+    now: dict[str, float]
+    proposals: list[Proposal] = field(default_factory=list)
+    unreached: list[str] = field(default_factory=list)
+    fastest: float = float("nan")
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "target": self.target,
+            "parameters": self.names,
+            "at": self.values,
+            "halfwidth_now": self.now,
+            "unreached": self.unreached,
+            "proposals": [p.to_dict() for p in self.proposals],
+        }
+
+
+def candidate_grid(trials: Sequence[TrialData]) -> list[Candidate]:
+    """The step trials considered: levels, directions, rests and durations around the data's.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials recorded (their levels, durations and rate set the grid's scale).
+
+    Returns
+    -------
+    list of Candidate
+        Every combination of :data:`LEVEL_FACTORS` x the largest level, both directions,
+        :data:`RESTS_S` and :data:`DURATION_FACTORS` x the median duration.
+    """
+    levels = [abs(t.thrust_N) for t in trials if t.thrust_N]
+    if not levels:
+        raise UsageError("plan: no step trial to scale the proposals on (a move is not planned)")
+    top = max(levels)
+    after = [float(t.time[-1] - t.t_step) for t in trials]
+    d0 = float(np.median(after)) if after else 5.0
+    rate = float(np.median([t.rate_hz for t in trials]))
+    out = []
+    for k in LEVEL_FACTORS:
+        for sign in (1.0, -1.0):
+            for rest in RESTS_S:
+                for m in DURATION_FACTORS:
+                    dur = float(min(max(d0 * m, 0.5), MAX_DURATION_S))
+                    out.append(Candidate(sign * top * k, rest, round(dur, 2), rate))
+    return out
+
+
+def _scale(match: MatchResult, name: str) -> float:
+    p = match.parameters[name]
+    return max(abs(p.value), p.stderr or 0.0, 1e-9)
+
+
+def _point(match: MatchResult) -> tuple[dict[str, float], list[str]]:
+    """Fitted values with each unreached parameter at its open bound; the unreached."""
+    values = match.values()
+    unreached = []
+    for name, p in match.parameters.items():
+        if p.vary and p.not_reached is not None and p.profile is not None:
+            values[name] = p.profile[0] if p.not_reached == "above" else p.profile[1]
+            unreached.append(name)
+    return values, unreached
+
+
+def _sensitivities(match: MatchResult, packed, values: dict[str, float], names: list[str]):
+    model = match.model
+    pvec = np.asarray(model.vector(values), float)
+    cols = [list(model.param_names).index(n) for n in names]
+    with np.errstate(all="ignore"):
+        out, sens = packed.run_sens(model, pvec, cols)
+    sens = np.where(np.isfinite(sens), sens, 0.0)
+    return out, sens
+
+
+def _halfwidths(info: np.ndarray, names: list[str]) -> dict[str, float]:
+    cov = np.linalg.inv(info)
+    return {n: float(Z95 * math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(names)}
+
+
+def _objective(info: np.ndarray, target: int | None) -> float:
+    """Lower is better: the target's variance, or minus the log-determinant."""
+    if target is None:
+        sign, logdet = np.linalg.slogdet(info)
+        return -logdet if sign > 0 else math.inf
+    try:
+        return float(np.linalg.inv(info)[target, target])
+    except np.linalg.LinAlgError:
+        return math.inf
+
+
+#: Of trials about as good as the best (variance within 5 %, log-determinant within 0.05),
+#: the shortest and gentlest is proposed: the information grows with every second
+#: recorded, so the best alone would always be the longest, strongest trial.
+MODEST_VARIANCE = 1.05
+MODEST_LOGDET = 0.05
+
+
+def _modest(scores: np.ndarray, grid: Sequence[Candidate], logdet: bool) -> int | None:
+    """The shortest, gentlest candidate about as good as the best (None: none finite)."""
+    finite = np.isfinite(scores)
+    if not finite.any():
+        return None
+    top = float(np.min(scores[finite]))
+    near = scores <= (top + MODEST_LOGDET if logdet else top * MODEST_VARIANCE)
+    near &= finite
+    picks = np.flatnonzero(near)
+    key = [(grid[i].duration_s + grid[i].rest_s, abs(grid[i].thrust_N), scores[i]) for i in picks]
+    return int(picks[min(range(len(picks)), key=lambda m: key[m])])
+
+
+def design_trials(
+    match: MatchResult, target: str | None = None, count: int = 3, also: Sequence[str] = ()
+) -> Design:
+    """Propose the next ``count`` step trials that shrink the target interval most.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its model, trials, values, noise variance and correlation time).
+    target : str, optional
+        A fitted parameter, ``"all"`` (D-optimal: the covariance's determinant), or None:
+        first each parameter the data do not reach (the trial that reaches it), then the
+        parameter whose 95 % interval is widest against its value.
+    count : int
+        Trials to propose (at least 1).
+    also : sequence of str
+        Parameters the fit held because the data could not determine them (``A`` from
+        one thrust level): planned for as if free (their interval now is unbounded).
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    UsageError
+        An unknown or held ``target``, nothing fitted, or a model that needs a robot's
+        reference move (its moves are not planned).
+    """
+    model = match.model
+    if model.needs_reference_move:
+        raise UsageError("plan: a robot's move is not planned yet; plan the balancer's steps")
+    names = [n for n, p in match.parameters.items() if p.vary or n in also]
+    if not names:
+        raise UsageError("plan: the fit has no free parameter; nothing to plan for")
+    if target not in (None, "all", *names):
+        raise UsageError(
+            f"--param {target}: not a fitted parameter of '{model.spec}' "
+            f"(fitted: {', '.join(names)}; or 'all' for D-optimal)"
+        )
+    values, unreached = _point(match)
+    k = len(names)
+    n = match.y.size
+    s2 = float(np.sum(match.residual**2)) / max(n - k, 1)
+    s2 *= max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    ridge = np.diag([1.0 / (VAGUE * _scale(match, nm)) ** 2 for nm in names])
+    _, sens = _sensitivities(match, match.data.packed, values, names)
+    info = sens.T @ sens / s2 + ridge
+    fitted = match.values()  # where the load goes (the bound point only for information)
+    with np.errstate(all="ignore"):
+        out0 = match.data.packed.run(model, np.asarray(model.vector(fitted), float))
+    travel = TRAVEL_FACTOR * float(np.nanmax(np.abs(out0[:, 2]))) if out0.size else math.inf
+    fastest = float(np.nanmax(np.abs(out0[:, 1]))) if out0.size else 0.0
+    now = _halfwidths(info, names)
+
+    grid = candidate_grid(match.data.trials)
+    adds, peaks = [], []
+    longest: dict[tuple[float, float], Candidate] = {}
+    for c in grid:  # one simulation per level and rest: shorter durations are prefixes
+        key = (c.thrust_N, c.rest_s)
+        if key not in longest or c.duration_s > longest[key].duration_s:
+            longest[key] = c
+    runs = {}
+    for key, c in longest.items():
+        packed = PackedTrials.pack([c.trial_input()])
+        _, s = _sensitivities(match, packed, values, names)
+        with np.errstate(all="ignore"):
+            out = packed.run(model, np.asarray(model.vector(fitted), float))
+        runs[key] = (np.asarray(c.trial_input().time), out, s)
+    for c in grid:
+        t, out, s = runs[(c.thrust_N, c.rest_s)]
+        rows = t <= c.rest_s + c.duration_s + 1e-9
+        moved = float(np.nanmax(np.abs(out[rows, 2]))) if rows.any() else 0.0
+        # too far a move adds nothing: it cannot be recorded on this hoist
+        adds.append(s[rows].T @ s[rows] / s2 if moved <= travel else np.zeros_like(info))
+        v = out[rows, 1]
+        peaks.append(float(np.nanmax(np.abs(v))) if v.size else 0.0)
+    peak_arr = np.array(peaks)
+
+    order: list[tuple[str | None, str]] = [(u, u) for u in unreached if target in (None, u)]
+    if target == "all":
+        order += [(None, "all")] * count
+    else:
+        if target is None:
+            rel = {nm: now[nm] / _scale(match, nm) for nm in names if nm not in unreached}
+            goal = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
+        else:
+            goal = target
+        order += [(goal, goal)] * count
+    order = order[: max(count, len(unreached) if target is None else 1)]
+    proposals = []
+    for goal, label in order:
+        j = names.index(goal) if goal is not None else None
+        scores = np.array([_objective(info + add, j) for add in adds])
+        if goal in unreached and match.parameters[goal].not_reached == "above":
+            # a speed limit is reached by a trial faster than both the bound the data
+            # leave open and every trial so far (in the model without the limit)
+            if match.parameters[goal].unit == "m/s":
+                need = REACH_MARGIN * max(values[goal], fastest)
+                scores = np.where(peak_arr >= need, scores, np.inf)
+        best = _modest(scores, grid, j is None)
+        if best is None:
+            break
+        before = _halfwidths(info, names)
+        info = info + adds[best]
+        proposals.append(
+            Proposal(
+                grid[best],
+                label,
+                before,
+                _halfwidths(info, names),
+                peaks[best],
+                goal if goal in unreached else None,
+            )
+        )
+    return Design(
+        target=target or "widest",
+        names=names,
+        values={nm: float(values[nm]) for nm in names},
+        now=now,
+        proposals=proposals,
+        fastest=fastest,
+        unreached=unreached,
+    )

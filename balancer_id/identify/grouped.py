@@ -1,0 +1,379 @@
+"""One fit over groups of trials: some parameters each group's own, the rest shared.
+
+The engine of ``fit --per-log`` (a group is a log) and ``fit --track`` (a group is a
+short block of a session). The groups are simulated apart, each with its own parameter
+vector, and fitted together by Levenberg-Marquardt on the block-arrow normal equations:
+each group's Jacobian touches the shared parameters and its own only, so a step solves
+the shared parameters' Schur complement and then each group's own (cost linear in the
+number of groups). Each group's residual and Jacobian come compressed (its ``[J | r]``
+factored to ``k + 1`` rows by :class:`~balancer_id.identify.matching._Problem`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.identify.data import FitData, TrialData, thrust_levels
+from balancer_id.identify.matching import ParameterEstimate, _at_bound, _Problem
+from balancer_id.identify.metrics import correlation_time
+from balancer_id.identify.starts import lag_floor
+from balancer_id.model.spec import Model
+
+#: The fit stops when no step moves an estimate by more than this fraction of its
+#: standard error (as :data:`~balancer_id.identify.matching.STOP_STEP`).
+STOP_STEP = 0.01
+MAX_ITERATIONS = 60
+
+
+@dataclass
+class GroupedFit:
+    """The outcome of :func:`fit_grouped`.
+
+    Attributes
+    ----------
+    model : Model
+        The model.
+    shared : dict of str to ParameterEstimate
+        The shared parameters (fitted and held).
+    own : list of dict of str to ParameterEstimate
+        Each group's own parameters.
+    rss : float
+        Residual sum of squares over all samples.
+    n_samples : int
+        Samples fitted.
+    n_free : int
+        Free parameters in all (shared plus every group's own).
+    tau : float
+        The residual's correlation time (samples); standard errors are widened by its
+        square root, and the information criteria count ``n_samples / tau`` samples.
+    group_rss, group_n : list
+        Each group's residual sum of squares and sample count.
+    own_time : list of dict of str to float
+        Each group's own parameters' times: the mean sample time weighted by the
+        parameter's information (its sensitivity squared): the time an estimate of a
+        parameter that moves within the group stands for.
+    own_given_shared : list of dict of str to float or None
+        Each group's own parameters' standard errors given the shared values: the part of
+        their error independent from group to group (the rest, through the shared
+        values' error, is common to all groups).
+    converged : bool
+        Whether the steps became a small fraction of every standard error.
+    iterations : int
+        Levenberg-Marquardt iterations.
+    """
+
+    model: Model
+    shared: dict[str, ParameterEstimate]
+    own: list[dict[str, ParameterEstimate]]
+    rss: float
+    n_samples: int
+    n_free: int
+    tau: float
+    group_rss: list[float]
+    group_n: list[int]
+    own_time: list[dict[str, float]]
+    own_given_shared: list[dict[str, float | None]]
+    converged: bool
+    iterations: int
+
+    @property
+    def n_effective(self) -> float:
+        """Independent samples the residual is worth (``n_samples / tau``)."""
+        return self.n_samples / max(self.tau, 1.0)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion on the effective sample count."""
+        n = self.n_effective
+        return float(n * np.log(self.rss / self.n_samples) + self.n_free * np.log(n))
+
+    def values(self, group: int) -> dict[str, float]:
+        """Every parameter's value in one group (its own and the shared ones).
+
+        Parameters
+        ----------
+        group : int
+            The group's position.
+
+        Returns
+        -------
+        dict of str to float
+        """
+        out = {k: p.value for k, p in self.shared.items()}
+        out.update({k: p.value for k, p in self.own[group].items()})
+        return out
+
+
+def _estimate(model: Model, name: str, value: float, se: float | None, lo: float, hi: float,
+              vary: bool = True) -> ParameterEstimate:
+    side = _at_bound(value, lo, hi) if vary else None
+    return ParameterEstimate(
+        name=name, value=float(value), stderr=se, unit=model.param(name).unit, vary=vary,
+        at_bound=side,
+    )
+
+
+def fit_grouped(
+    model: Model,
+    groups: Sequence[Sequence[TrialData]],
+    own: Sequence[str],
+    *,
+    start: Mapping[str, float] | None = None,
+    own_start: Sequence[Mapping[str, float]] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    max_iterations: int = MAX_ITERATIONS,
+) -> GroupedFit:
+    """Fit ``model`` over ``groups``: ``own`` parameters per group, the rest shared.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    groups : sequence of sequence of TrialData
+        The groups' trials (a log's, or a block of a session's, each made to start on
+        its own: no trial continues one of another group).
+    own : sequence of str
+        The parameters each group has its own value of.
+    start : mapping of str to float, optional
+        Start values of every parameter (a joint fit's).
+    own_start : sequence of mapping, optional
+        Start values of the own parameters per group (default: ``start``'s).
+    fixed : mapping of str to float, optional
+        Parameters held (shared).
+    max_iterations : int
+        Most Levenberg-Marquardt iterations.
+
+    Returns
+    -------
+    GroupedFit
+
+    Raises
+    ------
+    UsageError
+        An own parameter that is not one of the model's, or is held.
+    IdentificationError
+        No group, or a simulation that is not finite at the start.
+    """
+    fixed = dict(fixed or {})
+    names = list(model.param_names)
+    for name in own:
+        if name not in names:
+            raise UsageError(
+                f"{name} is not a parameter of '{model.spec}' (its parameters: {', '.join(names)})"
+            )
+        if name in fixed:
+            raise UsageError(f"{name} is held with --fix; it cannot also be each log's own")
+    if not groups or not all(groups):
+        raise IdentificationError("no trials to fit in a group")
+    all_trials = [td for g in groups for td in g]
+    if len(thrust_levels(all_trials)) < 2:
+        for name in model.thrust_level_names:
+            if name in names and name not in fixed and name not in own:
+                fixed[name] = dict(start or {}).get(name, model.param(name).value)
+    full = model.resolve({**dict(start or {}), **fixed})
+    shared_names = [n for n in names if n not in fixed and n not in own]
+    own_names = [n for n in names if n in own]
+    p, q = len(shared_names), len(own_names)
+    idx = [names.index(n) for n in shared_names + own_names]
+    lo = np.array([model.param(n).min for n in shared_names + own_names], float)
+    hi = np.array([model.param(n).max for n in shared_names + own_names], float)
+    floor = lag_floor(all_trials)
+    for j, n in enumerate(shared_names + own_names):
+        if n in model.drive_lag_names:
+            lo[j] = max(lo[j], floor)
+    lo_in = lo + 1e-9 * np.maximum(1.0, np.abs(lo))  # strictly inside the bounds
+    hi_in = hi - 1e-9 * np.maximum(1.0, np.abs(hi))
+    base = np.array([full[n] for n in names], float)
+    s = np.clip(np.array([full[n] for n in shared_names], float), lo_in[:p], hi_in[:p])
+    o = []
+    for g in range(len(groups)):
+        given = dict(own_start[g]) if own_start is not None else {}
+        vec = np.array([given.get(n, full[n]) for n in own_names], float)
+        o.append(np.clip(vec, lo_in[p:], hi_in[p:]))
+    problems = [_Problem(model, FitData.build(list(g)), base, idx) for g in groups]
+
+    def evaluate(
+        s_: np.ndarray, o_: list[np.ndarray]
+    ) -> tuple[float, list[tuple[np.ndarray, np.ndarray]]]:
+        parts = []
+        cost = 0.0
+        for prob, og in zip(problems, o_, strict=True):
+            x = np.concatenate([s_, og])
+            rt = prob.fun(x)
+            jt = prob.jac(x)
+            cost += float(rt @ rt)
+            parts.append((jt, rt))
+        return cost, parts
+
+    n_total = int(sum(pr.n_samples for pr in problems))
+    cost, parts = evaluate(s, o)
+    if not np.isfinite(cost):
+        raise IdentificationError(f"model '{model.spec}' is not finite at its start values")
+    lam = 1e-3
+    converged = False
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 - the count is reported
+        step_s, step_o, se_s, se_o = _lm_step(parts, p, q, lam, cost, n_total)
+        if step_s is None:
+            lam *= 10
+            if lam > 1e10:
+                break
+            continue
+        new_s = np.clip(s + step_s, lo_in[:p], hi_in[:p])
+        new_o = [
+            np.clip(og + d, lo_in[p:], hi_in[p:])
+            for og, d in zip(o, step_o, strict=True)
+        ]
+        new_cost, new_parts = evaluate(new_s, new_o)
+        if np.isfinite(new_cost) and new_cost <= cost:
+            small = _small(s, new_s, se_s, o, new_o, se_o)
+            s, o, cost, parts = new_s, new_o, new_cost, new_parts
+            lam = max(lam / 10, 1e-9)
+            if small:
+                converged = True
+                break
+        else:
+            lam *= 10
+            if lam > 1e10:
+                converged = True  # no step lowers the cost: a minimum (at a bound)
+                break
+    n = n_total
+    k = p + q * len(groups)
+    residuals = []
+    own_time = []
+    for pr, og in zip(problems, o, strict=True):
+        r, sens = pr.evaluate(np.concatenate([s, og]))
+        residuals.append(np.where(np.isfinite(r), r, 0.0))
+        times = np.concatenate([td.time for td in pr.data.trials])[: r.size]
+        w = sens[:, p:] ** 2
+        total = w.sum(axis=0)
+        own_time.append(
+            {
+                name: float(w[:, j] @ times / total[j]) if total[j] > 0 else float(np.mean(times))
+                for j, name in enumerate(own_names)
+            }
+        )
+    rss = float(sum(float(r @ r) for r in residuals))
+    segs = [r[sl] for pr, r in zip(problems, residuals, strict=True) for sl in pr.data.slices()]
+    tau = max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
+    cov_s, cov_o = _covariances(parts, p, q)
+    sigma2 = rss / max(n - k, 1) * tau
+    shared = {}
+    for j, name in enumerate(shared_names):
+        se = _se(cov_s, j, sigma2)
+        shared[name] = _estimate(model, name, s[j], se, lo[j], hi[j])
+    for name, value in fixed.items():
+        if name in names:
+            shared[name] = _estimate(model, name, value, None, -np.inf, np.inf, vary=False)
+    owns = []
+    own_given_shared = []
+    for og, (cond, common) in zip(o, cov_o, strict=True):
+        full_cov = None if cond is None else cond + common
+        owns.append(
+            {
+                name: _estimate(model, name, og[j], _se(full_cov, j, sigma2), lo[p + j], hi[p + j])
+                for j, name in enumerate(own_names)
+            }
+        )
+        own_given_shared.append(
+            {name: _se(cond, j, sigma2) for j, name in enumerate(own_names)}
+        )
+    return GroupedFit(
+        model=model,
+        shared=shared,
+        own=owns,
+        rss=rss,
+        n_samples=n,
+        n_free=k,
+        tau=tau,
+        group_rss=[float(r @ r) for r in residuals],
+        group_n=[int(r.size) for r in residuals],
+        own_time=own_time,
+        own_given_shared=own_given_shared,
+        converged=converged,
+        iterations=iterations,
+    )
+
+
+def _se(cov: np.ndarray | None, j: int, sigma2: float) -> float | None:
+    if cov is None or not np.isfinite(cov[j, j]) or cov[j, j] < 0:
+        return None
+    return float(np.sqrt(cov[j, j] * sigma2))
+
+
+def _small(s, new_s, se_s, o, new_o, se_o) -> bool:
+    """Every estimate moved by less than STOP_STEP of its standard error."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if se_s is not None and np.size(s) and np.any(np.abs(new_s - s) > STOP_STEP * se_s):
+            return False
+        for og, ng, sg in zip(o, new_o, se_o, strict=True):
+            if np.size(og) and np.any(np.abs(ng - og) > STOP_STEP * sg):
+                return False
+    return True
+
+
+def _lm_step(parts, p: int, q: int, lam: float, cost: float, n: int):
+    """A damped Gauss-Newton step on the block-arrow normal equations, and each
+    parameter's standard error at the current point (undamped, white residual)."""
+    hss = np.zeros((p, p))
+    gs = np.zeros(p)
+    blocks = []
+    for jt, rt in parts:
+        a, b = jt[:, :p], jt[:, p:]
+        hss += a.T @ a
+        gs += a.T @ rt
+        blocks.append((a.T @ b, b.T @ b, b.T @ rt))
+    k = p + q * len(parts)
+    sigma2 = cost / max(n - k, 1)
+    try:
+        damp_s = hss + lam * np.diag(np.diag(hss) + 1e-12)
+        schur = damp_s.copy()
+        rhs = -gs.copy()
+        solved = []
+        se_o = []
+        for hso, hoo, go in blocks:
+            damp_o = hoo + lam * np.diag(np.diag(hoo) + 1e-12)
+            inv = np.linalg.inv(damp_o)
+            solved.append((hso, inv, go))
+            schur -= hso @ inv @ hso.T
+            rhs += hso @ inv @ go
+            se_o.append(np.sqrt(np.abs(np.diag(np.linalg.pinv(hoo))) * sigma2))
+        ds = np.linalg.solve(schur, rhs) if p else np.zeros(0)
+        do = [inv @ (-go - hso.T @ ds) for hso, inv, go in solved]
+        se_s = np.sqrt(np.abs(np.diag(np.linalg.pinv(hss))) * sigma2) if p else np.zeros(0)
+    except np.linalg.LinAlgError:
+        return None, None, None, None
+    if not (np.all(np.isfinite(ds)) and all(np.all(np.isfinite(d)) for d in do)):
+        return None, None, None, None
+    return ds, do, se_s, se_o
+
+
+def _covariances(parts, p: int, q: int):
+    """``inv(J^T J)``: its shared block, and each group's own block in two parts: given the
+    shared values (independent from group to group) and through the shared values' error
+    (common to all groups); their sum is the marginal covariance."""
+    hss = np.zeros((p, p))
+    blocks = []
+    for jt, _ in parts:
+        a, b = jt[:, :p], jt[:, p:]
+        hss += a.T @ a
+        blocks.append((a.T @ b, b.T @ b))
+    try:
+        schur = hss.copy()
+        invs = []
+        for hso, hoo in blocks:
+            inv = np.linalg.inv(hoo)
+            invs.append(inv)
+            schur -= hso @ inv @ hso.T
+        cov_s = np.linalg.inv(schur) if p else np.zeros((0, 0))
+        cov_o = []
+        for (hso, _), inv in zip(blocks, invs, strict=True):
+            m = inv @ hso.T  # q x p
+            cov_o.append((inv, m @ cov_s @ m.T))
+    except np.linalg.LinAlgError:
+        return None, [(None, None)] * len(parts)
+    return cov_s, cov_o

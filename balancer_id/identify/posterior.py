@@ -1,0 +1,538 @@
+"""Posterior sampling of a fit's parameters (issue 34.2): the shape the Wald interval hides.
+
+The likelihood is the fit's own least-squares one with the noise variance it estimated,
+each sample counting ``1 / tau`` for a residual correlated over ``tau`` samples (as the
+standard errors do, ``matching._covariance``):
+
+    log L(theta) = -S(theta) / (2 sigma^2 tau),   sigma^2 = S_min / (n - k)
+
+times a uniform prior inside each parameter's bounds (a positive one's within a factor
+100 of its fitted value, :func:`support`) and, where the user gives one, a
+normal prior ``NAME=normal:MU,SD``. emcee's ensemble sampler draws from it, started
+around the optimum, moved by differential evolution; the chain runs until it is 50
+autocorrelation times long (or its budget is spent), the first two autocorrelation times
+are dropped and the rest thinned by half of one. Credible intervals are the 2.5 and 97.5 %
+quantiles, or, where the posterior piles against a bound, from the bound to the 95 %
+quantile.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from balancer_id.errors import UsageError
+from balancer_id.identify.band import covariance_of
+from balancer_id.identify.matching import MatchResult
+from balancer_id.notes import Note
+
+__all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
+
+#: A chain this many autocorrelation times long gives stable quantiles (emcee's advice).
+CHAIN_TAUS = 50
+#: A credible end this far (a share of the Wald width) from the Wald end disagrees.
+DISAGREE_SHARE = 0.25
+#: A credible interval whose end is this near a bound (a share of its width) is one-sided.
+AT_BOUND_SHARE = 0.1
+#: Acceptance fractions outside this range say the sampler is not mixing well.
+ACCEPTANCE_RANGE = (0.15, 0.75)
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A normal prior on one parameter (``NAME=normal:MU,SD``).
+
+    Attributes
+    ----------
+    name : str
+        The parameter.
+    mu, sd : float
+        Mean and standard deviation (the parameter's unit).
+    """
+
+    name: str
+    mu: float
+    sd: float
+    kind: str = "normal"
+
+    def log_density(self, value: float) -> float:
+        """Log density up to a constant.
+
+        Parameters
+        ----------
+        value : float
+            The parameter's value.
+
+        Returns
+        -------
+        float
+        """
+        return -0.5 * ((value - self.mu) / self.sd) ** 2
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {"name": self.name, "kind": self.kind, "mu": self.mu, "sd": self.sd}
+
+
+_PRIOR = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*normal\s*:\s*([^,]+),([^,]+)$")
+
+
+def parse_prior(text: str) -> Prior:
+    """``NAME=normal:MU,SD`` as a :class:`Prior`.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    Prior
+
+    Raises
+    ------
+    UsageError
+        Any other form, a value that is not a finite number, or SD <= 0.
+    """
+    m = _PRIOR.match(text)
+    if m is None:
+        raise UsageError(f"--prior '{text}': expected NAME=normal:MU,SD, e.g. m_a=normal:15,1")
+    try:
+        mu, sd = float(m.group(2)), float(m.group(3))
+    except ValueError:
+        raise UsageError(f"--prior '{text}': MU and SD must be numbers") from None
+    if not (math.isfinite(mu) and math.isfinite(sd) and sd > 0):
+        raise UsageError(f"--prior '{text}': give a finite MU and a positive SD")
+    return Prior(m.group(1), mu, sd)
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """Samples of the posterior of a fit's free parameters, and how well they mixed.
+
+    Attributes
+    ----------
+    names : list of str
+        The sampled parameters (the fit's free ones).
+    samples : numpy.ndarray
+        ``m x len(names)``: the chain after burn-in, thinned, walkers pooled.
+    fitted : dict of str to float
+        The least-squares optimum.
+    wald : dict of str to (float, float) or None
+        Each parameter's Wald 95 % interval (None where undefined).
+    profile : dict of str to (float, float)
+        Profile-likelihood intervals where the fit computed them.
+    tau : dict of str to float
+        Integrated autocorrelation time of each parameter's chain (steps).
+    acceptance : float
+        Mean acceptance fraction of the walkers.
+    n_walkers, n_steps, burn, thin : int
+        The ensemble's size, the steps taken, dropped and the thinning.
+    priors : list of Prior
+        The normal priors given (the rest: uniform within the bounds).
+    seed : int
+        The sampler's seed.
+    notes : list of Note
+        Convergence and disagreement with the Wald intervals.
+    bounds : dict of str to (float, float)
+        Each parameter's bounds (the uniform prior's support).
+    """
+
+    names: list[str]
+    samples: np.ndarray
+    fitted: dict[str, float]
+    wald: dict[str, tuple[float, float] | None]
+    profile: dict[str, tuple[float, float]]
+    tau: dict[str, float]
+    acceptance: float
+    n_walkers: int
+    n_steps: int
+    burn: int
+    thin: int
+    priors: list[Prior] = field(default_factory=list)
+    seed: int = 0
+    notes: list[Note] = field(default_factory=list)
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def converged(self) -> bool:
+        """Whether the chain is :data:`CHAIN_TAUS` autocorrelation times long and the
+        acceptance fraction is in :data:`ACCEPTANCE_RANGE`."""
+        longest = max(self.tau.values(), default=0.0)
+        ok_len = np.isfinite(longest) and self.n_steps >= CHAIN_TAUS * longest
+        return bool(ok_len and ACCEPTANCE_RANGE[0] <= self.acceptance <= ACCEPTANCE_RANGE[1])
+
+    def credible(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
+        """Credible intervals: equal-tailed, or one-sided where the posterior piles
+        against a bound.
+
+        Where the equal-tailed interval's end is nearer a parameter's bound than
+        :data:`AT_BOUND_SHARE` of its width (the posterior is cut by the bound: D0 near
+        0), the interval runs from the bound to the ``level`` quantile instead, as the
+        profile interval ends at a bound the data do not exclude.
+
+        Parameters
+        ----------
+        level : float
+            Probability inside.
+
+        Returns
+        -------
+        dict of str to (float, float)
+        """
+        out = {}
+        tail = 50 * (1 - level)
+        for j, n in enumerate(self.names):
+            x = self.samples[:, j]
+            lo, hi = (float(v) for v in np.percentile(x, [tail, 100 - tail]))
+            b_lo, b_hi = self.bounds.get(n, (-np.inf, np.inf))
+            width = hi - lo
+            if lo - b_lo < AT_BOUND_SHARE * width:
+                lo, hi = b_lo, float(np.percentile(x, 100 * level))
+            elif b_hi - hi < AT_BOUND_SHARE * width:
+                lo, hi = float(np.percentile(x, 100 * (1 - level))), b_hi
+            out[n] = (lo, hi)
+        return out
+
+    def median(self) -> dict[str, float]:
+        """Posterior medians."""
+        return {
+            n: float(v) for n, v in zip(self.names, np.median(self.samples, axis=0), strict=True)
+        }
+
+    def diagnostics_text(self) -> str:
+        """One line: the ensemble, the chain's length against its autocorrelation time,
+        the acceptance and whether that counts as converged."""
+        longest = max(self.tau.values(), default=float("nan"))
+        ratio = self.n_steps / longest if math.isfinite(longest) and longest > 0 else float("nan")
+        return (
+            f"emcee, {self.n_walkers} walkers x {self.n_steps} steps "
+            f"({self.samples.shape[0]} samples kept after {self.burn} burn-in, thinned by "
+            f"{self.thin}); autocorrelation time {longest:.0f} steps ({ratio:.0f} of them "
+            f"run, {CHAIN_TAUS} wanted); acceptance {self.acceptance:.2f}: "
+            + ("converged" if self.converged else "NOT converged")
+        )
+
+    def lines(self) -> list[str]:
+        """The ``[[Posterior]]`` block of ``summary()``: intervals of each kind side by side."""
+        cred, med = self.credible(), self.median()
+        out = ["[[Posterior]]", f"    {self.diagnostics_text()}"]
+        if self.priors:
+            given = ", ".join(f"{p.name} ~ N({p.mu:g}, {p.sd:g})" for p in self.priors)
+            out.append(f"    priors: {given}; the others uniform within their bounds")
+        width = max(len(n) for n in self.names)
+
+        def span(iv: tuple[float, float] | None) -> str:
+            return f"[{iv[0]:.4g}, {iv[1]:.4g}]" if iv else "-"
+
+        for n in self.names:
+            out.append(
+                f"    {n:<{width}}  median {med[n]:.5g}  credible 95% {span(cred[n])}  "
+                f"Wald {span(self.wald.get(n))}  profile {span(self.profile.get(n))}"
+            )
+        return out
+
+    def to_dict(self) -> dict[str, object]:
+        """The ``posterior`` object of ``fit --json`` (CONTRACT.md)."""
+        cred = self.credible()
+        med = self.median()
+        return {
+            "method": "emcee",
+            "parameters": {
+                n: {
+                    "median": med[n],
+                    "credible95": list(cred[n]),
+                    "wald95": list(self.wald[n]) if self.wald.get(n) else None,
+                    "profile95": list(self.profile[n]) if n in self.profile else None,
+                    "tau_steps": self.tau.get(n),
+                }
+                for n in self.names
+            },
+            "acceptance": self.acceptance,
+            "n_walkers": self.n_walkers,
+            "n_steps": self.n_steps,
+            "burn": self.burn,
+            "thin": self.thin,
+            "n_samples": int(self.samples.shape[0]),
+            "converged": self.converged,
+            "priors": [p.to_dict() for p in self.priors],
+            "seed": self.seed,
+        }
+
+
+def support(match: MatchResult, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The uniform prior's support: the bounds, a positive parameter's within a factor
+    :data:`~balancer_id.identify.intervals.PROFILE_FACTOR` of its fitted value (as the
+    profile is followed; 0 stays reachable where it is the bound).
+
+    The model's bounds hold any balancer (0.01 kg to 1e5 kg, D0 to 1e6 kg/s); flat over
+    them, a ridge the data do not close (D0 and A both large) holds most of the prior's
+    volume and the posterior follows it there, not the data.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    names : sequence of str
+        Its free parameters.
+
+    Returns
+    -------
+    (lo, hi) : numpy.ndarray
+    """
+    from balancer_id.identify.intervals import PROFILE_FACTOR
+
+    lo, hi = [], []
+    for n in names:
+        spec = match.model.param(n)
+        est = match.parameters[n]
+        a, b = spec.min, spec.max
+        if a >= 0:
+            scale = max(abs(est.value), est.stderr or 0.0, 1e-12)
+            b = min(b, scale * PROFILE_FACTOR)
+            if a > 0:
+                a = max(a, abs(est.value) / PROFILE_FACTOR)
+        lo.append(a)
+        hi.append(b)
+    return np.array(lo, float), np.array(hi, float)
+
+
+def _log_posterior_fn(match: MatchResult, names: list[str], priors: Sequence[Prior]):
+    """``log p(theta)`` of the free parameters ``names`` (a callable for emcee)."""
+    model = match.model
+    base = np.asarray(model.vector(match.values()), float)
+    idx = [list(model.param_names).index(n) for n in names]
+    lo, hi = support(match, names)
+    n = match.y.size
+    k = len(names)
+    s_min = float(np.sum(match.residual**2))
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    scale = 1.0 / (2.0 * s_min / max(n - k, 1) * tau)
+    y = match.y
+    packed = match.data.packed
+    by_name = {p.name: p for p in priors}
+    prior_at = [(j, by_name[nm]) for j, nm in enumerate(names) if nm in by_name]
+
+    def log_p(theta: np.ndarray) -> float:
+        if not (np.all(theta > lo) and np.all(theta < hi)):
+            return -np.inf
+        p = base.copy()
+        p[idx] = theta
+        with np.errstate(all="ignore"):
+            r = packed.run(model, p)[:, 0] - y
+            s = float(np.einsum("i,i", r, r))
+        if not math.isfinite(s):
+            return -np.inf
+        return -s * scale + sum(pr.log_density(float(theta[j])) for j, pr in prior_at)
+
+    return log_p, lo, hi
+
+
+def _start_ensemble(
+    center: np.ndarray,
+    cov: np.ndarray | None,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    n_walkers: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Walkers around the optimum: a tenth of the Wald spread (or 1 %), reflected into the
+    bounds."""
+    k = center.size
+    if cov is not None and np.all(np.isfinite(cov)) and np.all(np.diag(cov) > 0):
+        sd = np.sqrt(np.diag(cov))
+    else:
+        sd = 0.01 * np.maximum(np.abs(center), 1e-6)
+    span = np.where(np.isfinite(hi - lo), hi - lo, np.inf)
+    sd = np.minimum(0.1 * sd, 0.01 * span)
+    sd = np.where(sd > 0, sd, 0.01 * np.maximum(np.abs(center), 1e-6))
+    pos = center + rng.normal(size=(n_walkers, k)) * sd
+    # reflected at the bounds (an optimum on a bound gets walkers on its inner side)
+    pos = np.where(pos <= lo, 2 * lo - pos, pos)
+    pos = np.where(pos >= hi, 2 * hi - pos, pos)
+    margin = 1e-9 * np.where(np.isfinite(span), span, np.maximum(np.abs(center), 1.0))
+    return np.clip(pos, lo + margin, hi - margin)
+
+
+def sample_posterior(
+    match: MatchResult,
+    *,
+    priors: Sequence[Prior] = (),
+    n_walkers: int | None = None,
+    max_steps: int = 2000,
+    min_steps: int = 300,
+    seed: int = 0,
+) -> Posterior:
+    """Sample the posterior of ``match``'s free parameters with emcee.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its model, trials, optimum, noise variance and correlation time).
+    priors : sequence of Prior
+        Normal priors; a parameter without one has a uniform prior inside its bounds.
+    n_walkers : int, optional
+        Ensemble size (default ``max(16, 4 k)``, even).
+    max_steps : int
+        Steps at most (each ``n_walkers`` simulations).
+    min_steps : int
+        Steps at least, before the chain's length is judged.
+    seed : int
+        The sampler's seed.
+
+    Returns
+    -------
+    Posterior
+
+    Raises
+    ------
+    UsageError
+        A prior on a parameter the fit did not vary.
+    """
+    import emcee
+
+    names = [n for n, p in match.parameters.items() if p.vary]
+    for pr in priors:
+        if pr.name not in names:
+            raise UsageError(
+                f"--prior {pr.name}: not a fitted parameter of '{match.model.spec}' "
+                f"(fitted: {', '.join(names) or 'none'})"
+            )
+    if not names:
+        raise UsageError("--posterior: the fit has no free parameter to sample")
+    k = len(names)
+    walkers = n_walkers or max(16, 4 * k)
+    walkers += walkers % 2
+    rng = np.random.default_rng(seed)
+    log_p, lo, hi = _log_posterior_fn(match, names, priors)
+    center = np.array([match.parameters[n].value for n in names], float)
+    cov = covariance_of(match)
+    start = _start_ensemble(center, cov[1] if cov else None, lo, hi, walkers, rng)
+    # differential-evolution moves: about 2.5x shorter autocorrelation than the stretch
+    # move on these fits (15 steps against 40, paper balancer, 16 walkers)
+    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    sampler = emcee.EnsembleSampler(walkers, k, log_p, moves=moves)
+    sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
+    state = sampler.run_mcmc(start, min_steps, progress=False, skip_initial_state_check=True)
+    steps = min_steps
+    tau = _autocorr(sampler)
+    while steps < max_steps and steps < CHAIN_TAUS * float(np.nanmax(tau)):
+        more = int(min(max_steps - steps, max(200, CHAIN_TAUS * np.nanmax(tau) - steps)))
+        state = sampler.run_mcmc(state, more, progress=False)
+        steps += more
+        tau = _autocorr(sampler)
+    longest = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else steps / 10
+    burn = min(int(2 * longest), steps // 2)
+    thin = max(1, int(0.5 * float(np.nanmin(tau)))) if np.all(np.isfinite(tau)) else 1
+    samples = sampler.get_chain(discard=burn, thin=thin, flat=True)
+    post = Posterior(
+        names=names,
+        samples=np.asarray(samples, float),
+        fitted={n: float(match.parameters[n].value) for n in names},
+        wald={n: match.parameters[n].wald_ci95 for n in names},
+        profile={
+            n: match.parameters[n].profile  # type: ignore[misc]
+            for n in names
+            if match.parameters[n].profile is not None
+        },
+        tau={n: float(t) for n, t in zip(names, tau, strict=True)},
+        acceptance=float(np.mean(sampler.acceptance_fraction)),
+        n_walkers=walkers,
+        n_steps=steps,
+        burn=burn,
+        thin=thin,
+        priors=list(priors),
+        seed=seed,
+        bounds={n: (float(a), float(b)) for n, a, b in zip(names, lo, hi, strict=True)},
+    )
+    post.notes.extend(posterior_notes(post))
+    return post
+
+
+def _autocorr(sampler) -> np.ndarray:
+    """Integrated autocorrelation time per parameter (steps), never raising."""
+    try:
+        return np.asarray(sampler.get_autocorr_time(tol=0), float)
+    except Exception:  # emcee raises on a too-short or stuck chain
+        return np.full(sampler.ndim, np.nan)
+
+
+def posterior_notes(post: Posterior) -> list[Note]:
+    """What the user should know: convergence, and where the posterior and Wald disagree.
+
+    Parameters
+    ----------
+    post : Posterior
+        The samples.
+
+    Returns
+    -------
+    list of Note
+        ``fit.posterior_not_converged`` (warning) when the chain is short against its
+        autocorrelation time or the acceptance is off; ``fit.posterior_disagrees``
+        (info) for each parameter whose credible interval's ends differ from the Wald
+        interval's by more than :data:`DISAGREE_SHARE` of its width, or whose Wald interval
+        leaves the bounds.
+    """
+    notes = []
+    longest = max(post.tau.values(), default=float("nan"))
+    if not post.converged:
+        notes.append(
+            Note(
+                "fit.posterior_not_converged",
+                f"the posterior chain may not have converged ({post.n_steps} steps, "
+                f"{post.n_steps / longest:.0f} autocorrelation times of {longest:.0f} steps "
+                f"where {CHAIN_TAUS} are wanted; acceptance {post.acceptance:.2f}): read its "
+                "intervals as rough",
+            )
+            if math.isfinite(longest)
+            else Note(
+                "fit.posterior_not_converged",
+                "the posterior chain's autocorrelation time could not be estimated: read its "
+                "intervals as rough",
+            )
+        )
+    cred = post.credible()
+    for n in post.names:
+        wald = post.wald.get(n)
+        lo, hi = cred[n]
+        if wald is None:
+            notes.append(
+                Note(
+                    "fit.posterior_disagrees",
+                    f"{n}: no Wald interval (standard error undefined); the posterior gives "
+                    f"{lo:.4g} .. {hi:.4g}",
+                    subject=n,
+                    severity="info",
+                )
+            )
+            continue
+        width = wald[1] - wald[0]
+        b_lo, b_hi = post.bounds.get(n, (-np.inf, np.inf))
+        crosses = wald[0] < b_lo or wald[1] > b_hi  # Wald's holds impossible values
+        if (
+            crosses
+            or abs(lo - wald[0]) > DISAGREE_SHARE * width
+            or abs(hi - wald[1]) > DISAGREE_SHARE * width
+        ):
+            why = (
+                "the priors given"
+                if any(p.name == n for p in post.priors)
+                else ("a bound or a curved (banana-shaped) valley of the cost")
+            )
+            notes.append(
+                Note(
+                    "fit.posterior_disagrees",
+                    f"{n}: the 95 % credible interval {lo:.4g} .. {hi:.4g} differs from the "
+                    f"Wald interval {wald[0]:.4g} .. {wald[1]:.4g} (by more than a quarter of "
+                    f"its width): the uncertainty is not Gaussian here ({why}); trust the "
+                    "credible (or profile) interval over the standard error",
+                    subject=n,
+                    severity="info",
+                )
+            )
+    return notes

@@ -1,0 +1,373 @@
+"""Is "trusted" right on worlds nobody has seen? (issue 31)
+
+Each world is drawn afresh from a seed printed at the start (a new seed each run unless
+``--seed`` is given):
+
+- a balancer: ``m_a`` log-uniform 0.2-2000 kg, ``T_a`` 0-1.5 s, a viscous time constant
+  such that the top speed is 0.2-2 m/s, ``A |u|`` 0-1.2 at the median thrust, thrusts
+  giving 0.3-3 m/s^2 at first;
+- a recording: separate step runs, one session with rests between levels, up-then-down
+  without rest, or a person's guided move; 1-3 thrust levels, both signs, orders mixed;
+- a layout: PASCO Capstone, SPARKvue, phyphox or a generic CSV (the writable layouts;
+  one-run layouts get the session forms), with a comma or a semicolon;
+- a sensor: 50-500 Hz, white or coloured (AR(1)) noise of 0.005-0.1 m/s^2, force noise
+  0.2-5 % of the thrust, a tilt of 0-25 degrees, and sometimes (each about 1 in 6) an
+  accelerometer gain of +-5 %, clipping at the 99th percentile of the magnitude, a force
+  channel 5-60 ms late, a first-order low-pass at 4-20 Hz, drop-outs;
+- sometimes (1 in 4) an effect the fitted model lacks: Karnopp friction, a speed limit
+  that clips, a dead time, an asymmetric lag.
+
+Each log is fitted as a user would (``balancer_id.identify.fit``, default model and
+starts). Scored against the truth, over the trusted fits: the share of trusted parameters
+(``m_a, T_a, D0, A`` fitted) outside their 99 % interval (target <= 2 %), each parameter's
+95 % coverage (target >= 90 %); the share of worlds trusted per class (clean, sensor,
+effect); refusals, tracebacks and hangs (a world over ``--timeout`` s).
+
+Works on any version of the code (it reads only ``fit``'s result), so "before" comes from
+an older checkout with ``PYTHONPATH`` pointing there.
+
+Run: ``python benchmarks/bench_universe.py [--worlds N] [--seed S] [--timeout S] [-v]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import tempfile
+import time
+import traceback
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' simlib
+
+from balancer_id.model.spec import resolve_model
+from balancer_id.read.recording import Recording
+from balancer_id.read.writers import write_log
+from balancer_id.simulation.engine import TrialInput, simulate_many
+from balancer_id.simulation.inputs import Thrust
+from balancer_id.simulation.synth import ar1_noise, keep_mask, up_vector
+
+G = 9.80665
+FITTED = ("m_a", "T_a", "D0", "A")
+Z99, Z95 = 2.5758, 1.95996
+
+
+@dataclass
+class World:
+    """One drawn world: what was simulated and how it was recorded."""
+
+    seed: int
+    truth: dict[str, float]
+    effect: str | None
+    effect_values: dict[str, float]
+    recording: str
+    layout: str
+    levels: list[float]
+    rate: float
+    faults: list[str] = field(default_factory=list)
+
+    @property
+    def kind(self) -> str:
+        """``clean``, ``sensor`` (a sensor fault) or ``effect`` (the model lacks one)."""
+        if self.effect:
+            return "effect"
+        return "sensor" if self.faults else "clean"
+
+    def describe(self) -> str:
+        t = self.truth
+        return (
+            f"m_a={t['m_a']:.3g} T_a={t['T_a']:.3g} D0={t['D0']:.3g} A={t['A']:.3g} "
+            f"{self.recording}/{self.layout} {self.rate:g}Hz levels={len(self.levels)} "
+            f"effect={self.effect}{self.effect_values or ''} faults={','.join(self.faults)}"
+        )
+
+
+def _loguniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def draw_world(seed: int) -> tuple[World, list[Recording]]:
+    """Draw a world and record it."""
+    rng = np.random.default_rng(seed)
+    m_a = _loguniform(rng, 0.2, 2000.0)
+    T_a = max(float(rng.uniform(0.0, 1.5)), 0.002)
+    a0 = _loguniform(rng, 0.3, 3.0)
+    v_top = _loguniform(rng, 0.2, 2.0)
+    u_med = m_a * a0
+    n_levels = int(rng.integers(1, 4))
+    mags = u_med * np.sort(rng.uniform(0.5, 1.5, n_levels))
+    A = float(rng.uniform(0.0, 1.2)) / u_med
+    D_eff = u_med / v_top  # the viscosity at the median thrust: top speed v_top
+    D0 = D_eff * math.exp(A * u_med)
+    truth = {"m_a": m_a, "T_a": T_a, "D0": D0, "A": A}
+    effect, effect_values = None, {}
+    if rng.uniform() < 0.25:
+        effect = str(rng.choice(["karnopp", "speed_limit", "dead_time", "asymmetric_lag"]))
+        if effect == "karnopp":
+            effect_values = {"f_s": float(rng.uniform(0.05, 0.3)) * u_med}
+        elif effect == "speed_limit":
+            effect_values = {"v_max": float(rng.uniform(0.5, 0.8)) * v_top}
+        elif effect == "dead_time":
+            effect_values = {"tau_d": float(rng.uniform(0.03, 0.15))}
+        else:
+            effect_values = {"T_up": T_a, "T_down": T_a * float(rng.choice([0.4, 2.5]))}
+    spec = "variable_viscosity" + (f"+{effect}" if effect else "")
+    model = resolve_model(spec)
+    values = {k: v for k, v in {**truth, **effect_values}.items() if k in model.param_names}
+    recording = str(rng.choice(["steps", "session", "updown", "guided"], p=[0.4, 0.3, 0.2, 0.1]))
+    layout = str(
+        rng.choice(["pasco-capstone", "pasco-sparkvue", "phyphox", "generic"])
+        if recording != "steps"
+        else rng.choice(["pasco-capstone", "pasco-sparkvue"])
+    )
+    rate = float(rng.choice([50.0, 100.0, 200.0, 500.0], p=[0.15, 0.3, 0.4, 0.15]))
+    levels = [float(m * s) for m in mags for s in (1, -1)]
+    if rng.uniform() < 0.5:
+        levels = sorted(levels, key=lambda x: x < 0)  # all ups, then all downs
+    tau_v = m_a / D_eff
+    hold = float(np.clip(3 * T_a + 2 * tau_v, 2.0, 6.0))
+    rest = float(rng.uniform(1.0, 2.0))
+    dt = 1.0 / rate
+    thrusts: list[Thrust] = []
+    durations: list[float] = []
+    if recording == "steps":
+        for u in levels:
+            thrusts.append(Thrust.step(rest, u))
+            durations.append(rest + hold)
+    elif recording in ("session", "updown"):
+        times, values_u = [rest], []
+        for u in levels if recording == "session" else list(mags):
+            pattern = [(u, hold), (0.0, hold)] if recording == "session" else [
+                (u, hold / 2), (-u, hold / 2), (0.0, hold)
+            ]
+            for level, span in pattern:
+                values_u.append(level)
+                times.append(times[-1] + span)
+        thrusts.append(Thrust(np.array(times[:-1]), np.array(values_u)))
+        durations.append(times[-1])
+    else:
+        from simlib.sessions import guided_move_thrust
+
+        move = float(np.clip(6 * T_a + 4, 4.0, 10.0))
+        thrusts.append(guided_move_thrust(1.5 * u_med, move, rest, rate))
+        durations.append(rest + move + 2.0)
+    faults: list[str] = []
+    tilt = float(rng.uniform(0, 25))
+    sigma = _loguniform(rng, 0.005, 0.1)
+    rho = float(rng.uniform(0.5, 0.9)) if rng.uniform() < 0.3 else 0.0
+    force_noise = _loguniform(rng, 0.002, 0.05) * u_med
+    hot = float(rng.choice([-1, 1]) * rng.uniform(0.02, 0.05))
+    gain = 1.0 + hot if rng.uniform() < 1 / 6 else 1.0
+    clip = rng.uniform() < 1 / 6
+    delay = float(rng.uniform(0.005, 0.06)) if rng.uniform() < 1 / 6 else 0.0
+    lowpass = float(rng.uniform(4, 20)) if rng.uniform() < 1 / 6 else 0.0
+    drop = float(rng.uniform(0.005, 0.03)) if rng.uniform() < 1 / 6 else 0.0
+    if gain != 1.0:
+        faults.append(f"gain{gain:.3f}")
+    if delay:
+        faults.append(f"delay{delay * 1e3:.0f}ms")
+    if lowpass:
+        faults.append(f"lowpass{lowpass:.0f}Hz")
+    if rho:
+        faults.append(f"coloured{rho:.2f}")  # not a fault: the tool widens for it
+    # simulate finely enough for the fastest rate, then record
+    fastest = max(1.0 / T_a, D0 / m_a)
+    substeps = int(np.clip(np.ceil(dt * fastest / 0.25), 1, 4096))
+    inputs = []
+    for th, dur in zip(thrusts, durations, strict=True):
+        t = np.arange(round(dur / dt) + 1) * dt
+        inputs.append(TrialInput(t, th))
+    sims = simulate_many(model, values, inputs, substeps=substeps)
+    recs = []
+    up = up_vector(tilt, float(rng.uniform(0, 360)))
+    for k, (sim, inp) in enumerate(zip(sims, inputs, strict=True)):
+        t = inp.time
+        accel = sim.accel.copy()
+        if lowpass:
+            alpha = math.exp(-2 * math.pi * lowpass * dt)
+            from scipy.signal import lfilter
+
+            accel = lfilter([1 - alpha], [1, -alpha], accel - accel[0]) + accel[0]
+        specific = (accel + G)[:, None] * up[None, :] * gain
+        specific = specific + ar1_noise(rng, sigma, rho, specific.shape)
+        force = np.asarray(sim.operating_force, dtype=float)
+        if delay:
+            force = np.interp(t - delay, t, force, left=force[0])
+        force = force + rng.normal(0.0, force_noise, force.shape)
+        if clip:
+            mag = np.abs(specific)
+            level = float(np.quantile(mag, 0.99))
+            specific = np.clip(specific, -level, level)
+            if k == 0:
+                faults.append("clipped")
+        keep = keep_mask(t.size, drop, rng)
+        recs.append(
+            Recording(
+                name=f"Run #{k + 1}",
+                time=t[keep],
+                force=force[keep],
+                accel=specific[keep],
+                accel_includes_gravity=True,
+                accel_axes=("x", "y", "z"),
+                sample_rate_hz=rate,
+            )
+        )
+    if drop:
+        faults.append("dropouts")
+    world = World(seed, truth, effect, effect_values, recording, layout, levels, rate, faults)
+    return world, recs
+
+
+@dataclass
+class Outcome:
+    world: World
+    status: str  # trusted, untrusted, refused, traceback, hang
+    seconds: float
+    message: str = ""
+    params: dict[str, dict] = field(default_factory=dict)
+
+
+class _Timeout(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Timeout
+
+
+def run_world(seed: int, folder: Path, timeout: float) -> Outcome:
+    """Draw, write, fit one world; classify the outcome."""
+    from balancer_id.errors import BalancerIdError
+    from balancer_id.identify.api import fit
+
+    world, recs = draw_world(seed)
+    path = folder / f"world_{seed}.csv"
+    delimiter = ";" if seed % 5 == 0 and world.layout != "phyphox" else ","
+    decimal = "," if delimiter == ";" and world.layout == "generic" else "."
+    if world.layout in ("phyphox", "generic") and len(recs) > 1:
+        world.layout = "pasco-capstone"
+    try:
+        write_log(path, recs, world.layout, delimiter=delimiter, decimal=decimal)
+    except TypeError:  # an older writer without those options
+        write_log(path, recs, world.layout)
+    start = time.perf_counter()
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(int(timeout))
+    try:
+        result = fit(str(path))
+        doc = result.to_dict()
+        status = "trusted" if doc.get("trusted", True) else "untrusted"
+        why = "; ".join(doc.get("untrusted_because") or [])
+        return Outcome(world, status, time.perf_counter() - start, why, doc["parameters"])
+    except _Timeout:
+        return Outcome(world, "hang", time.perf_counter() - start)
+    except BalancerIdError as exc:
+        return Outcome(world, "refused", time.perf_counter() - start, str(exc)[:200])
+    except Exception:
+        return Outcome(world, "traceback", time.perf_counter() - start, traceback.format_exc())
+    finally:
+        signal.alarm(0)
+        path.unlink(missing_ok=True)
+
+
+def interval(p: dict, z: float) -> tuple[float, float] | None:
+    """The parameter's interval at normal quantile ``z`` (its 95 % one scaled)."""
+    ci = p.get("ci95")
+    value = p["value"]
+    if p.get("not_reached") and ci:
+        return (ci[0], math.inf) if p["not_reached"] == "above" else (-math.inf, ci[1])
+    if ci is None:
+        return None
+    lo, hi = ci
+    return value - (value - lo) * z / Z95, value + (hi - value) * z / Z95
+
+
+def main() -> None:
+    """Run the worlds and print the scores."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--worlds", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=None)
+    ap.add_argument("--timeout", type=float, default=120.0)
+    ap.add_argument("-v", "--verbose", action="store_true")
+    args = ap.parse_args()
+    seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "little")
+    print(f"seed {seed} ({args.worlds} worlds); repeat with --seed {seed}", flush=True)
+    outcomes: list[Outcome] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(args.worlds):
+            o = run_world(seed * 1000 + k, Path(tmp), args.timeout)
+            outcomes.append(o)
+            if args.verbose or o.status in ("traceback", "hang"):
+                print(f"[{k}] {o.status} {o.seconds:.1f}s {o.world.describe()}", flush=True)
+                if o.message and (args.verbose or o.status == "traceback"):
+                    print("    " + o.message.strip().replace("\n", "\n    ")[:1500], flush=True)
+    report(outcomes)
+
+
+def report(outcomes: list[Outcome]) -> None:
+    """Print the scores."""
+    n = len(outcomes)
+    status = Counter(o.status for o in outcomes)
+    print(f"\nworlds {n}: " + ", ".join(f"{k} {v}" for k, v in sorted(status.items())))
+    secs = [o.seconds for o in outcomes]
+    print(f"time per world: median {np.median(secs):.1f} s, max {max(secs):.1f} s")
+    outside99 = total = 0
+    cover: dict[str, list[bool]] = defaultdict(list)
+    wrong_worlds = []
+    by_kind: dict[str, Counter] = defaultdict(Counter)
+    for o in outcomes:
+        by_kind[o.world.kind][o.status] += 1
+        if o.status != "trusted":
+            continue
+        missed = []
+        for name in FITTED:
+            p = o.params.get(name)
+            if p is None or not p.get("vary"):
+                continue
+            truth = o.world.truth[name]
+            iv99 = interval(p, Z99)
+            iv95 = interval(p, Z95)
+            total += 1
+            inside99 = iv99 is not None and iv99[0] <= truth <= iv99[1]
+            outside99 += not inside99
+            cover[name].append(iv95 is not None and iv95[0] <= truth <= iv95[1])
+            if not inside99:
+                missed.append(f"{name} {p['value']:.3g} vs {truth:.3g}")
+        if missed:
+            wrong_worlds.append((o, missed))
+    print(
+        f"trusted parameters outside their 99 % interval: {outside99}/{total} "
+        f"({100 * outside99 / max(total, 1):.1f} %; target <= 2 %)"
+    )
+    for name in FITTED:
+        c = cover[name]
+        if c:
+            share = 100 * np.mean(c)
+            print(f"  95 % coverage of {name}: {share:.0f} % of {len(c)} (target >= 90 %)")
+    print("outcome by world class (clean / sensor fault or coloured noise / effect missing):")
+    for kind in ("clean", "sensor", "effect"):
+        c = by_kind.get(kind, Counter())
+        tot = sum(c.values())
+        if tot:
+            print(f"  {kind:7s} {tot:4d}: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+    if wrong_worlds:
+        print("trusted and wrong (world, parameters outside 99 %):")
+        for o, missed in wrong_worlds[:25]:
+            w = o.world
+            print(f"  seed {w.seed}: {w.kind}: {w.describe()}: {'; '.join(missed)}")
+    refused = [o for o in outcomes if o.status == "refused"]
+    if refused:
+        print("refusals (first 8):")
+        for o in refused[:8]:
+            print(f"  seed {o.world.seed}: {o.message[:160]}")
+
+
+if __name__ == "__main__":
+    main()

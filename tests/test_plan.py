@@ -1,0 +1,106 @@
+"""Experiment design (issue 34.3): the proposed trial shrinks the interval as predicted,
+the prediction starts from the fit's own interval, and the command is a thin shell."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_fit import step_trials
+
+from balancer_id.errors import UsageError
+from balancer_id.identify.api import fit
+from balancer_id.identify.data import TrialData
+from balancer_id.model import parse_model
+from balancer_id.simulation.engine import simulate_many
+from balancer_id.workflows.plan import plan
+
+TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
+
+
+@pytest.fixture(scope="module")
+def first():
+    rng = np.random.default_rng(4)
+    trials = step_trials("variable_viscosity", TRUTH, [2.45, -2.45, 4.9], 0.03, rng, seconds=4.0)
+    return trials, fit(trials, profile=False)
+
+
+def test_prediction_starts_at_the_fits_interval_and_shrinks(first):
+    _, result = first
+    p = plan(result, separate=False)
+    design = p.design
+    for name, half in design.now.items():  # the Fisher information is the fit's covariance
+        assert half == pytest.approx(1.96 * result.match.parameters[name].stderr, rel=0.02)
+    assert len(design.proposals) == 3
+    widest = max(design.now, key=lambda n: design.now[n] / abs(design.values[n]))
+    assert all(q.target == widest for q in design.proposals)
+    for q in design.proposals:
+        assert q.after[widest] < q.before[widest]
+    text = p.summary()
+    assert "record a step of" in text and f"{widest}'s 95 % interval" in text
+    assert p.to_dict()["proposals"][0]["target"] == widest
+
+
+def test_recording_the_proposal_gives_the_predicted_interval(first):
+    # the bench's check on one seed: record the trial on the true balancer, refit
+    trials, result = first
+    q = plan(result, separate=False, count=1, param="A").design.proposals[0]
+    rng = np.random.default_rng(9)
+    inp = q.candidate.trial_input()
+    (sim,) = simulate_many(parse_model(), TRUTH, [inp])
+    new = TrialData(
+        9,
+        q.candidate.thrust_N,
+        q.candidate.direction,
+        q.candidate.rest_s,
+        inp,
+        sim.accel + rng.normal(0, 0.03, inp.time.size),
+    )
+    again = fit([*trials, new], profile=False)
+    achieved = 1.96 * again.match.parameters["A"].stderr
+    assert achieved == pytest.approx(q.after["A"], rel=0.25)
+    assert achieved < 1.96 * result.match.parameters["A"].stderr
+
+
+def test_one_thrust_level_gets_another_level():
+    # A held at a guess (one level cannot determine it): the plan names a new level
+    rng = np.random.default_rng(2)
+    trials = step_trials("variable_viscosity", TRUTH, [4.9, -4.9], 0.03, rng, seconds=6.0)
+    result = fit(trials, profile=False)
+    assert not result.match.parameters["A"].vary
+    p = plan(result, separate=False, count=1)
+    q = p.design.proposals[0]
+    assert q.target == "A"
+    assert abs(abs(q.candidate.thrust_N) - 4.9) > 0.5
+    assert q.after["A"] < 0.5 * TRUTH["A"]
+    assert any("A was held" in n for n in p.notes)
+
+
+def test_d_optimal_and_bad_param(first):
+    _, result = first
+    p = plan(result, separate=False, param="all", count=1)
+    assert p.design.target == "all" and p.design.proposals[0].target == "all"
+    with pytest.raises(UsageError, match="--param f_s: not a fitted parameter"):
+        plan(result, separate=False, param="f_s")
+
+
+def test_plan_command_json(cli):
+    import json
+
+    code, out, err = cli(
+        "plan",
+        "sample_logs/paper_balancer.csv",
+        "--param",
+        "D0",
+        "--count",
+        "1",
+        "--no-separate",
+        "--json",
+    )
+    assert code == 0, err
+    obj = json.loads(out)
+    assert obj["target"] == "D0" and len(obj["proposals"]) == 1
+    prop = obj["proposals"][0]
+    assert prop["halfwidth_after"]["D0"] < prop["halfwidth_before"]["D0"]
+    assert {"thrust_N", "direction", "rest_s", "duration_s"} <= set(prop)
+    code, _, err = cli("plan", "sample_logs/paper_balancer.csv", "--count", "0")
+    assert code == 2 and "--count" in err

@@ -1,0 +1,85 @@
+"""Posterior sampling (issue 34.2): credible intervals that respect the bounds where Wald's
+do not, agree with Wald's where the cost is quadratic, and priors checked up front."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_fit import step_trials
+
+from balancer_id.errors import UsageError
+from balancer_id.identify.api import fit
+from balancer_id.identify.posterior import Prior, parse_prior
+
+
+@pytest.fixture(scope="module")
+def near_bound():
+    # almost no viscosity and short trials: D0's Wald interval crosses zero
+    rng = np.random.default_rng(7)
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 0.2}
+    trials = step_trials("viscous", truth, [2.45, -4.9], 0.05, rng, seconds=2.5)
+    return truth, fit(trials, model="viscous", posterior=True, seed=1)
+
+
+def test_credible_interval_respects_the_bound_where_wald_does_not(near_bound):
+    truth, result = near_bound
+    post = result.posterior
+    assert post is not None and post.converged
+    lo, hi = post.credible()["D0"]
+    wald = result.match.parameters["D0"].wald_ci95
+    assert wald[0] < 0.0 <= lo  # the samples never leave D0 >= 0
+    assert lo <= truth["D0"] <= hi
+    codes = {(n.code, n.subject) for n in result.all_notes if hasattr(n, "code")}
+    assert ("fit.posterior_disagrees", "D0") in codes
+    # the well-determined mass: credible and Wald agree within a quarter of the width
+    m_lo, m_hi = post.credible()["m_a"]
+    w_lo, w_hi = result.match.parameters["m_a"].wald_ci95
+    assert abs(m_lo - w_lo) < 0.25 * (w_hi - w_lo) and abs(m_hi - w_hi) < 0.25 * (w_hi - w_lo)
+    assert 0.15 < post.acceptance < 0.75 and all(t > 0 for t in post.tau.values())
+
+
+def test_result_carries_the_posterior_everywhere(near_bound):
+    _, result = near_bound
+    out = result.to_dict()["posterior"]
+    assert set(out["parameters"]) == {"m_a", "T_a", "D0"}
+    assert out["converged"] is True and out["n_samples"] > 500
+    assert out["parameters"]["D0"]["wald95"][0] < 0 <= out["parameters"]["D0"]["credible95"][0]
+    assert result.band().method == "posterior"
+    assert "[[Posterior]]" in result.summary()
+
+
+def test_a_prior_pulls_the_posterior(near_bound):
+    # a tight prior on the mass far from what the data say moves its median towards it
+    _, result = near_bound
+    trials = result.match.data.trials
+    free = result.posterior.median()["m_a"]
+    mu = round(free + 1.0, 3)
+    pulled = fit(trials, model="viscous", priors=[f"m_a=normal:{mu},0.05"], seed=1)
+    assert pulled.posterior.median()["m_a"] > free + 0.5
+    assert pulled.posterior.priors == [Prior("m_a", mu, 0.05)]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("m_a=15", "expected NAME=normal:MU,SD"),
+        ("m_a=uniform:1,2", "expected NAME=normal:MU,SD"),
+        ("m_a=normal:15,-1", "positive SD"),
+        ("m_a=normal:x,1", "must be numbers"),
+    ],
+)
+def test_bad_priors_are_usage_errors(text, message):
+    with pytest.raises(UsageError, match=message):
+        parse_prior(text)
+
+
+def test_cli_refuses_a_bad_prior_before_reading(cli):
+    code, _, err = cli("fit", "sample_logs/paper_balancer.csv", "--prior", "m_a=normal:15,0")
+    assert code == 2
+    assert "--prior 'm_a=normal:15,0'" in err and "Traceback" not in err
+
+
+def test_a_prior_on_a_parameter_not_fitted_is_refused(near_bound):
+    _, result = near_bound
+    with pytest.raises(UsageError, match="A: not a fitted parameter"):
+        fit(result.match.data.trials, model="viscous", priors=["A=normal:0.4,0.1"])

@@ -1,0 +1,103 @@
+"""Tracking a parameter in time within one session (issue 33, ``fit --track``)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from simlib.drift import alternating_levels, record_drifting
+from simlib.sessions import session_thrust, write_recordings
+
+from balancer_id.errors import UsageError
+from balancer_id.identify.api import fit
+from balancer_id.identify.random_walk import smooth_walk
+from balancer_id.model import parse_model
+from balancer_id.simulation.synth import SensorSettings
+
+TRUTH = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
+MODEL = parse_model("variable_viscosity")
+DURATION = 120.0
+
+
+def _warming(t):
+    return 7.0 - 0.8 * t / DURATION
+
+
+def _session(tmp_path, d0_of_t, seed: int, name: str = "s.csv"):
+    rng = np.random.default_rng(seed)
+    thrust = session_thrust(alternating_levels(int((DURATION - 2) / 8), rng), 8.0)
+    rec = record_drifting(
+        MODEL, lambda t: {**TRUTH, "D0": d0_of_t(t)}, thrust, DURATION,
+        sensor=SensorSettings(tilt_deg=8.0), seed=seed,
+    )
+    path = tmp_path / name
+    write_recordings(path, [rec])
+    return path
+
+
+@pytest.fixture(scope="module")
+def falling(tmp_path_factory):
+    """A 2-min session with D0 falling 7 -> 6.2 kg/s (oil warming at the issue's rate,
+    8 -> 4 over 10 min), its path and fit."""
+    path = _session(tmp_path_factory.mktemp("falling"), _warming, 3)
+    return path, fit(str(path), track=["D0"])
+
+
+def test_a_falling_viscosity_is_tracked_inside_its_band(falling):
+    _, result = falling
+    track = result.tracking.tracks["D0"]
+    truth = _warming(track.time_s)
+    assert track.moving
+    inside = np.mean((truth >= track.lo) & (truth <= track.hi))
+    assert inside >= 0.7, inside  # a 95 % band, 7 blocks
+    assert abs(track.value[0] - truth[0]) < 0.25 and abs(track.value[-1] - truth[-1]) < 0.25
+    # the other parameters refitted with D0 moving: the joint fit's blend is gone
+    assert abs(result.tracking.shared["m_a"] - 15.1) < 0.15
+    out = result.to_dict()["tracking"]["parameters"]["D0"]
+    assert -1.1 < out["end_minus_start"]["change"] < -0.4
+    lo, hi = out["largest_change"]["ci95"]
+    assert lo < out["largest_change"]["change"] < hi < 0
+
+
+def test_a_constant_viscosity_is_not_called_moving(tmp_path):
+    path = _session(tmp_path, lambda t: 6.0, seed=4)
+    track = fit(str(path), track=["D0"]).tracking.tracks["D0"]
+    assert not track.moving
+    assert np.all(track.lo < 6.0 + 0.1) and np.all(track.hi > 6.0 - 0.1)
+
+
+def test_walk_smoother_follows_a_step_and_stays_flat_without_one():
+    rng = np.random.default_rng(0)
+    t = np.arange(60.0) * 10
+    se = np.full(t.size, 0.1)
+    step = np.where(t < 300, 1.0, 2.0)
+    w = smooth_walk(t, step + rng.normal(0, 0.1, t.size), se)
+    assert w.p_value < 1e-6
+    assert abs(w.value[5] - 1.0) < 0.1 and abs(w.value[-5] - 2.0) < 0.1
+    flat = smooth_walk(t, 1.0 + rng.normal(0, 0.1, t.size), se)
+    assert flat.ratio == 0.0 or flat.p_value > 0.01
+    assert np.ptp(flat.value) < 0.05
+
+
+def test_track_names_are_checked_before_reading(tmp_path):
+    with pytest.raises(UsageError, match="--track X: not a parameter"):
+        fit(str(tmp_path / "missing.csv"), track=["X"])
+    with pytest.raises(UsageError, match="held with --fix"):
+        fit(str(tmp_path / "missing.csv"), track=["D0"], fixed={"D0": 5.0})
+
+
+def test_cli_track_prints_start_end_and_writes_series(tmp_path, cli, falling):
+    path, _ = falling
+    series = tmp_path / "out.csv"
+    code, out, err = cli("fit", path, "--track", "D0", "--series", series, "--json")
+    assert code == 0, err
+    d = json.loads(out)["tracking"]["parameters"]["D0"]
+    assert d["moving"] and d["start"]["value"] > d["end"]["value"] + 0.4
+    text = (tmp_path / "out-track.csv").read_text()
+    assert text.startswith("parameter,time_s,value,ci95_low,ci95_high,local,local_stderr")
+    code, out, err = cli("fit", path, "--track", "D0")
+    assert code == 0, err
+    assert "D0 [kg/s]: moves" in out and "largest change" in out
+    code, _, err = cli("fit", path, "--track", "X")
+    assert code == 2 and "--track X: not a parameter" in err
