@@ -226,3 +226,19 @@ def test_g_force_columns_are_acceleration_in_g(tmp_path: Path) -> None:
     assert rec.force is None and rec.accel is not None and rec.accel.shape[1] == 3
     level = float(np.median(np.linalg.norm(rec.accel, axis=1)))
     assert level == pytest.approx(G_DEFAULT, rel=0.01)
+
+
+def test_time_written_as_clock_text_across_midnight(tmp_path: Path) -> None:
+    n = 400
+    seconds = 86_398.0 + 0.01 * np.arange(n)  # 23:59:58 to past midnight
+    clock = [f"{int(v // 3600) % 24:02d}:{int(v % 3600 // 60):02d}:{v % 60:06.3f}" for v in seconds]
+    accel = _resting_g(n, 15) * G_DEFAULT
+    lines = ["Time,ax,ay,az"] + [
+        f"{c},{a[0]:.5f},{a[1]:.5f},{a[2]:.5f}" for c, a in zip(clock, accel, strict=True)
+    ]
+    path = tmp_path / "clock.csv"
+    path.write_text("\n".join(lines) + "\n")
+    log = read_log(path)
+    (rec,) = log.recordings
+    assert rec.n_samples == n and rec.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
+    assert any("read from clock text" in w for w in log.warnings)

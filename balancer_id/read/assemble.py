@@ -127,6 +127,8 @@ def build_recordings(
                     base.source,
                     clock.started_at + float(clock.seconds[first]),
                     clock=header[plan.clock],
+                    stated=base.stated,
+                    spacing=base.spacing,
                 )
         time = base.seconds
         said = base.note(header[plan.time])

@@ -122,7 +122,8 @@ def read_log(
             if col is not None:  # the bound holds after the column map's scale
                 factor, offset = plan.scales.get(col, (1.0, 0.0))
                 limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
-    table = read_table(sniffed, wanted, optional, limits)
+    clocks = {c for plan in plans for c in (plan.time, plan.force_time) if c is not None}
+    table = read_table(sniffed, wanted, optional, limits, clocks)
     refuse_no_scale(sniffed, plans, table)
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values must not warn
         recordings, warnings = build_recordings(

@@ -178,6 +178,7 @@ def read_table(
     wanted: list[int],
     optional: set[int] | None = None,
     limits: dict[int, float] | None = None,
+    clocks: set[int] | None = None,
 ) -> Table:
     """Parse the columns ``wanted`` as float64.
 
@@ -196,6 +197,9 @@ def read_table(
         when they hold text.
     limits : dict, optional
         Header index -> largest plausible magnitude of that column's values.
+    clocks : set of int, optional
+        Time columns: written as clock text (``10:15:42.125``, ``2024-05-01
+        10:15:42``) they are read as seconds (of the day, or since 1970), and said.
 
     Returns
     -------
@@ -216,7 +220,7 @@ def read_table(
     except ValueError as exc:  # a cell that is not a number (or a malformed row): slow path
         if isinstance(exc, UnicodeDecodeError):
             raise _parser_error(sniffed, exc, first_line) from None
-        table = _read_slow(sniffed, usecols, optional, first_line)
+        table = _read_slow(sniffed, usecols, optional, first_line, clocks or set())
     except Exception as exc:  # never a traceback: pandas' other errors become LogReadError
         raise _parser_error(sniffed, exc, first_line) from None
     else:
@@ -255,7 +259,13 @@ def _finish(sniffed: Sniffed, table: Table, limits: dict[int, float]) -> Table:
     return table
 
 
-def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_line: int) -> Table:
+def _read_slow(
+    sniffed: Sniffed,
+    usecols: list[int],
+    optional: set[int],
+    first_line: int,
+    clocks: set[int] | None = None,
+) -> Table:
     """Read as text, convert column by column, and name the first bad cell."""
     import pandas as pd
 
@@ -267,6 +277,7 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
         raise TypeError("text columns expected")
     columns: dict[int, np.ndarray] = {}
     dropped: dict[int, tuple[int, str]] = {}
+    clock_notes: list[str] = []
     bad_required: tuple[int, int, str] | None = None
     for col in usecols:
         text = frame[col]
@@ -279,6 +290,12 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
             ("nan", "-nan", "+nan")
         ).to_numpy(dtype=bool)
         bad = np.flatnonzero(present & ~blank & np.isnan(values))
+        if bad.size and col in (clocks or set()):
+            parsed = clock_seconds(clean)
+            if parsed is not None:
+                values, said = parsed
+                bad = bad[:0]
+                clock_notes.append(f"time column '{sniffed.header[col]}' read from {said}")
         if bad.size:
             row = int(bad[0])
             where = (first_line + row, str(text.iloc[row]))
@@ -297,7 +314,61 @@ def _read_slow(sniffed: Sniffed, usecols: list[int], optional: set[int], first_l
             column=sniffed.header[col],
             hint="fix or delete that cell, or export the data again with numbers only",
         )
-    return Table(columns, len(frame), first_line, dropped)
+    return Table(columns, len(frame), first_line, dropped, clock_notes)
+
+
+_TIME_OF_DAY = r"^(\d{1,2}):(\d{2}):(\d{2})(?:[.,:](\d{1,9}))?$"
+#: Share of a time column's cells that must parse as clock text.
+CLOCK_SHARE = 0.9
+
+
+def clock_seconds(cells: pd.Series) -> tuple[np.ndarray, str] | None:
+    """A time column written as clock text, in seconds; None when it is not clock text.
+
+    ``10:15:42.125`` (or ``10:15:42:125``, Physics Toolbox) is seconds of the day (a
+    midnight passed adds a day); a date and time (``2024-05-01 10:15:42.125``, ISO) is
+    seconds since 1970.
+
+    Parameters
+    ----------
+    cells : pandas.Series
+        The column's cells as text (stripped).
+
+    Returns
+    -------
+    tuple or None
+        The seconds (NaN for blank cells) and what they were read from.
+    """
+    import pandas as pd
+
+    filled = cells.notna() & (cells != "")
+    n = int(filled.sum())
+    if n == 0:
+        return None
+    parts = cells.str.extract(_TIME_OF_DAY)
+    hms = parts[0].notna()
+    if int(hms.sum()) >= CLOCK_SHARE * n:
+        h, m, sec = (parts[k].astype(float).to_numpy() for k in range(3))
+        frac = parts[3].fillna("0")
+        digits = frac.str.len().to_numpy(dtype=float)
+        fraction = frac.astype(float).to_numpy() / 10.0**digits
+        seconds = h * 3600 + m * 60 + sec + fraction
+        back = np.flatnonzero(np.diff(seconds) < -43_200)
+        for i in back:  # past midnight
+            seconds[i + 1 :] += 86_400.0
+        return seconds, "clock text (hh:mm:ss, seconds of the day)"
+    with np.errstate(all="ignore"):
+        try:
+            stamps = pd.to_datetime(cells.where(filled), errors="coerce", format="mixed")
+        except (ValueError, TypeError):
+            return None
+    ok = stamps.notna()
+    if int(ok.sum()) < CLOCK_SHARE * n:
+        return None
+    if getattr(stamps.dt, "tz", None) is not None:
+        stamps = stamps.dt.tz_convert("UTC").dt.tz_localize(None)
+    seconds = (stamps - pd.Timestamp("1970-01-01")).dt.total_seconds().to_numpy(dtype=float)
+    return seconds, "date-and-time text (seconds since 1970, UTC unless it says its zone)"
 
 
 def _parser_error(sniffed: Sniffed, exc: BaseException, first_line: int) -> LogReadError:

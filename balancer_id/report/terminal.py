@@ -11,6 +11,7 @@ from rich.table import Table
 
 from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
+from balancer_id.verdicts import Verdict
 
 
 def _stderr(console: Console) -> Console:
@@ -349,7 +350,7 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     result : dict
         The CONTRACT.md ``diagnose`` object (:meth:`Diagnosis.to_dict`).
     """
-    colour = "green" if result["verdict"] == "adequate" else "red"
+    colour = "green" if result["verdict"] == Verdict.ADEQUATE else "red"
     m = result["metrics"]
     console.print(
         f"model [bold]{result['model']}[/bold]: [{colour}]{result['verdict']}[/{colour}]  "

@@ -144,6 +144,7 @@ def find_trials(
         )
         if text not in log.warnings:
             log.warnings.append(text)
+    _note_missed_motions(log, runs)
     first = np.cumsum([0] + [len(r.steps) for r in runs])
     run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
     signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
@@ -390,6 +391,20 @@ def _note_verticals(log: Log, runs: list[Run]) -> None:
                 severity="info",
             )
         )
+
+
+def _note_missed_motions(log: Log, runs: list[Run]) -> None:
+    """Note each accel-only run's motions that stand out with no onset (issue 32.4)."""
+    for r in runs:
+        if r.motion is None or not r.steps or r.steps[0].source != "accel":
+            continue
+        hint = _events_hint([r])
+        if hint:
+            text = f"{r.rec.name}: {hint.removeprefix('; ')}; each trial is one onset"
+            note = Note("segment.other", text, subject=r.rec.name)
+            if note not in log.notes:
+                log.notes.append(note)
+                log.warnings.append(text)
 
 
 def _note_run_without_trial(log: Log, run: str, why: str, quiet: bool = False) -> None:

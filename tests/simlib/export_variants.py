@@ -343,6 +343,20 @@ def time_units(rng: np.random.Generator) -> Variant:
         header, t = ["Time (s)"], np.round(sig.t * 1e3)
     elif how == "us header":
         header, t = ["t (us)"], np.round(sig.t * 1e6)
+    elif how == "clock text":
+        start = rng.uniform(0, 86_000)
+        header = ["Time"]
+        t = [
+            f"{int(v // 3600) % 24:02d}:{int(v % 3600 // 60):02d}:{v % 60:06.3f}"
+            for v in start + sig.t
+        ]
+    elif how == "ISO text":
+        header = ["timestamp"]
+        t = [
+            f"2025-03-0{1 + int(v // 86400)}T{int(v % 86400 // 3600):02d}:"
+            f"{int(v % 3600 // 60):02d}:{v % 60:06.3f}Z"
+            for v in 40_000 + sig.t
+        ]
     elif how == "Time sec":
         header, t = ["Time sec"], sig.t
     elif how == "ns clock":
