@@ -372,6 +372,33 @@ def summary_columns(rows: Sequence[BatchRow]) -> tuple[list[str], list[str]]:
     return columns, names
 
 
+#: What a spreadsheet reads as the start of a formula (CSV injection, OWASP).
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_cell(value: object) -> object:
+    """``value`` safe in a CSV opened by a spreadsheet or printed on a terminal.
+
+    Text starting like a formula (``=``, ``+``, ``-``, ``@``) gets a leading apostrophe,
+    which spreadsheets show as text; control characters (a carriage return that would break
+    the row, a terminal escape) are written visibly (``\\r``, ``\\x1b``). Numbers and
+    None pass unchanged.
+
+    Parameters
+    ----------
+    value : object
+        A cell.
+
+    Returns
+    -------
+    object
+    """
+    if not isinstance(value, str):
+        return "" if value is None else value
+    text = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in value)
+    return "'" + text if value.startswith(_FORMULA_START) else text
+
+
 def write_summary(path: str | Path, rows: Sequence[BatchRow]) -> Path:
     """Write ``summary.csv``: one row per log (atomically).
 
@@ -393,7 +420,7 @@ def write_summary(path: str | Path, rows: Sequence[BatchRow]) -> Path:
     writer.writeheader()
     for row in rows:
         rec = row.summary_record(names)
-        writer.writerow({k: "" if v is None else v for k, v in rec.items()})
+        writer.writerow({k: spreadsheet_cell(v) for k, v in rec.items()})
     path = Path(path)
     atomic_write_text(path, buffer.getvalue())
     return path

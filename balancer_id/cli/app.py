@@ -223,7 +223,7 @@ def inspect(
     from balancer_id.trials import describe_log, read, segment
 
     options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
-    check_outputs({"--plot": plot}, [log], overwrite)
+    check_outputs({"--plot": plot}, inputs_of([log], None, trajectory_text), overwrite)
     with stage(f"reading {log.name}"):
         data = read(log, options)
         try:
@@ -981,8 +981,6 @@ def improve(
         inputs_of(logs, effects_file, trajectory_text),
         overwrite,
     )
-    if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
-        raise UsageError("--report and --plot name the same file; give two names")
     if report is not None:
         from balancer_id.report.document import check_report_path
 
@@ -1207,8 +1205,15 @@ def main() -> None:
     """Entry point of the ``balancer-id`` console script.
 
     Usage errors (unknown option, a value of the wrong type) are one line on stderr with
-    exit 2, like every other error, instead of click's framed box.
+    exit 2, like every other error, instead of click's framed box. A terminal or pipe whose
+    encoding cannot show a character (``PYTHONIOENCODING=ascii``) gets it escaped.
     """
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (OSError, ValueError):
+                pass
     try:
         code = app(standalone_mode=False)
     except typer.Abort:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from rich.console import Console
@@ -10,13 +11,18 @@ from rich.table import Table
 
 from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
+from balancer_id.verdicts import Verdict
 
 
 def _stderr(console: Console) -> Console:
     """The console messages and warnings go to: stderr, at the same width and colours."""
     if console.stderr:
         return console
-    return Console(stderr=True, width=console.width if console.is_terminal else None)
+    if sys.stderr is not None and sys.stderr.isatty():
+        return Console(stderr=True)  # the terminal's own width
+    # piped or redirected: as wide as the tables (rich's default of 80 columns would
+    # break the warnings mid-sentence while the tables beside them run wider)
+    return Console(stderr=True, width=console.width)
 
 
 def print_command(console: Console, command: str, indent: str = "    ") -> None:
@@ -344,7 +350,7 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     result : dict
         The CONTRACT.md ``diagnose`` object (:meth:`Diagnosis.to_dict`).
     """
-    colour = "green" if result["verdict"] == "adequate" else "red"
+    colour = "green" if result["verdict"] == Verdict.ADEQUATE else "red"
     m = result["metrics"]
     console.print(
         f"model [bold]{result['model']}[/bold]: [{colour}]{result['verdict']}[/{colour}]  "
