@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from balancer_id.batch.inputs import _resumed_row
 from balancer_id.batch.rows import (
     INTERRUPTED_EXIT_CODE,
@@ -72,3 +74,36 @@ def test_improve_says_wrote_once(capsys):
     console = Console(width=160, record=True)
     print_improve(console, result)
     assert "nothing found" in console.export_text()
+
+
+# --- the library does what the CLI does (issue 29, item 4) -------------------------------
+
+
+def test_the_library_groups_compares_and_holds_an_earlier_fit(tmp_path):
+    from conftest import PAPER, SAMPLE_LOGS
+
+    import balancer_id as bid
+
+    log = SAMPLE_LOGS / "paper_balancer.csv"
+    trials = bid.load_trials(log)
+    grouped = bid.fit_groups(trials, "runs:1-3,4-6", model="viscous")
+    assert len(grouped) == 2 and next(label for label, _ in grouped).startswith("runs")
+    for _, result in grouped:  # each half alone still finds the paper's mass (15.1 kg)
+        assert result.values["m_a"] == pytest.approx(PAPER["m_a"], rel=0.1)
+    assert "group(s) by runs:1-3,4-6" in repr(grouped)
+    doc = grouped.to_dict()
+    assert doc["group_by"] == "runs:1-3,4-6" and len(doc["groups"]) == 2
+    table = bid.compare(trials, ["viscous", "variable_viscosity"])
+    assert "lowest BIC" in table._repr_html_() and "variable_viscosity" in repr(table)
+    first = bid.fit(trials, model="viscous")
+    saved = tmp_path / "fit.json"
+    saved.write_text(json.dumps(first.to_dict()))
+    held = bid.fit(trials, model="viscous", params=saved)  # held, as the CLI's --params
+    assert held.values["m_a"] == pytest.approx(first.values["m_a"])
+    assert held.match.parameters["m_a"].stderr is None  # held, not fitted
+
+
+def test_the_api_lists_fit_groups():
+    import balancer_id as bid
+
+    assert {"fit_groups", "GroupFits"} <= set(dir(bid))
