@@ -49,6 +49,8 @@ _LAZY = {
     "TrialSet": "balancer_id.trials",
     "load_trials": "balancer_id.trials",
     "fit": "balancer_id.identify.api",
+    "fit_groups": "balancer_id.identify.api",
+    "GroupFits": "balancer_id.identify.group_fits",
     "FitResult": "balancer_id.identify.result",
     "diagnose": "balancer_id.diagnostics.api",
     "improve": "balancer_id.diagnostics.api",

@@ -253,9 +253,17 @@ def run_batch(
             request_key(task.path, mdl.spec, fixed, options, extra, trajectory, diagnose)
             for task in tasks
         ]
+        # the same fit without its diagnosis: a diagnosed result also serves a resume
+        # that does not ask for one (never the other way round)
+        fit_keys = [
+            request_key(task.path, mdl.spec, fixed, options, extra, trajectory, False)
+            for task in tasks
+        ] if diagnose else keys
 
         def record(index: int, payload: Payload) -> None:
-            row = _write_log_result(tasks[index], payload, mdl.spec, keys[index])
+            row = _write_log_result(
+                tasks[index], payload, mdl.spec, keys[index], fit_request=fit_keys[index]
+            )
             rows[index] = row
             done = sum(r is not None for r in rows)
             say(f"[{done}/{len(tasks)}] {_describe(row)}")
@@ -263,8 +271,11 @@ def run_batch(
                 tick(done, len(tasks))
 
         items = []
+        undiagnosed = 0
         for k, task in enumerate(tasks):
             kept = _resumed_row(task, keys[k]) if resume else None
+            if resume and kept is None and diagnose and _resumed_row(task, fit_keys[k]):
+                undiagnosed += 1
             if kept is not None:
                 rows[k] = kept
             elif not _is_regular(Path(task.path)):
@@ -275,6 +286,11 @@ def run_batch(
             tick(sum(r is not None for r in rows), len(tasks))
         if resume:
             say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
+            if undiagnosed:
+                say(
+                    f"{undiagnosed} log(s) were identified without --diagnose: identified "
+                    "and diagnosed again"
+                )
         try:
             if not items:
                 pass

@@ -98,7 +98,7 @@ def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
         doc = json.loads(task.output.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(doc, dict) or doc.get("request") != key:
+    if not isinstance(doc, dict) or key not in (doc.get("request"), doc.get("request_fit")):
         return None
     row = BatchRow(
         file=task.display,

@@ -32,6 +32,9 @@ LEADING_PARAMETERS = ("m_a", "T_a")
 
 #: Exit code of a failed row that is not a balancer-id error (as the CLI's internal error).
 INTERNAL_EXIT_CODE = 1
+#: The exit code of a log the batch never reached because it was interrupted (CONTRACT.md:
+#: 130, interrupted): not a bug, and ``--resume`` identifies it.
+INTERRUPTED_EXIT_CODE = 130
 
 
 Payload = dict[str, Any]
@@ -229,8 +232,11 @@ def _fill_missing(rows: list[BatchRow | None], tasks: list[_Task], spec: str) ->
         else BatchRow(
             file=task.display,
             status="failed",
-            error=f"{task.display}: not identified: the batch stopped before this log",
-            exit_code=INTERNAL_EXIT_CODE,
+            error=(
+                f"{task.display}: not identified: the batch was stopped before this log "
+                "(run it again with --resume)"
+            ),
+            exit_code=INTERRUPTED_EXIT_CODE,
             model=spec,
         )
         for row, task in zip(rows, tasks, strict=True)
@@ -269,7 +275,12 @@ def _relabel(obj: Any, old: str, new: str) -> Any:
 
 
 def _write_log_result(
-    task: _Task, payload: Payload, spec: str, request: str | None = None
+    task: _Task,
+    payload: Payload,
+    spec: str,
+    request: str | None = None,
+    *,
+    fit_request: str | None = None,
 ) -> BatchRow:
     """Turn a worker's payload into a row, and write the log's JSON (with its request key,
     so that ``--resume`` knows what it was computed from)."""
@@ -299,6 +310,8 @@ def _write_log_result(
         doc["model"] = spec
     doc["seconds"] = row.seconds
     doc["request"] = request
+    if fit_request is not None and fit_request != request:
+        doc["request_fit"] = fit_request  # the key of the same fit without its diagnosis
     try:
         atomic_write_text(
             task.output, json.dumps(doc, indent=2, allow_nan=False, default=str) + "\n"

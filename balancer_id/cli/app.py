@@ -485,17 +485,12 @@ def _exit_if_untrusted(results: list[Any]) -> None:
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
-    """``fit --group-by``: one identification per group of trials."""
-    from balancer_id.identify.api import fit as run_fit
-    from balancer_id.identify.api import trial_data
-    from balancer_id.identify.data import group_trials
+    """``fit --group-by``: one identification per group of trials (``bid.fit_groups``)."""
+    from balancer_id.identify.api import fit_groups
 
     if report is not None:
         raise UsageError("--report takes one model: give it without --group-by")
-    groups = group_trials(trial_data(trial_set), group_by)
-    out: dict[str, object] = {"group_by": group_by, "groups": []}
-    for label, group in groups:
-        out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
+    out = fit_groups(trial_set, group_by, **kwargs).to_dict()
     if json_out:
         emit_json(out)
     else:
