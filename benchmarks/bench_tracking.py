@@ -173,6 +173,7 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
         "tracked": tracked,
         "drifting": case.param is not None,
         "moving": track.moving,
+        "p": track.walk.p_value,
         "coverage": inside,
         "window_coverage": w_inside,
         "rel_rmse": rmse,
