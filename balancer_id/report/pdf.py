@@ -25,6 +25,7 @@ from balancer_id.report.blocks import (
     Table,
 )
 from balancer_id.report.html import _html_text
+from balancer_id.text import make_figure_text_safe
 
 __all__ = ["code_lines", "render_pdf", "wrap_code"]
 
@@ -180,7 +181,7 @@ def _figure(block: Plot, number: int, styles: dict[str, Any], width: float) -> l
         if not isinstance(getattr(figure, "canvas", None), FigureCanvasAgg):
             FigureCanvasAgg(figure)
         buffer = io.BytesIO()
-        figure.savefig(buffer, format="png", dpi=PDF_DPI)
+        make_figure_text_safe(figure).savefig(buffer, format="png", dpi=PDF_DPI)
         png = buffer.getvalue()
     from reportlab.lib.utils import ImageReader
 

@@ -15,6 +15,7 @@ from balancer_id.report.blocks import (
     Section,
     Table,
 )
+from balancer_id.verdicts import Verdict
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.compare import ModelComparison
@@ -64,7 +65,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     d = diagnosis.to_dict()
     m = d["metrics"]
     tests = d["residual_tests"]
-    style = "good" if d["verdict"] == "adequate" else "bad"
+    style = "good" if d["verdict"] == Verdict.ADEQUATE else "bad"
     blocks: list[Any] = [
         Table(
             ["verdict", "RMSE (m/s²)", "noise floor (m/s²)", "above the floor (m/s²)"],
@@ -163,7 +164,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
         The "Finding" section: verdict, why, the top suggestion with its evidence and the
         command that tries it, and which poorly determined parameters are symptoms.
     """
-    style = "good" if diagnosis.verdict == "adequate" else "bad"
+    style = "good" if diagnosis.verdict == Verdict.ADEQUATE else "bad"
     m = diagnosis.fit.metrics
     blocks: list[Any] = [
         Table(
@@ -182,7 +183,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
     from balancer_id.diagnostics.diagnosis import is_missing
 
     missing = [s for s in diagnosis.suggestions if is_missing(s)]
-    if diagnosis.verdict != "adequate" and missing:
+    if diagnosis.verdict != Verdict.ADEQUATE and missing:
         top = missing[0]
         blocks.append(
             Paragraph(
@@ -192,7 +193,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
             )
         )
         blocks.append(Preformatted(top.command))
-    elif diagnosis.verdict != "adequate" and diagnosis.suggestions:
+    elif diagnosis.verdict != Verdict.ADEQUATE and diagnosis.suggestions:
         best = diagnosis.suggestions[0]
         blocks.append(
             Paragraph(
@@ -201,7 +202,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
                 "Diagnosis shows what the missing effect depends on."
             )
         )
-    if diagnosis.verdict != "adequate":
+    if diagnosis.verdict != Verdict.ADEQUATE:
         symptoms = [w for w in diagnosis.fit_warnings() if w.code == "fit.symptom"]
         blocks += [Paragraph(f"⚠ {w.text.split(';')[0]}.") for w in symptoms]
     return Section("Finding", blocks=blocks)
