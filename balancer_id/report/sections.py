@@ -280,7 +280,7 @@ def improve_section(result: ImproveResult) -> Section:
     if found is not None and not any(s.get("discovered") for s in d["steps"]):
         blocks.append(
             Paragraph(
-                f"A missing force was discovered, F = {found.formula} (N), bringing the error "
+                f"A missing force was discovered, {found.formula} (N), bringing the error "
                 f"to {format_number(found.rmse)} m/s² (the last, hatched bar); it is not in "
                 "the final model because no effect file was written for it. To write it and "
                 f"add it: {found.command}"
