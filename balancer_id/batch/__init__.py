@@ -117,6 +117,7 @@ def run_batch(
     trajectory: Any = None,
     diagnose: bool = False,
     tick: Callable[[int, int], None] | None = None,
+    per_log: Sequence[str] = (),
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -171,6 +172,11 @@ def run_batch(
     tick : callable, optional
         Called as ``tick(done, total)`` when a log is settled (fitted, failed or kept by
         ``resume``): what a progress bar follows.
+    per_log : sequence of str
+        Then fit the logs the fleet view counts together, these parameters each log's
+        own and the rest shared (a fleet of one type, ``--per-log``): ``shared_fit.json``
+        in ``out_dir`` and :attr:`BatchResult.shared_fit`
+        (:func:`~balancer_id.batch.shared.fit_fleet_shared`).
 
     Returns
     -------
@@ -304,4 +310,15 @@ def run_batch(
             raise
         final = _fill_missing(rows, tasks, mdl.spec)
         summary = write_summary(out / SUMMARY_NAME, final)
-    return BatchResult(final, out, summary, seconds=time.perf_counter() - started)
+        shared = None
+        if per_log:
+            from balancer_id.batch.shared import fit_fleet_shared
+
+            say(f"fitting the counted logs together ({', '.join(per_log)} per log)")
+            shared = fit_fleet_shared(
+                final, out, per_log, model=model, fixed=fixed, options=options,
+                effects_files=effects_files, trajectory=trajectory,
+            )
+    return BatchResult(
+        final, out, summary, seconds=time.perf_counter() - started, shared_fit=shared
+    )

@@ -177,12 +177,15 @@ class BatchResult:
         ``summary.csv`` in the output folder.
     seconds : float
         Wall time of the whole batch.
+    shared_fit : dict or None
+        With ``per_log``: the counted logs fitted together (``shared_fit.json``).
     """
 
     rows: list[BatchRow]
     out_dir: Path
     summary_path: Path
     seconds: float = 0.0
+    shared_fit: dict[str, Any] | None = None
 
     @property
     def n_ok(self) -> int:
@@ -210,6 +213,7 @@ class BatchResult:
             "exit_code": self.exit_code,
             "seconds": self.seconds,
             "rows": [row.to_dict() for row in self.rows],
+            **({"shared_fit": self.shared_fit} if self.shared_fit is not None else {}),
         }
 
 

@@ -1141,23 +1141,12 @@ def batch(
             trajectory=trajectory(trajectory_text),
             diagnose=diagnose_logs,
             tick=tick,
+            per_log=[n.strip() for item in per_log or [] for n in item.split(",") if n.strip()],
         )
-    shared = None
-    own = [n.strip() for item in per_log or [] for n in item.split(",") if n.strip()]
-    if own:
-        from balancer_id.batch.shared import SHARED_NAME, fit_fleet_shared
+    shared = result.shared_fit
+    if shared is not None:
+        from balancer_id.batch.shared import SHARED_NAME
 
-        with stage(f"fitting the counted logs together ({', '.join(own)} per log)"):
-            shared = fit_fleet_shared(
-                result.rows,
-                out,
-                own,
-                model=model,
-                fixed=assignments(fix, "--fix"),
-                options=options,
-                effects_files=effects_file or (),
-                trajectory=trajectory(trajectory_text),
-            )
         said = shared.get("error") or f"shared fit: {shared.get('verdict')}"
         typer.echo(f"{one_line(said)}; wrote {out / SHARED_NAME}", err=True)
     if fleet_report is not None:
@@ -1166,7 +1155,7 @@ def batch(
         write_fleet_report(result.rows, fleet_report, shared)
         typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
-        emit_json({**result.to_dict(), **({"shared_fit": shared} if shared else {})})
+        emit_json(result.to_dict())
     else:
         typer.echo(
             f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",
