@@ -1,7 +1,7 @@
 """Tracking a parameter within a session (issue 33): coverage, detection, false tracking.
 
-Each case is one continuous session (a thrust change every 6-10 s, up and down in turn,
-the weight changed at every step) of a ``variable_viscosity`` balancer at one of three
+Each case is one continuous session (a thrust change every 6-10 s, whole seconds, up and
+down in turn, the weight changed at every step) of a ``variable_viscosity`` balancer at one of three
 scales (a 1.5 kg lab balancer, the paper's 15 kg, a 300 kg hoist: thrusts, D0 and A
 scaled so that the accelerations are alike), with one parameter moving (D0, A or m_a;
 linear, a step, an exponential warm-up, a slow oscillation) or nothing moving (the
@@ -16,10 +16,17 @@ and scored:
 * the same coverage for sliding-window means (60 s) of the same block fits, the
   alternative the random walk was chosen over (docs/DECISIONS.md).
 
+The thrust changes fall on sample instants: a step between two samples shifts the
+measured force's step by up to half a sample, which biases T_a by up to 2.5 ms at 200 Hz
+(2 % of a 1.5 kg balancer's 0.12 s lag, and D0 and A with it). That bias is the fit's,
+not the tracker's, and shows in a plain fit of the same logs; it is kept out here so that
+the coverage measures the tracker (noted in docs/DECISIONS.md).
+
 Fresh cases every run (the seed is printed; ``--seed`` repeats a run).
 
     python benchmarks/bench_tracking.py --cases 12 [--minutes 5,10] [--seed N]
     python benchmarks/bench_tracking.py --cases 40 --minutes 5,10,20,30,60
+    python benchmarks/bench_tracking.py --cases 40 --controls 1   # false tracking
 """
 
 from __future__ import annotations
@@ -100,10 +107,13 @@ class Case:
         return f"{self.minutes:g} min, {self.mass:g} kg, {what}"
 
 
-def _draw(rng: np.random.Generator, n: int, minutes: list[float]) -> list[Case]:
+def _draw(
+    rng: np.random.Generator, n: int, minutes: list[float], controls: float = 0.25
+) -> list[Case]:
     cases = []
+    every = max(1, round(1 / controls)) if controls > 0 else 0
     for k in range(n):
-        control = k % 4 == 3  # a quarter are controls
+        control = controls >= 1 or (every > 0 and k % every == every - 1)
         param = None if control else str(rng.choice(PARAMS))
         cases.append(
             Case(
@@ -124,7 +134,7 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
     """Simulate, fit and score one case."""
     rng = np.random.default_rng(case.seed)
     dur = case.minutes * 60.0
-    hold = float(rng.uniform(6.0, 10.0))
+    hold = float(rng.integers(6, 11))  # whole seconds: see the module's docstring
     k = case.mass / PAPER["m_a"]
     levels = [x * k for x in alternating_levels(int((dur - 2) / hold), rng)]
     thrust = session_thrust(levels, hold)
@@ -178,11 +188,13 @@ def main() -> None:
     parser.add_argument("--cases", type=int, default=8)
     parser.add_argument("--minutes", default="5,10", help="session lengths drawn from")
     parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--controls", type=float, default=0.25,
+                        help="share of controls (nothing moves); 1 for controls only")
     args = parser.parse_args()
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % 2**31)
     print(f"seed {seed} (repeat with --seed {seed})")
     rng = np.random.default_rng(seed)
-    cases = _draw(rng, args.cases, [float(m) for m in args.minutes.split(",")])
+    cases = _draw(rng, args.cases, [float(m) for m in args.minutes.split(",")], args.controls)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:

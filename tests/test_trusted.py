@@ -177,3 +177,22 @@ def test_a_tension_that_goes_on_pulling_is_not_removed_as_an_offset(tmp_path, wi
     assert result.values["m_a"] == pytest.approx(0.6, rel=0.05)
     said = " ".join(map(str, result.all_notes))
     assert "absolute force" in said and "window" in said
+
+
+def test_force_noise_on_a_light_cart_does_not_bias_the_lag(tmp_path) -> None:
+    # issue 31: 0.2 kg, T_a 5 ms, steps of 0.2-0.6 N, force noise 0.03 N: driven by the
+    # noisy force, T_a came out 11 ms (10 standard errors) and A at 0 (truth 0.5)
+    from balancer_id.identify.api import fit
+    from balancer_id.model.spec import resolve_model
+    from balancer_id.simulation.synth import SensorSettings, write_synthetic_log
+
+    truth = {"m_a": 0.2, "T_a": 0.005, "D0": 0.5, "A": 0.5}
+    log = tmp_path / "cart.csv"
+    thrusts = [0.2, -0.2, 0.4, -0.4, 0.6, -0.6]
+    sensor = SensorSettings(force_noise=0.03)
+    write_synthetic_log(log, resolve_model("variable_viscosity"), truth, thrusts, sensor=sensor)
+    result = fit(log, profile=False)
+    values = result.values
+    assert values["m_a"] == pytest.approx(0.2, rel=0.03)
+    assert values["T_a"] == pytest.approx(0.005, rel=0.15)  # before: 0.011
+    assert values["A"] == pytest.approx(0.5, rel=0.15)  # before: 0

@@ -36,6 +36,14 @@ SMOOTH_PARAMETERS = frozenset({"m_a", "T_a", "D0", "A", "b"})
 #: ``benchmarks/bench_universe.py``'s worlds at about 3x the time of one start.
 DEFAULT_SPREAD = 3
 
+#: Model evaluations a default search's other starts may take each (the first start has
+#: the whole budget): enough to settle in a basin, not to crawl along a flat direction.
+SPREAD_NFEV = 150
+
+#: The drive lags of the designed starts (s): the first two against the mass's factor
+#: (heavy and quick, light and slow), the third in between.
+LAG_GRID_S = (0.03, 1.5, 0.3)
+
 #: Log-factor by which mass and lags are spread (x3 up and down).
 SPREAD_LOG = float(np.log(3.0))
 
@@ -178,7 +186,10 @@ def spread_starts(
             if name == "m_a":
                 x[j] *= float(np.exp(sm * SPREAD_LOG))
             elif name in model.drive_lag_names:
+                # a lag spread over what the samples resolve up to 2 s, whatever the start
                 x[j] = max(x[j], 1e-3) * float(np.exp(sl * SPREAD_LOG))
+                if k < len(LAG_GRID_S):
+                    x[j] = max(LAG_GRID_S[k], lo[j] * 4)
             elif name in SMOOTH_PARAMETERS:
                 x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else x[j]
             elif p.unit == "N" and np.isfinite(u):

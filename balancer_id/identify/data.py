@@ -10,6 +10,7 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 from balancer_id.errors import IdentificationError, UsageError
+from balancer_id.identify.input_noise import noise_sigma, piecewise_constant
 from balancer_id.model.spec import Model
 from balancer_id.segment.decimate import Decimation, decimate_trial
 from balancer_id.segment.robust import rate_of
@@ -127,7 +128,7 @@ class TrialData:
         return from_trials([trial], trajectory=trajectory, chain=False, index=index)[0]
 
 
-def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
+def measured_thrust(time: np.ndarray, force: np.ndarray, held: bool = False) -> Thrust:
     """The measured operating force as the model's input ``u(t)``, never shifted in time.
 
     A centred median over :data:`FORCE_MEDIAN_S` removes spikes and flicker and keeps
@@ -140,6 +141,11 @@ def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
         Sample times (s), increasing.
     force : numpy.ndarray
         Operating force at those times (N, up positive); NaN samples are interpolated.
+    held : bool
+        The force is held between changes (a step trial's): its noise is averaged out
+        between the changes it shows
+        (:func:`~balancer_id.identify.input_noise.piecewise_constant`, errors in
+        variables).
 
     Returns
     -------
@@ -154,6 +160,16 @@ def measured_thrust(time: np.ndarray, force: np.ndarray) -> Thrust:
     dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
     width = max(1, round(FORCE_MEDIAN_S / dt))
     width += 1 - width % 2
+    if held:  # issue 31: the held force the noise hides, not the noise
+        return Thrust(
+            time,
+            piecewise_constant(
+                median_filter(u, size=width, mode="nearest")
+                if width >= 3 and u.size > width
+                else u,
+                noise_sigma(u),
+            ),
+        )
     if width >= 3 and u.size > width:
         u = median_filter(u, size=width, mode="nearest")
     elif u is force:
@@ -239,7 +255,7 @@ def from_trials(
             )
         reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
         if trial.force is not None and not trial.thrust_given and reference is None:
-            thrust = measured_thrust(time, trial.force)
+            thrust = measured_thrust(time, trial.force, held=trial.kind == "step")
             if continues:
                 first = np.searchsorted(thrust.times, time[keep][0])
                 thrust = Thrust(thrust.times[first:], thrust.values[first:])

@@ -650,8 +650,10 @@ def match_trials(
         if len(starts) > 1:
             tell(f"start {k}/{len(starts)}")
         used = problem.nfev
+        # a default search's other starts look for a basin, not a last digit
+        budget = max_nfev if (k == 1 or not auto) else min(max_nfev, basins.SPREAD_NFEV)
         if diff_step is None:
-            x0, last = problem.gauss_newton(x0, lo, hi, max_nfev)
+            x0, last = problem.gauss_newton(x0, lo, hi, used + budget)
             if last is not None:
                 r, jtj = problem.linear_step(x0, last)
                 outcome = _Outcome(x0 + last, r, jtj, True, CONVERGED, problem.nfev - used)
@@ -673,7 +675,7 @@ def match_trials(
                     ftol=1e-8,
                     xtol=1e-8,
                     gtol=1e-8,
-                    max_nfev=max(max_nfev - (problem.nfev - used), 1),
+                    max_nfev=max(budget - (problem.nfev - used), 1),
                     diff_step=diff_step,
                     callback=callback if diff_step is None else None,
                 )
@@ -714,17 +716,27 @@ def match_trials(
     return result
 
 
+#: A residual correlated over more samples than this after the first start: the model
+#: may follow the trials from the wrong basin (the default fit then spreads its starts).
+TAU_SUSPECT = 3.0
+
+
 def _suspect(problem: _Problem, out: _Outcome | None, free_names: list[str]) -> bool:
     """Whether a start's end may be the wrong basin: a parameter on a bound the user did
-    not set (other than a drive lag at the samples' floor), or one whose standard error
-    exceeds its value."""
+    not set (a drive lag at the samples' floor too: a heavy load with no lag can mimic a
+    light one with a long lag), one whose standard error exceeds its value, or a residual
+    correlated over more than :data:`TAU_SUSPECT` samples."""
     if out is None:
         return True
     for j, name in enumerate(free_names):
         side = _at_bound(float(out.x[j]), float(problem.lo[j]), float(problem.hi[j]))
-        if side and name not in problem.user_bounds and not (
-            side == "min" and name in problem.model.drive_lag_names
-        ):
+        if side and name not in problem.user_bounds:
+            return True
+        if name in problem.model.drive_lag_names and out.x[j] < 2 * problem.lag_floor:
+            return True
+    if out.residual.size == problem.n_samples:
+        slices = problem.data.slices()
+        if correlation_time([out.residual[sl] for sl in slices], removed=0) > TAU_SUSPECT:
             return True
     cov = _covariance(out)
     if cov is None:
