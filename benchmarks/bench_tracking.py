@@ -26,6 +26,7 @@ Fresh cases every run (the seed is printed; ``--seed`` repeats a run).
 
     python benchmarks/bench_tracking.py --cases 12 [--minutes 5,10] [--seed N]
     python benchmarks/bench_tracking.py --cases 40 --minutes 5,10,20,30,60
+    python benchmarks/bench_tracking.py --cases 40 --controls 1   # false tracking
 """
 
 from __future__ import annotations
@@ -106,10 +107,13 @@ class Case:
         return f"{self.minutes:g} min, {self.mass:g} kg, {what}"
 
 
-def _draw(rng: np.random.Generator, n: int, minutes: list[float]) -> list[Case]:
+def _draw(
+    rng: np.random.Generator, n: int, minutes: list[float], controls: float = 0.25
+) -> list[Case]:
     cases = []
+    every = max(1, round(1 / controls)) if controls > 0 else 0
     for k in range(n):
-        control = k % 4 == 3  # a quarter are controls
+        control = controls >= 1 or (every > 0 and k % every == every - 1)
         param = None if control else str(rng.choice(PARAMS))
         cases.append(
             Case(
@@ -184,11 +188,13 @@ def main() -> None:
     parser.add_argument("--cases", type=int, default=8)
     parser.add_argument("--minutes", default="5,10", help="session lengths drawn from")
     parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--controls", type=float, default=0.25,
+                        help="share of controls (nothing moves); 1 for controls only")
     args = parser.parse_args()
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % 2**31)
     print(f"seed {seed} (repeat with --seed {seed})")
     rng = np.random.default_rng(seed)
-    cases = _draw(rng, args.cases, [float(m) for m in args.minutes.split(",")])
+    cases = _draw(rng, args.cases, [float(m) for m in args.minutes.split(",")], args.controls)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:

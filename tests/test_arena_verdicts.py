@@ -14,6 +14,9 @@ from scipy.signal import lfilter
 from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import ArenaInput, Explanation
 from balancer_id.diagnostics.diagnosis import CLOSE_BIC, _rivals, _tell_apart
+from balancer_id.diagnostics.explanations import sensor_lowpass
+from balancer_id.diagnostics.explanations.drift import Drift
+from balancer_id.diagnostics.explanations.split import Split
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
 from balancer_id.model import parse_model
@@ -133,7 +136,7 @@ def test_refining_a_drift_never_loses_and_recovers_the_truth():
     hold = {"m_a": PAPER["m_a"], "T_a": PAPER["T_a"]}
     match = match_trials(model, trials, start={"D0": 6.0, "A": 0.4}, fixed=hold)
     inp = ArenaInput(match=match, trials=trials, runs=runs, noise_floor=0.03, independence=1.0)
-    exps = {e.label: e for e in arena.split_and_drift(inp)}
+    exps = {e.label: e for e in [*Split().propose(inp), *Drift().propose(inp)]}
     a = exps["A drifting over the runs"]
     assert a.refine is not None
     refined = a.refine()
@@ -157,19 +160,21 @@ def resting(noise: np.ndarray) -> list[SimpleNamespace]:
 def test_the_rest_spectrum_tells_a_sensor_filter_from_coloured_noise(seed):
     rng = np.random.default_rng(seed)
     white = rng.normal(0, 0.03, (6, 100))
-    assert arena.rest_cutoff(resting(white), 200.0) is None
+    assert sensor_lowpass.rest_cutoff(resting(white), 200.0) is None
     # AR(1) noise (the environment's colour, 20 dB per decade at most): no filter
     for phi in (0.5, 0.85):
         ar1 = np.array(
             [lfilter([1.0], [1.0, -phi], rng.normal(0, 0.03, 300))[200:] for _ in range(6)]
         )
-        spec = arena.rest_spectrum(resting(ar1), 200.0)
+        spec = sensor_lowpass.rest_spectrum(resting(ar1), 200.0)
         assert spec["phi"] == pytest.approx(phi, abs=0.15)
-        assert arena.rest_cutoff(resting(ar1), 200.0) is None
+        assert sensor_lowpass.rest_cutoff(resting(ar1), 200.0) is None
     # a sensor's 2nd-order low-pass at 8 Hz: found, its cut-off within the resolution of
     # 64-sample segments (3.1 Hz bins)
-    smooth = np.array([arena.lowpass(rng.normal(0, 0.1, 300), 8.0, 200.0)[200:] for _ in range(6)])
-    fc = arena.rest_cutoff(resting(smooth), 200.0)
+    smooth = np.array(
+        [sensor_lowpass.lowpass(rng.normal(0, 0.1, 300), 8.0, 200.0)[200:] for _ in range(6)]
+    )
+    fc = sensor_lowpass.rest_cutoff(resting(smooth), 200.0)
     assert fc is not None and 5.5 <= fc <= 11.0
 
 

@@ -253,9 +253,7 @@ def test_a_payload_change_is_a_parameter_change_not_an_effect():
         truth = {**PAPER, "f_s": 0.7, "m_a": PAPER["m_a"] * (1.25 if k >= 3 else 1.0)}
         # runs of 4 s (not 8: half the time); the fitted change came out the same,
         # 1.17-1.18 with seeds 40, 50 and 60 as 1.175 with runs of 8 s
-        (rec,) = synthetic_recordings(
-            model, truth, [u], sensor=sensor, seed=40 + k, duration_s=4.0
-        )
+        (rec,) = synthetic_recordings(model, truth, [u], sensor=sensor, seed=40 + k, duration_s=4.0)
         rec.name = f"Run #{k + 1}"
         recs.append(rec)
     log = Log(Path("payload.csv"), "pasco-capstone", recs)
@@ -272,14 +270,16 @@ def test_arena_pieces_confound_null_and_rest_spectrum():
     from types import SimpleNamespace
 
     from balancer_id.diagnostics import arena
+    from balancer_id.diagnostics.explanations import sensor_lowpass
+    from balancer_id.diagnostics.explanations import split as split_kind
 
     ups = [SimpleNamespace(thrust_N=u) for u in (2.45, 4.9, 7.35, -2.45, -4.9, -7.35)]
     runs = [f"Run {k}" for k in range(6)]
     split = arena.Explanation("split", "T_a", 100.0, 0.03, detail={"split_after_run": 3})
-    assert arena.confound(split, ups, runs) == "direction"
-    assert "down step before the up" in arena.record_hint(split, "direction", ups)
+    assert split_kind.confound(split, ups, runs) == "direction"
+    assert "down step before the up" in split_kind.record_hint(split, "direction", ups)
     alternating = [SimpleNamespace(thrust_N=u) for u in (2.45, -2.45, 4.9, -4.9, 7.35, -7.35)]
-    assert arena.confound(split, alternating, runs) is None
+    assert split_kind.confound(split, alternating, runs) is None
     # a dead time refitted to 0 (or 1 ns) does nothing: not a benefit, never a step
     from balancer_id.model.effects.dead_time import DeadTime
 
@@ -300,14 +300,16 @@ def test_arena_pieces_confound_null_and_rest_spectrum():
         SimpleNamespace(time=np.arange(400) / 200.0, t_step=1.5, accel=rng.normal(0, 0.03, 400))
         for _ in range(6)
     ]
-    assert arena.rest_cutoff(white, 200.0) is None
+    assert sensor_lowpass.rest_cutoff(white, 200.0) is None
     smooth = [
         SimpleNamespace(
-            time=td.time, t_step=td.t_step, accel=arena.lowpass(rng.normal(0, 0.1, 400), 6.0, 200.0)
+            time=td.time,
+            t_step=td.t_step,
+            accel=sensor_lowpass.lowpass(rng.normal(0, 0.1, 400), 6.0, 200.0),
         )
         for td in white
     ]
-    fc = arena.rest_cutoff(smooth, 200.0)
+    fc = sensor_lowpass.rest_cutoff(smooth, 200.0)
     assert fc is not None and 3.0 <= fc <= 10.0
 
 

@@ -23,6 +23,7 @@ from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, texts
 from balancer_id.status import step
+from balancer_id.verdicts import Verdict
 
 #: Folds of the cross-validation across trials.
 CV_FOLDS = 3
@@ -278,7 +279,7 @@ def _discover_step(
     if found is None:
         why = (
             "nothing is missing"
-            if result.final.verdict == "adequate"
+            if result.final.verdict == Verdict.ADEQUATE
             else "no force in the candidate terms explains what is missing better than the "
             "explanations tried"
         )

@@ -36,6 +36,7 @@ from balancer_id.report.blocks import (
     Section,
     Table,
 )
+from balancer_id.verdicts import Verdict
 
 #: A batch's row (:class:`balancer_id.batch.BatchRow`; the batch layer sits above this one).
 BatchRow = Any
@@ -47,7 +48,7 @@ MIN_LOGS_FOR_OUTLIERS = 5
 WITHIN_STDERR = 3.0
 #: Fewest (non-outlying, dated) logs for which a trend is claimed.
 MIN_LOGS_FOR_TREND = 5
-_MISSING = "effect missing"
+_MISSING = Verdict.EFFECT_MISSING
 
 
 def robust_outliers(

@@ -15,6 +15,7 @@ from balancer_id.report.blocks import (
     Section,
     Table,
 )
+from balancer_id.verdicts import Verdict
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.compare import ModelComparison
@@ -64,7 +65,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     d = diagnosis.to_dict()
     m = d["metrics"]
     tests = d["residual_tests"]
-    style = "good" if d["verdict"] == "adequate" else "bad"
+    style = "good" if d["verdict"] == Verdict.ADEQUATE else "bad"
     blocks: list[Any] = [
         Table(
             ["verdict", "RMSE (m/s²)", "noise floor (m/s²)", "above the floor (m/s²)"],
@@ -116,22 +117,19 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
             caption="Residual by regime, direction and thrust level",
         )
     )
-    blocks.append(
-        Table(
-            ["change", "score (ΔBIC)", "error drop", "evidence", "command"],
-            [
-                [
-                    Cell(s["change"], "strong" if k == 0 else ""),
-                    f"{s['score']:.1f}",
-                    f"{s['excess_error_drop']:.0%}",
-                    s["evidence"],
-                    s["command"],
-                ]
-                for k, s in enumerate(d["suggestions"])
-            ],
-            caption="Candidate effects, best first (quick refit of each)",
+    if not d["suggestions"]:  # a table of headers only says nothing
+        blocks.append(
+            Paragraph(
+                "Candidate effects: none suggested ("
+                + (
+                    "the model is adequate)."
+                    if d.get("verdict") == "adequate"
+                    else "no effect tried improved the fit enough)."
+                )
+            )
         )
-    )
+    else:
+        blocks.append(_candidates_table(d))
     for f in d.get("failed_candidates", []):
         blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
     from balancer_id.report.residual_plots import plot_residual_analysis
@@ -149,6 +147,24 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     return Section("Diagnosis", blocks=blocks)
 
 
+def _candidates_table(d: dict[str, Any]) -> Table:
+    """The diagnosis's suggestions as a table, best first."""
+    return Table(
+        ["change", "score (ΔBIC)", "error drop", "evidence", "command"],
+        [
+            [
+                Cell(s["change"], "strong" if k == 0 else ""),
+                f"{s['score']:.1f}",
+                f"{s['excess_error_drop']:.0%}",
+                s["evidence"],
+                s["command"],
+            ]
+            for k, s in enumerate(d["suggestions"])
+        ],
+        caption="Candidate effects, best first (quick refit of each)",
+    )
+
+
 def finding_section(diagnosis: Diagnosis) -> Section:
     """What the report found, first: the verdict, the top suggestion and its evidence.
 
@@ -163,7 +179,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
         The "Finding" section: verdict, why, the top suggestion with its evidence and the
         command that tries it, and which poorly determined parameters are symptoms.
     """
-    style = "good" if diagnosis.verdict == "adequate" else "bad"
+    style = "good" if diagnosis.verdict == Verdict.ADEQUATE else "bad"
     m = diagnosis.fit.metrics
     blocks: list[Any] = [
         Table(
@@ -182,7 +198,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
     from balancer_id.diagnostics.diagnosis import is_missing
 
     missing = [s for s in diagnosis.suggestions if is_missing(s)]
-    if diagnosis.verdict != "adequate" and missing:
+    if diagnosis.verdict != Verdict.ADEQUATE and missing:
         top = missing[0]
         blocks.append(
             Paragraph(
@@ -192,7 +208,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
             )
         )
         blocks.append(Preformatted(top.command))
-    elif diagnosis.verdict != "adequate" and diagnosis.suggestions:
+    elif diagnosis.verdict != Verdict.ADEQUATE and diagnosis.suggestions:
         best = diagnosis.suggestions[0]
         blocks.append(
             Paragraph(
@@ -201,7 +217,7 @@ def finding_section(diagnosis: Diagnosis) -> Section:
                 "Diagnosis shows what the missing effect depends on."
             )
         )
-    if diagnosis.verdict != "adequate":
+    if diagnosis.verdict != Verdict.ADEQUATE:
         symptoms = [w for w in diagnosis.fit_warnings() if w.code == "fit.symptom"]
         blocks += [Paragraph(f"⚠ {w.text.split(';')[0]}.") for w in symptoms]
     return Section("Finding", blocks=blocks)
@@ -261,6 +277,15 @@ def improve_section(result: ImproveResult) -> Section:
             )
         )
     blocks.append(Paragraph(f"Final model: {d['final_model']}. {d['final_summary']}"))
+    if found is not None and not any(s.get("discovered") for s in d["steps"]):
+        blocks.append(
+            Paragraph(
+                f"A missing force was discovered, {found.formula} (N), bringing the error "
+                f"to {format_number(found.rmse)} m/s² (the last, hatched bar); it is not in "
+                "the final model because no effect file was written for it. To write it and "
+                f"add it: {found.command}"
+            )
+        )
     blocks += [Paragraph(f"Not taken: {r}") for r in d["rejected"]]
     return Section("Improving the model", blocks=blocks)
 

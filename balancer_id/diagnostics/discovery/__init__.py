@@ -1,0 +1,1 @@
+"""The discovery of a missing force, by stage (its entry: ``diagnostics.discover``)."""

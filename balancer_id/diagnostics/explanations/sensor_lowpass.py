@@ -1,0 +1,268 @@
+"""The sensor's own low-pass filter on the measured acceleration (its lag is not T_a's)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from balancer_id.diagnostics import arena
+from balancer_id.diagnostics.explanations.base import (
+    Explanation,
+    ExplanationKind,
+    Verdict,
+    head,
+)
+from balancer_id.identify.data import TrialData
+
+if TYPE_CHECKING:
+    from balancer_id.diagnostics.arena import ArenaInput
+    from balancer_id.identify.result import FitResult
+
+#: The trial that tells a sensor's effect from the balancer's.
+SENSOR_TRIAL = (
+    "record a few seconds at rest with the sensor on the frame (its noise spectrum "
+    "shows the sensor's filter) and one step with a second, unfiltered sensor"
+)
+
+
+class SensorLowpass(ExplanationKind):
+    """The accelerometer's 2nd-order low-pass, when the resting noise rolls off as a
+    filter's (40 dB per decade; :func:`rest_cutoff`).
+
+    Fitted: the model's output through the filter, its cut-off started at the resting
+    noise's and fitted with the model's parameters, or held at it (no parameter added),
+    the better by BIC. Offered only with the resting noise's own evidence, it stands
+    unless the response contradicts it; it mimics a longer T_a.
+    """
+
+    key = "sensor"
+    kind = "sensor"
+    verdict = Verdict.SENSOR_EFFECT
+    stands_alone = True
+    measurement = True
+    tried = "the sensor's low-pass"
+    mimics: ClassVar[str] = "a longer T_a (the filter's lag)"
+    separating_trial: ClassVar[str] = SENSOR_TRIAL
+
+    def valid(self, e: Explanation, tests_failed: bool, threshold: float, min_drop: float) -> bool:
+        """Stands unless the response contradicts it (tests passed), else by BIC alone.
+
+        Offered only when the resting noise shows a filter's roll-off (independent
+        evidence, measured with the balancer still): a response fitted as well without
+        it has the sensor's lag in T_a, which is worth saying, not "adequate". A sensor's
+        low-pass hides part of the noise from the floor's estimate (its resting parts
+        are short and smooth), so its drop of the excess error is understated: BIC only.
+        """
+        if e.null:
+            return False
+        if not tests_failed:
+            return e.delta_bic > -arena.CLOSE_BIC
+        return e.delta_bic > threshold
+
+    def propose(self, inp: ArenaInput) -> list[Explanation]:
+        """The model's output through the low-pass (none without the rest's evidence)."""
+        fc0 = inp.rest_cutoff_hz
+        if fc0 is None:
+            return []
+        model = inp.match.model
+        sims = arena.Trials(inp.trials)
+        dts = [float(np.median(np.diff(td.time))) for td in inp.trials]
+        fss = [1.0 / dt for dt in dts]
+
+        def post(i: int, y: np.ndarray) -> np.ndarray:
+            return lowpass(y, post.param, fss[i])  # type: ignore[attr-defined]
+
+        def measured(i: int, y: np.ndarray) -> np.ndarray:
+            return lowpass(y, fc0, fss[i])
+
+        fixed = arena.held(inp.match)
+        names = [n for n in model.param_names if n not in fixed]
+        none = np.zeros((len(inp.trials), 0))
+        parts, base, _, fc = arena.fit_varying(
+            model,
+            sims,
+            inp.match.values(),
+            fixed,
+            names[0],
+            none,
+            post=post,
+            extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
+        )
+        d, rmse = arena.score(inp, parts, 1)
+        # the cut-off as measured at rest (no parameter fitted): when the response cannot
+        # place the cut-off itself, the resting noise's is the estimate
+        parts0, base0, _, _ = arena.fit_varying(
+            model, sims, inp.match.values(), fixed, names[0], none, post=measured
+        )
+        d0, rmse0 = arena.score(inp, parts0, 0)
+        fitted = d > d0
+        if not fitted:
+            d, rmse, base, fc = d0, rmse0, base0, fc0
+        return [
+            self.make(
+                f"sensor low-pass at {fc:.1f} Hz",
+                d,
+                rmse,
+                detail={
+                    "sensor": "low-pass",
+                    "cutoff_hz": fc,
+                    "rest_noise_cutoff_hz": fc0,
+                    "cutoff_fitted": fitted,
+                    "values": base,
+                },
+            )
+        ]
+
+    def sentence(self, e: Explanation, fit: FitResult) -> str:
+        """``the accelerometer smooths its signal: a low-pass at 6.1 Hz ...``."""
+        d = e.detail
+        said = head(e)
+        if e.delta_bic <= arena.BIC_THRESHOLD:
+            values = d.get("values") or {}
+            now = fit.match.values()
+            moved = [
+                f"{k} {float(values[k]):.4g} with it, {now[k]:.4g} without"  # type: ignore[index]
+                for k in ("T_a", "m_a")
+                if k in values and k in now
+            ]
+            said = (
+                f"the response fits as well with it (BIC {-e.delta_bic:+.0f}), and without it "
+                "the balancer's parameters hold the sensor's lag"
+                + (f" ({'; '.join(moved)})" if moved else "")
+            )
+        return (
+            f"the accelerometer smooths its signal: a low-pass at {float(d['cutoff_hz']):.1f} Hz "  # type: ignore[arg-type]
+            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz, "  # type: ignore[arg-type]
+            f"as a filter's, not as coloured noise's); {said}. Not the balancer: record with "
+            "the sensor's filter off or a higher bandwidth, or read its delay as part of the "
+            "sensor"
+        )
+
+
+def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients of a 2nd-order Butterworth low-pass (bilinear, prewarped)."""
+    w = np.tan(np.pi * min(cutoff, 0.45 * fs) / fs)
+    k = np.sqrt(2.0)
+    a0 = 1 + k * w + w * w
+    b = np.array([w * w, 2 * w * w, w * w]) / a0
+    a = np.array([1.0, (2 * w * w - 2) / a0, (1 - k * w + w * w) / a0])
+    return b, a
+
+
+def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
+    """``y`` through a 2nd-order Butterworth low-pass, started at rest on its first value.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        A signal sampled at ``fs``.
+    cutoff : float
+        -3 dB frequency (Hz).
+    fs : float
+        Sample rate (Hz).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    from scipy.signal import lfilter, lfilter_zi
+
+    b, a = _butter2(cutoff, fs)
+    return lfilter(b, a, y, zi=lfilter_zi(b, a) * y[0])[0]
+
+
+#: A rest spectrum is a sensor filter's when a 2nd-order low-pass fits its log this many
+#: times better (sum of squares) than AR(1) colour does.
+FILTER_EVIDENCE = 4.0
+
+
+def rest_spectrum(trials: Sequence[TrialData], fs: float) -> dict[str, float] | None:
+    """The resting noise's averaged spectrum against two shapes: a filter's and AR(1)'s.
+
+    The resting samples before each onset are cut into 64-sample segments (a step of 16;
+    slope removed, Hann window); the log of their averaged periodogram (0 < f <= 0.45 fs)
+    is fitted, up to a level, by a 2nd-order Butterworth low-pass (flat, then falling by
+    40 dB per decade beyond its cut-off: a sensor's filter) and by AR(1) noise (falling
+    gently, by at most 20 dB per decade: colour that is not a filter of the signal, such
+    as the environment's), each over a grid of its one parameter.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials.
+    fs : float
+        Sample rate (Hz).
+
+    Returns
+    -------
+    dict or None
+        ``cutoff_hz`` and ``sse_filter`` of the low-pass, ``phi`` and ``sse_ar1`` of the
+        AR(1), ``segments``; None with fewer than 4 segments.
+    """
+    n_seg = 64
+    segs = []
+    x = np.arange(n_seg) - (n_seg - 1) / 2
+    for td in trials:
+        t = td.time - td.t_step
+        y = np.asarray(td.accel)[t < -0.02]
+        for j in range(0, y.size - n_seg + 1, 16):
+            seg = y[j : j + n_seg]
+            segs.append(seg - np.polyval(np.polyfit(x, seg, 1), x))
+    if len(segs) < 4:
+        return None
+    w = np.hanning(n_seg)
+    p = np.mean(np.abs(np.fft.rfft(np.array(segs) * w, axis=1)) ** 2, axis=0)
+    f = np.fft.rfftfreq(n_seg, 1.0 / fs)
+    keep = (f > 0) & (f <= 0.45 * fs) & (p > 0)
+    if keep.sum() < 6:
+        return None
+    lp, ff = np.log(p[keep]), f[keep]
+
+    def sse(shape: np.ndarray) -> float:
+        r = lp - shape
+        r = r - r.mean()
+        return float(r @ r)
+
+    tf = np.tan(np.pi * ff / fs)
+    cuts = np.geomspace(0.01 * fs, 0.45 * fs, 240)
+    filt = [sse(-np.log1p((tf / np.tan(np.pi * c / fs)) ** 4)) for c in cuts]
+    om = 2 * np.pi * ff / fs
+    phis = np.linspace(0.0, 0.99, 199)
+    ar = [sse(-np.log(1 + q * q - 2 * q * np.cos(om))) for q in phis]
+    i, j = int(np.argmin(filt)), int(np.argmin(ar))
+    return {
+        "cutoff_hz": float(cuts[i]),
+        "sse_filter": filt[i],
+        "phi": float(phis[j]),
+        "sse_ar1": ar[j],
+        "segments": float(len(segs)),
+    }
+
+
+def rest_cutoff(trials: Sequence[TrialData], fs: float) -> float | None:
+    """The cut-off of the sensor's low-pass the resting noise shows, or None.
+
+    The resting noise is a filter's when a 2nd-order low-pass fits its spectrum
+    :data:`FILTER_EVIDENCE` times better than AR(1) colour does and its cut-off lies
+    below 0.3 fs (:func:`rest_spectrum`). White noise (no roll-off) and gently
+    coloured noise give None.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The trials.
+    fs : float
+        Sample rate (Hz).
+
+    Returns
+    -------
+    float or None
+        The cut-off (Hz).
+    """
+    spec = rest_spectrum(trials, fs)
+    if spec is None:
+        return None
+    steep = spec["sse_filter"] * FILTER_EVIDENCE < spec["sse_ar1"]
+    return spec["cutoff_hz"] if steep and spec["cutoff_hz"] < 0.3 * fs else None
