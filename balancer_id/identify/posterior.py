@@ -247,8 +247,8 @@ class Posterior:
             "parameters": {
                 n: {
                     "median": med[n],
-                    "credible95": list(cred[n]),
-                    "wald95": list(self.wald[n]) if self.wald.get(n) else None,
+                    "credible95": None if cred[n] is None else list(cred[n]),
+                    "wald95": list(w) if (w := self.wald.get(n)) else None,
                     "profile95": list(self.profile[n]) if n in self.profile else None,
                     "tau_steps": self.tau.get(n),
                 }
