@@ -18,6 +18,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
+from balancer_id.identify.structure import structured_residual
 from balancer_id.model.registry import Registry
 from balancer_id.model.spec import Model, resolve_model
 from balancer_id.notes import Note
@@ -362,6 +363,9 @@ def fit(
             "known values with --fix)"
         )
     match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
+    structured = structured_residual(match)  # a misfit beyond the noise seen at rest
+    if structured is not None:
+        notes.append(structured)
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals
 

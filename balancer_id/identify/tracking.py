@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -339,13 +340,19 @@ def tracking_lines(tracking: Mapping[str, object]) -> list[str]:
     return out
 
 
+def _interval(value: object) -> tuple[float, float]:
+    """An interval ``[lo, hi]`` of the JSON as two floats."""
+    assert isinstance(value, list | tuple) and len(value) == 2
+    return float(value[0]), float(value[1])
+
+
 def _at(p: Mapping[str, object]) -> str:
-    lo, hi = p["ci95"]  # type: ignore[misc]
+    lo, hi = _interval(p["ci95"])
     return f"{p['value']:.4g} ({lo:.4g} .. {hi:.4g}) at {p['time_s']:.0f} s"
 
 
 def _change(c: Mapping[str, object]) -> str:
-    lo, hi = c["ci95"]  # type: ignore[misc]
+    lo, hi = _interval(c["ci95"])
     return (
         f"{c['change']:+.4g} ({lo:+.4g} .. {hi:+.4g}) "
         f"from {c['from_s']:.0f} s to {c['to_s']:.0f} s"
@@ -584,7 +591,7 @@ def track_parameters(
     own_start = None
     fit = None
     for _ in range(PASSES):  # states from the joint values, then from the tracked ones
-        previous = fit
+        previous: Any = fit
         chained = chain_states(model, trials, per_trial)
         fit = fit_grouped(
             model,

@@ -412,8 +412,13 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
             f"{s['excess_error_drop']:.0%}",
             s["evidence"],
         )
-    if result["suggestions"] or not groups:
+    if result["suggestions"]:
         console.print(sug)
+    elif not groups:  # an empty table says nothing: say why there is no suggestion
+        why = "the model is adequate" if result.get("verdict") == "adequate" else (
+            "no effect tried improves the fit enough"
+        )
+        console.print(f"suggestions: none ({why})")
     if result["suggestions"]:
         console.print("to try a suggestion, run its command:")
     for k, s in enumerate(result["suggestions"], 1):
