@@ -206,7 +206,9 @@ def rivals(best: Explanation, e: Explanation, confounded: bool) -> bool:
     alone: a rival 100 BIC units behind is e^50 times less likely. An explanation of the same
     verdict naming other effects or parameters (D0 drifting against A drifting) is one
     when within :data:`CLOSE_BIC`: the verdict stands, but not what it names. Another
-    boundary of the same parameter's split is not a rival (what changed is known).
+    boundary of the same parameter's split is not a rival (what changed is known). A
+    twin (the same delay read as the sensor's or the balancer's:
+    :meth:`~balancer_id.diagnostics.explanations.base.ExplanationKind.twin`) always is.
 
     Parameters
     ----------
@@ -219,6 +221,8 @@ def rivals(best: Explanation, e: Explanation, confounded: bool) -> bool:
     bool
     """
     gap = best.delta_bic - e.delta_bic
+    if best.explainer.twin(best, e) or e.explainer.twin(e, best):
+        return True
     if e.verdict != best.verdict:
         relative = CLOSE_SHARE * best.delta_bic if best.excess_drop < FLOOR_DROP else 0.0
         return confounded or gap <= max(CLOSE_BIC, relative)
