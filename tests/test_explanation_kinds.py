@@ -182,3 +182,23 @@ def test_blocks_cut_long_runs_in_time_and_leave_short_ones_whole():
     assert [g for g in b.groups if len(g) == 1] == [[12], [13]]
     short = SimpleNamespace(trials=trials[:5], runs=["s"] * 5)
     assert blocks(short) is None  # type: ignore[arg-type]
+
+
+def test_force_delay_moves_the_force_back_when_read_and_is_refused_out_of_range(tmp_path):
+    from balancer_id.errors import UsageError
+    from balancer_id.read import write_log
+    from balancer_id.trials import ReadOptions, read
+
+    recs = _recordings(11, thrusts=PAPER_THRUSTS[:1])
+    late = _late_force(recs, 0.040)
+    path = tmp_path / "late.csv"
+    write_log(path, late, "pasco-capstone")
+    options = ReadOptions(force_delay=0.040)
+    moved = read(path, options).recordings[0]
+    # the step is back where it was (within the written precision), not 40 ms late
+    step = np.flatnonzero(np.abs(np.diff(recs[0].force)) > 1.0)[0]
+    back = np.flatnonzero(np.abs(np.diff(moved.force)) > 1.0)[0]
+    assert abs(back - step) <= 1
+    assert options.cli_args() == ["--force-delay", "0.04"]
+    with pytest.raises(UsageError, match="--force-delay"):
+        ReadOptions(force_delay=2.0)
