@@ -118,8 +118,8 @@ class SensorGain(ExplanationKind):
             f"the accelerometer reads {float(d['rest_magnitude']):.3f} m/s^2 at rest against "  # type: ignore[arg-type]
             f"g = {float(d['g']):.3f}: a gain of {k:.3f}, the sensor's calibration, not the "  # type: ignore[arg-type]
             f"balancer; {head(e)}; {corrected(e, fit)}{alt}. Calibrate the sensor (divide "
-            f"the acceleration by {k:.3f}) and refit; {self.separating_trial} tells a gain "
-            "from an offset"
+            f"the acceleration by {k:.3f}) and refit; to tell a gain from an offset, "
+            f"{self.separating_trial}"
         )
 
 
