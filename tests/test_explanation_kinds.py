@@ -163,6 +163,13 @@ def test_clipping_is_runs_at_one_value_or_a_band_two_trials_reach():
     soft = [soft_clip(p, 0.6, 0.05, 1.0) + rng.normal(0, 0.01, p.size) for p in peaks]
     found = pinned_level(soft, 1.0, 0.03)
     assert found is not None and 0.6 <= found[0] <= 0.65
+    # one trial clipped, nearly vertical: its samples at the limit have lost their noise
+    lower = noisy[1] * 0.5 / 0.7  # peaks under the limit
+    one = [np.minimum(noisy[0], 0.6 + rng.normal(0, 0.001, t.size)), lower, noisy[2]]
+    assert pinned_level(one, 1.0, 0.03) is None  # one trial in the band: not enough alone
+    level, n = pinned_level(one, 1.0, 0.03, noise=0.01)
+    assert 0.6 <= level <= 0.605 and n >= 20
+    assert pinned_level(noisy, 1.0, 0.03, noise=0.01) is None  # a noisy peak keeps its noise
     assert np.allclose(soft_clip(np.array([0.5, 0.8]), 0.6, 0.0, 1.0), [0.5, 0.6])
     assert np.allclose(soft_clip(np.array([-0.5, -0.8]), -0.6, 0.1, -1.0), [-0.5, -0.62])
 

@@ -24,6 +24,8 @@ PINNED_SHARE = 1e-6
 #: ... or, reached by two trials at least, within this many noise floors of it (a
 #: tilted sensor's clipped axis projected on the vertical still follows the motion a little).
 BAND_NOISE = 3.0
+#: A run at the top whose scatter is under this share of the noise has lost its noise.
+QUIET = 0.5
 #: Slopes beyond the knee tried (sin^2 of tilts up to 30 degrees).
 SLOPES = (0.0, 0.03, 0.08, 0.15, 0.25)
 #: ... in runs of at least this many consecutive samples ...
@@ -63,7 +65,7 @@ class SensorClipping(ExplanationKind):
         band = BAND_NOISE * inp.noise_floor
         out = []
         for side in (1.0, -1.0):
-            level = pinned_level(accel, side, band)
+            level = pinned_level(accel, side, band, inp.noise_floor)
             if level is None:
                 continue
             top, n_pinned = level
@@ -147,9 +149,15 @@ def _scan(inp: ArenaInput, side: float, top: float, band: float) -> tuple[float,
 
 
 def pinned_level(
-    accel: list[np.ndarray], side: float, tolerance: float = 0.0
+    accel: list[np.ndarray], side: float, tolerance: float = 0.0, noise: float = 0.0
 ) -> tuple[float, int] | None:
     """The extreme value held by runs of consecutive samples, and how many sit there.
+
+    Three signatures of a sensor at its limit, the first that holds: samples at exactly
+    one value in runs; runs at the top (within ``tolerance``) whose noise has gone (their
+    sample-to-sample scatter under :data:`QUIET` of ``noise``: the clipped axis no longer
+    carries its noise, only the other axes' share of it); or a band at the top reached in
+    runs by two trials or more (a response peaks once, and at its own level per thrust).
 
     Parameters
     ----------
@@ -158,15 +166,15 @@ def pinned_level(
     side : float
         ``1``: the highest value; ``-1``: the lowest.
     tolerance : float
-        The band at the top (m/s^2) that two trials must reach in runs when no samples
-        sit at exactly one value.
+        The band at the top (m/s^2).
+    noise : float
+        The acceleration's noise (m/s^2); 0 skips the quiet-run test.
 
     Returns
     -------
     tuple or None
-        ``(level, samples at it)`` when :data:`MIN_PINNED` samples sit within
-        :data:`PINNED_SHARE` of the span from the extreme in runs of :data:`MIN_RUN` or
-        more; else None.
+        ``(level, samples pinned)`` when :data:`MIN_PINNED` samples are, in runs of
+        :data:`MIN_RUN` or more; else None.
     """
     finite = [a[np.isfinite(a)] for a in accel if a.size]
     if not finite:
@@ -179,16 +187,29 @@ def pinned_level(
     counts = [_in_runs(a, level, exact) for a in finite]
     if sum(counts) >= MIN_PINNED:  # samples at one value: a limit, whatever the tilt
         return level, sum(counts)
-    # a tilted sensor's clipped axis, projected: a band at the top, reached in runs by
-    # two trials or more (a response peaks once, and at its own level per thrust)
-    counts = [_in_runs(a, level, max(exact, tolerance)) for a in finite]
+    band = max(exact, tolerance)
+    if noise > 0:
+        quiet = sum(_in_runs(a, level, band, QUIET * noise) for a in finite)
+        if quiet >= MIN_PINNED:
+            return level, quiet
+    counts = [_in_runs(a, level, band) for a in finite]
     reached = sum(c > 0 for c in counts)
     return (level, sum(counts)) if reached >= 2 and sum(counts) >= MIN_PINNED else None
 
 
-def _in_runs(a: np.ndarray, level: float, tol: float) -> int:
-    """Samples within ``tol`` of ``level`` in runs of :data:`MIN_RUN` or more."""
+def _in_runs(a: np.ndarray, level: float, tol: float, scatter: float | None = None) -> int:
+    """Samples within ``tol`` of ``level`` in runs of :data:`MIN_RUN` or more (with a
+    sample-to-sample scatter under ``scatter`` when given: the median absolute difference
+    of neighbours over 0.954, the noise's standard deviation for white noise, blind to the
+    run's few steep samples at its edges)."""
     at = np.abs(a - level) <= tol
     edges = np.diff(np.r_[0, at.astype(int), 0])
-    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
-    return int(runs[runs >= MIN_RUN].sum())
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    total = 0
+    for lo, hi in zip(starts, stops, strict=True):
+        if hi - lo < MIN_RUN:
+            continue
+        if scatter is not None and np.median(np.abs(np.diff(a[lo:hi]))) / 0.954 >= scatter:
+            continue
+        total += int(hi - lo)
+    return total
