@@ -14,6 +14,7 @@ from balancer_id.diagnostics.explanations.base import (
     Verdict,
     head,
 )
+from balancer_id.diagnostics.explanations.effect import LibraryEffect
 from balancer_id.diagnostics.explanations.measured_output import (
     corrected,
     fit_mapped,
@@ -98,7 +99,7 @@ class SensorGain(ExplanationKind):
         """The bias effect within :data:`~balancer_id.diagnostics.arena.CLOSE_BIC`: the
         same sensor seen as an offset (said in the sentence, not a rival)."""
         return (
-            other.key == "effect"
+            other.key == LibraryEffect.key
             and other.effects == ["bias"]
             and (other.delta_bic - e.delta_bic <= arena.CLOSE_BIC)
         )
