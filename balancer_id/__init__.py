@@ -24,14 +24,14 @@ so ``import balancer_id`` is quick.
 
 from __future__ import annotations
 
-import importlib
-import os
-import sys
+import importlib as _importlib
+import os as _os
+import sys as _sys
 from typing import Any
 
-if "numpy" not in sys.modules:  # a fit's matrices are tall and thin: BLAS threads only cost
+if "numpy" not in _sys.modules:  # a fit's matrices are tall and thin: BLAS threads only cost
     for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(_var, "1")
+        _os.environ.setdefault(_var, "1")
 
 __version__ = "0.1.0"
 
@@ -49,6 +49,8 @@ _LAZY = {
     "TrialSet": "balancer_id.trials",
     "load_trials": "balancer_id.trials",
     "fit": "balancer_id.identify.api",
+    "fit_groups": "balancer_id.identify.api",
+    "GroupFits": "balancer_id.identify.group_fits",
     "FitResult": "balancer_id.identify.result",
     "diagnose": "balancer_id.diagnostics.api",
     "improve": "balancer_id.diagnostics.api",
@@ -63,9 +65,14 @@ def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'balancer_id' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
+    value = getattr(_importlib.import_module(module), name)
     globals()[name] = value  # later look-ups skip this function
     return value
 
 
 __all__ = sorted(_LAZY)
+
+
+def __dir__() -> list[str]:
+    """The public API (for ``dir(balancer_id)`` and tab completion), not the helpers."""
+    return sorted({*_LAZY, "__version__"})

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.errors import BalancerIdError
-from balancer_id.files import atomic_write_text, cache_root
+from balancer_id.files import atomic_write_text, cache_root, private_folder
 
 #: Version of the entry layout; entries of another version are recomputed.
 SCHEMA = 2
@@ -33,6 +33,26 @@ def enabled() -> bool:
     return os.environ.get("BALANCER_ID_NO_CACHE", "") in ("", "0")
 
 
+def _plugin_sources() -> list[Path]:
+    """The source files of the effects installed by other packages (entry-point group
+    ``balancer_id.effects``): a changed plug-in must not be served an old result."""
+    from importlib.metadata import entry_points
+    from importlib.util import find_spec
+
+    files: list[Path] = []
+    for ep in entry_points(group="balancer_id.effects"):
+        try:
+            spec = find_spec(ep.module)
+        except (ImportError, ValueError):
+            continue
+        if spec is None or not spec.origin or not os.path.isfile(spec.origin):
+            continue
+        origin = Path(spec.origin)
+        # a package's plug-in may keep its constants in sibling modules: hash them all
+        files += sorted(origin.parent.rglob("*.py")) if origin.name == "__init__.py" else [origin]
+    return files
+
+
 @lru_cache(maxsize=1)
 def _package_fingerprint() -> str:
     h = hashlib.sha256()
@@ -40,6 +60,12 @@ def _package_fingerprint() -> str:
     for path in sorted(package.rglob("*.py")):
         h.update(path.relative_to(package).as_posix().encode())
         h.update(path.read_bytes())
+    for path in _plugin_sources():
+        h.update(str(path).encode())
+        try:
+            h.update(path.read_bytes())
+        except OSError:
+            h.update(b"unreadable")
     return h.hexdigest()
 
 
@@ -87,17 +113,9 @@ def _results_dir(create: bool) -> Path | None:
     write it could plant results).
     """
     folder = cache_root() / "results"
-    try:
-        if create:
-            folder.mkdir(parents=True, exist_ok=True, mode=0o700)
-        st = folder.stat()
-    except OSError:
+    if not create and not folder.is_dir():
         return None
-    if not stat.S_ISDIR(st.st_mode) or st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return None
-    if hasattr(os, "getuid") and st.st_uid != os.getuid():
-        return None
-    return folder
+    return folder if private_folder(folder) is None else None
 
 
 def _checksum(result: Any) -> str:

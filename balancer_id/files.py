@@ -28,12 +28,23 @@ from typing import IO
 from balancer_id.errors import OutputExistsError, OutputWriteError, UsageError
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    """True when ``a`` and ``b`` name the same file (same path or same inode)."""
+def same_file(a: Path, b: Path) -> bool:
+    """True when ``a`` and ``b`` name the same file (same path or same inode), whether or
+    not it exists yet.
+
+    Parameters
+    ----------
+    a, b : Path
+        The two paths.
+
+    Returns
+    -------
+    bool
+    """
     try:
         if a.resolve() == b.resolve():
             return True
-    except OSError:
+    except (OSError, RuntimeError):  # RuntimeError: a symbolic link loop (Python < 3.13)
         pass
     try:
         return a.exists() and b.exists() and os.path.samefile(a, b)
@@ -82,21 +93,15 @@ def check_output(
             f"{option} '{path}': the folder '{parent}' does not exist; create it first"
         )
     for src in inputs:
-        if _same_file(Path(src), path):
+        if same_file(Path(src), path):
             raise UsageError(
                 f"{option} '{path}' is one of the inputs; writing it would destroy your data: "
                 "give another file name"
             )
-    try:
-        st = path.stat()
-    except FileNotFoundError:
+    if refusal := _not_replaceable(path):
+        raise UsageError(f"{option} '{path}' {refusal}")
+    if not os.path.lexists(path):
         return path
-    except OSError as exc:
-        raise UsageError(f"{option} '{path}': cannot be checked ({exc.strerror})") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise UsageError(f"{option} '{path}' is a folder; give a file name")
-    if not stat.S_ISREG(st.st_mode):
-        raise UsageError(f"{option} '{path}' is not a regular file; give a file name")
     if is_read_only(path):
         raise OutputExistsError(
             f"{option} '{path}' exists and is read-only; it is never replaced: give another name"
@@ -106,6 +111,43 @@ def check_output(
             f"{option} '{path}' exists already; add --overwrite to replace it, or give another name"
         )
     return path
+
+
+def _not_replaceable(path: Path) -> str | None:
+    """Why ``path`` may never be replaced by an output (a folder, a symbolic link, a device,
+    a pipe), or None when it is a regular file or does not exist.
+
+    ``os.replace`` replaces a link itself, not the file it names: ``--save /dev/stdout``
+    run as root would turn ``/dev/stdout`` into a plain file. A link is refused, whatever
+    it points at (a loop included).
+    """
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f"cannot be checked ({exc.strerror or exc}); give another file name"
+    if stat.S_ISLNK(st.st_mode):
+        return "is a symbolic link; links are never replaced: give the file's own name"
+    if stat.S_ISDIR(st.st_mode):
+        return "is a folder; give a file name"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file (a device or a pipe); give a file name"
+    return None
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where the system allows."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def is_read_only(path: str | Path) -> bool:
@@ -163,8 +205,8 @@ def atomic_write(path: str | Path, write: Callable[[IO[bytes]], object]) -> Path
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise UsageError(f"cannot write '{path}': the folder '{parent}' does not exist")
-    if path.is_dir():
-        raise UsageError(f"cannot write '{path}': it is a folder; give a file name")
+    if refusal := _not_replaceable(path):
+        raise UsageError(f"cannot write '{path}': it {refusal.removeprefix('is ')}")
     if path.exists() and is_read_only(path):
         raise OutputExistsError(f"'{path}' is read-only; it is never replaced: give another name")
     try:
@@ -176,7 +218,7 @@ def atomic_write(path: str | Path, write: Callable[[IO[bytes]], object]) -> Path
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o644)
+        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
@@ -229,6 +271,53 @@ def cache_root() -> Path:
         os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "balancer-id"
     )
     return Path(root)
+
+
+def private_folder(folder: Path) -> str | None:
+    """Create ``folder`` private (0700) and check it; the reason it cannot be trusted, or None.
+
+    Compiled kernels are Python code run by import and numba's cache holds pickles, cached
+    results are read back: a folder that someone else can write, or a symbolic link that
+    someone else may point elsewhere, would let them run code as the user or plant results.
+    ``folder`` and every folder between it and :func:`cache_root` (included) must be real
+    folders (not links), owned by the user and writable by nobody else.
+
+    Parameters
+    ----------
+    folder : Path
+        The folder to create (with its parents) and check.
+
+    Returns
+    -------
+    str or None
+        None when the folder is safe to use, else why not (one phrase naming the folder).
+    """
+    root = cache_root()
+    try:
+        if root in folder.parents:  # every folder from the root down private, not by umask
+            root.mkdir(mode=0o700, parents=True, exist_ok=True)
+            for part in reversed([p for p in folder.parents if root in p.parents]):
+                part.mkdir(mode=0o700, exist_ok=True)
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot create {folder}: {exc.strerror or exc}"
+    chain = [folder]
+    if folder != root and root in folder.parents:
+        chain += [p for p in folder.parents if p == root or root in p.parents]
+    for path in chain:
+        try:
+            st = os.lstat(path)
+        except OSError as exc:
+            return f"cannot read {path}: {exc.strerror or exc}"
+        if stat.S_ISLNK(st.st_mode):
+            return f"{path} is a symbolic link (remove it; the cache must be a real folder)"
+        if not stat.S_ISDIR(st.st_mode):
+            return f"{path} is not a folder"
+        if hasattr(os, "getuid") and st.st_uid != os.getuid():
+            return f"{path} belongs to another user"
+        if st.st_mode & 0o022:
+            return f"{path} is writable by others (chmod 700 it)"
+    return None
 
 
 def import_path(name: str, path: str | Path) -> ModuleType:

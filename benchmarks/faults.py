@@ -42,6 +42,8 @@ class Case:
     json_out: bool = False
     make: Callable[[Path], None] | None = None
     keep: list[str] = field(default_factory=list)  # files that must be unchanged after
+    absent: list[str] = field(default_factory=list)  # files that must not exist after
+    env: dict[str, str] = field(default_factory=dict)  # set for the command
 
 
 def _write(name: str, data: bytes | str) -> Callable[[Path], None]:
@@ -267,6 +269,7 @@ def cases() -> list[Case]:
             make=_symlink_loop,
         )
     )
+    out += _hostile_machine_cases()
     # -- the sample works (the suite's control) ----------------------------------------
     out.append(
         Case(
@@ -281,6 +284,82 @@ def cases() -> list[Case]:
         )
     )
     return out
+
+
+#: A module that leaves a file ``ran`` when imported: planted in the working folder.
+_PLANTED = "open('ran', 'w').write('planted code ran')\n"
+
+
+def _link(name: str, target: str) -> Callable[[Path], None]:
+    def make(root: Path) -> None:
+        os.symlink(target, root / name)
+
+    return make
+
+
+def _closed_port(root: Path) -> None:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        (root / "port").write_text(str(sock.getsockname()[1]))
+
+
+def _hostile_machine_cases() -> list[Case]:
+    """Issue 29's attacker and newcomer list, one class each: what a hostile folder, name,
+    environment or address does, and the contract's answer."""
+    log = _copy("log.csv")
+    move = _write("move.csv", "time,position\n0,0\n1,0.1\n2,0.2\n")
+    weird = "x$\\frac$ \udcff.csv"
+    return [
+        Case("same output twice", "fit --report x --series x", ["fit", "log.csv", "--report",
+             "x.html", "--series", "x.html"], 2, "same file", make=log, keep=["log.csv"],
+             absent=["x.html"]),
+        Case("output is an input", "inspect --plot move.csv --trajectory move.csv",
+             ["inspect", "log.csv", "--plot", "move.csv", "--trajectory", "move.csv",
+              "--overwrite"], 2, "one of the inputs", make=_both(log, move),
+             keep=["move.csv"]),
+        Case("output is a link", "fit --save link --overwrite", ["fit", "log.csv", "--save",
+             "link.json", "--overwrite"], 2, "symbolic link",
+             make=_both(log, _write("target.json", "{}"), _link("link.json", "target.json")),
+             keep=["target.json"]),
+        Case("output is a link loop", "fit --report loop.html", ["fit", "log.csv", "--report",
+             "a.html"], 2, "symbolic link",
+             make=_both(log, _link("a.html", "b.html"), _link("b.html", "a.html"))),
+        Case("effects file is a link loop", "fit --effects-file loop.py", ["fit", "log.csv",
+             "--effects-file", "a.py", "--json"], 3, "symbolic link", json_out=True,
+             make=_both(log, _link("a.py", "b.py"), _link("b.py", "a.py"))),
+        Case("trajectory not finite", "--trajectory distance=nan", ["inspect", "log.csv",
+             "--trajectory", "trapezoid:distance=nan,speed=0.1,accel=0.5"], 2,
+             "not a finite number", make=log),
+        Case("scheduler unknown host", "batch --scheduler no-such-host.invalid",
+             ["batch", "log.csv", "--out", "o", "--scheduler", "tcp://no-such-host.invalid:8786"],
+             2, "is not known", make=log),
+        Case("formula-looking and control names", "batch of =cmd.csv and cr\\r.csv",
+             ["batch", "logs", "--out", "o", "--jobs", "1"], 0,
+             make=_both(_copy("logs/=cmd.csv"), _copy("logs/cr\rname.csv"))),
+        Case("mathtext and non-UTF-8 names", "fit x$\\frac$ \\xff.csv --report",
+             ["fit", weird, "--report", "r.pdf"], 0, make=_copy(weird)),
+        Case("ascii terminal", "PYTHONIOENCODING=ascii fit", ["fit", "log.csv"], 0, make=log,
+             env={"PYTHONIOENCODING": "ascii"}),
+        Case("planted module in the working folder", "batch with multiprocessing.py here",
+             ["batch", "logs", "--out", "o", "--jobs", "2"], 0,
+             make=_both(_copy("logs/a.csv"), _copy("logs/b.csv"),
+                        _write("multiprocessing.py", _PLANTED)),
+             absent=["ran"]),
+        Case("shared numba cache", "NUMBA_CACHE_DIR writable by all", ["fit", "log.csv"], 0,
+             make=_both(log, _shared_folder("shared")), env={"NUMBA_CACHE_DIR": "shared"},
+             absent=["shared/x"]),
+    ]
+
+
+def _shared_folder(name: str) -> Callable[[Path], None]:
+    def make(root: Path) -> None:
+        folder = root / name
+        folder.mkdir()
+        folder.chmod(0o777)
+
+    return make
 
 
 def _symlink_loop(root: Path) -> None:
@@ -299,7 +378,7 @@ def run_case(case: Case, root: Path, timeout: float = 120.0) -> tuple[bool, str]
     if case.make is not None:
         case.make(root)
     before = {k: _digest(root / k) for k in case.keep}
-    env = {**os.environ, "BALANCER_ID_NO_CACHE": "1"}
+    env = {**os.environ, "BALANCER_ID_NO_CACHE": "1", **case.env}
     try:
         res = subprocess.run(
             [sys.executable, "-m", "balancer_id", *case.argv],
@@ -334,6 +413,13 @@ def run_case(case: Case, root: Path, timeout: float = 120.0) -> tuple[bool, str]
     for name, digest in before.items():
         if digest is not None and _digest(root / name) != digest:
             problems.append(f"{name} was changed")
+    for name in case.absent:
+        found = root / name
+        if name.endswith("/x"):  # a folder that must stay empty
+            if any(found.parent.iterdir()):
+                problems.append(f"{found.parent.name}/ was written into")
+        elif found.exists():
+            problems.append(f"{name} exists ({found.read_text(errors='replace')[:60]!r})")
     return not problems, "; ".join(problems)
 
 

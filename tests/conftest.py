@@ -63,14 +63,45 @@ def pytest_xdist_make_scheduler(config, log):
     return SharedFixtureScheduling(config, log)
 
 
+def _needs_real_logs(item) -> bool:
+    """Whether ``item`` reads the public exports of ``../shared/real_logs``."""
+    if item.get_closest_marker("needs_real_logs"):
+        return True
+    return any("real_logs" in str(m.kwargs.get("reason", "")) for m in item.iter_markers("skipif"))
+
+
+#: Tests left out because ``../shared/real_logs`` is not beside this checkout.
+_WITHOUT_REAL_LOGS: list[str] = []
+
+
 def pytest_collection_modifyitems(config, items):
     """The units (see pytest_xdist_make_scheduler) holding tests marked ``slow`` first, the
     one with the most of them first (the README's commands), so that none of them is the
-    run's tail while the other worker idles; otherwise as collected. A unit stays whole."""
+    run's tail while the other worker idles; otherwise as collected. A unit stays whole.
+
+    Without ``../shared/real_logs`` (a checkout outside this repository's layout) the
+    tests that read it are deselected and said once in the summary, not skipped one by
+    one."""
+    if not REAL_LOGS.is_dir():
+        absent = [item for item in items if _needs_real_logs(item)]
+        if absent:
+            _WITHOUT_REAL_LOGS[:] = [item.nodeid for item in absent]
+            config.hook.pytest_deselected(items=absent)
+            items[:] = [item for item in items if item not in set(absent)]
     shared = _shared_fixture_modules()
     units = {item: _unit(item.nodeid, shared) for item in items}
     slow = Counter(units[item] for item in items if item.get_closest_marker("slow"))
     items.sort(key=lambda item: -slow[units[item]])
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """One line for the tests that need ``../shared/real_logs`` when it is absent."""
+    if _WITHOUT_REAL_LOGS:
+        terminalreporter.write_line(
+            f"{len(_WITHOUT_REAL_LOGS)} tests read the public exports in {REAL_LOGS}, "
+            "which is not beside this checkout: not run (clone the project with its "
+            "shared/ folder to run them)"
+        )
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -54,6 +54,7 @@ def test_each_log_gets_its_own_mass_and_the_shared_ones_are_pinned_by_all(payloa
     assert doc["comparison"]["all shared"]["bic"] > doc["comparison"]["partly shared"]["bic"]
     held = {k: v["held_out_rmse"] for k, v in doc["comparison"].items()}
     assert held["partly shared"] < held["all shared"]  # one mass cannot predict three
+    assert "&lt;- supported" in result._repr_html_() and "verdict:" in result.summary()
 
 
 def test_equal_payloads_are_shared(tmp_path):

@@ -154,3 +154,50 @@ def test_a_readme_command_runs_and_says_what_the_readme_says(cli, workdir, monke
         k_r = float(re.search(r"k_r\W+([0-9.]+)", out).group(1))
         c_r = float(re.search(r"c_r\W+([0-9.]+)", out).group(1))
         assert k_r == pytest.approx(150, rel=0.03) and c_r == pytest.approx(100, rel=0.03)
+        _assert_readme_robot_numbers(out)
+
+
+def _readme_number(pattern: str) -> float:
+    """A number the README quotes, found by ``pattern`` (one group) in its text."""
+    found = re.search(pattern, " ".join(README.split()))
+    assert found is not None, pattern
+    return float(found.group(1))
+
+
+#: The simulated check of the advised viscosity: its frequency and damping.
+D0_CHECK = r"D0 .*?simulated: ([0-9.]+) Hz, damping ([0-9.]+)"
+
+
+def _assert_readme_robot_numbers(out: str) -> None:
+    """Every number the README quotes for the robot step is what the command prints (to the
+    README's rounding): the mode's damping, the stability condition's two sides, the
+    advised settings and their simulated check."""
+    flat = " ".join(out.split())
+    printed = {
+        "damping": float(re.search(r"damping ratio ([0-9.]+), stability margin", flat).group(1)),
+        "left": float(re.search(r"k_r: ([0-9.]+) vs ([0-9.]+)", flat).group(1)),
+        "right": float(re.search(r"k_r: ([0-9.]+) vs ([0-9.]+)", flat).group(2)),
+        "k_r_to": float(re.search(r"k_r \(N/m\): [0-9.]+ -> ([0-9.]+)", flat).group(1)),
+        "d0_to": float(re.search(r"D0 \(kg/s\): [0-9.]+ -> ([0-9.]+)", flat).group(1)),
+        "d0_from": float(re.search(r"D0 \(kg/s\): ([0-9.]+) ->", flat).group(1)),
+        "d0_hz": float(re.search(D0_CHECK, flat).group(1)),
+        "d0_damping": float(re.search(D0_CHECK, flat).group(2)),
+    }
+    quoted = {
+        "damping": _readme_number(r"0\.66 Hz with damping ratio ([0-9.]+)"),
+        "left": _readme_number(r"stability condition \(([0-9.]+) vs"),
+        "right": _readme_number(r"stability condition \([0-9.]+ vs ([0-9.]+)\)"),
+        "k_r_to": _readme_number(r"k_r from 149 to ([0-9.]+) N/m"),
+        "d0_to": _readme_number(r"13-fold \(to ([0-9.]+) kg/s\)"),
+        "d0_fold": _readme_number(r"would have to grow ([0-9.]+)-fold"),
+        "d0_hz": _readme_number(r"moving to ([0-9.]+) Hz with damping"),
+        "d0_damping": _readme_number(r"Hz with damping ([0-9.]+): the check"),
+    }
+    assert printed["damping"] == pytest.approx(quoted["damping"], abs=0.006)
+    assert printed["left"] == pytest.approx(quoted["left"], abs=1.0)
+    assert printed["right"] == pytest.approx(quoted["right"], abs=1.0)
+    assert printed["k_r_to"] == pytest.approx(quoted["k_r_to"], abs=0.6)
+    assert printed["d0_to"] == pytest.approx(quoted["d0_to"], abs=0.6)
+    assert printed["d0_to"] / printed["d0_from"] == pytest.approx(quoted["d0_fold"], abs=0.5)
+    assert printed["d0_hz"] == pytest.approx(quoted["d0_hz"], abs=0.006)
+    assert printed["d0_damping"] == pytest.approx(quoted["d0_damping"], abs=0.006)

@@ -87,6 +87,7 @@ REAL_RIDES = [
 ]
 
 
+@pytest.mark.needs_real_logs
 @pytest.mark.parametrize(("name", "onsets"), REAL_RIDES)
 def test_real_elevator_rides_have_no_onset_in_travel(name, onsets):
     from balancer_id.read import read_log

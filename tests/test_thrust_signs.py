@@ -74,7 +74,7 @@ def test_unsigned_thrusts_take_the_motion_sign_without_a_warning(cli, two_runs):
 def test_fit_names_the_trial_whose_given_sign_disagrees(cli, two_runs):
     args = ("fit", two_runs, "--thrust", "+4.9,+2.45", "--fix", "A=1.4", "--no-cache")
     code, out, err = cli(*args, "--json")
-    assert code in (0, 4), err
+    assert code in (0, 4, 5), err  # a wrong sign misfits: untrusted (issue 31)
     result = json.loads(out)
     (note,) = _sign_notes(result["notes"])
     assert note["subject"] == "trial 1"

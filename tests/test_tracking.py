@@ -101,3 +101,19 @@ def test_cli_track_prints_start_end_and_writes_series(tmp_path, cli, falling):
     assert "D0 [kg/s]: moves" in out and "largest change" in out
     code, _, err = cli("fit", path, "--track", "X")
     assert code == 2 and "--track X: not a parameter" in err
+
+
+def test_library_display_and_report_show_the_track(falling, tmp_path):
+    _, result = falling
+    assert "D0 [kg/s]: moves" in result.summary()
+    assert "tracked in time" in result._repr_html_()
+    assert "D0 [kg/s]" in result.tracking._repr_html_()
+    frame = result.tracking.to_frame()
+    assert list(frame["parameter"].unique()) == ["D0"]
+    assert (frame["ci95_low"] < frame["value"]).all()
+    png = result.tracking.plot(tmp_path / "track.png")
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    from balancer_id.report.document import write_fit_report
+
+    html = write_fit_report(result, tmp_path / "fit.html").read_text(encoding="utf-8")
+    assert "Parameters in time" in html and "data:image/png" in html

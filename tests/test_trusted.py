@@ -196,3 +196,17 @@ def test_force_noise_on_a_light_cart_does_not_bias_the_lag(tmp_path) -> None:
     assert values["m_a"] == pytest.approx(0.2, rel=0.03)
     assert values["T_a"] == pytest.approx(0.005, rel=0.15)  # before: 0.011
     assert values["A"] == pytest.approx(0.5, rel=0.15)  # before: 0
+
+
+def test_a_misfit_beyond_the_noise_at_rest_is_untrusted(tmp_path) -> None:
+    # a speed limit the fitted model lacks: its values bend to follow the plateau
+    from balancer_id.identify.api import fit
+
+    log = _small_log(tmp_path, "variable_viscosity+speed_limit", {"v_max": 0.3})
+    result = fit(log, profile=False)
+    assert not result.trusted
+    assert any(n.code == "fit.structured_residual" for n in result.all_notes)
+    # the same balancer without the limit: the residual is the noise seen at rest
+    (tmp_path / "clean").mkdir()
+    clean = _small_log(tmp_path / "clean", "variable_viscosity", {})
+    assert fit(clean, profile=False).trusted

@@ -117,6 +117,7 @@ def run_batch(
     trajectory: Any = None,
     diagnose: bool = False,
     tick: Callable[[int, int], None] | None = None,
+    per_log: Sequence[str] = (),
 ) -> BatchResult:
     """Identify each log on its own, in parallel, and write the results into ``out_dir``.
 
@@ -171,6 +172,11 @@ def run_batch(
     tick : callable, optional
         Called as ``tick(done, total)`` when a log is settled (fitted, failed or kept by
         ``resume``): what a progress bar follows.
+    per_log : sequence of str
+        Then fit the logs the fleet view counts together, these parameters each log's
+        own and the rest shared (a fleet of one type, ``--per-log``): ``shared_fit.json``
+        in ``out_dir`` and :attr:`BatchResult.shared_fit`
+        (:func:`~balancer_id.batch.shared.fit_fleet_shared`).
 
     Returns
     -------
@@ -247,9 +253,17 @@ def run_batch(
             request_key(task.path, mdl.spec, fixed, options, extra, trajectory, diagnose)
             for task in tasks
         ]
+        # the same fit without its diagnosis: a diagnosed result also serves a resume
+        # that does not ask for one (never the other way round)
+        fit_keys = [
+            request_key(task.path, mdl.spec, fixed, options, extra, trajectory, False)
+            for task in tasks
+        ] if diagnose else keys
 
         def record(index: int, payload: Payload) -> None:
-            row = _write_log_result(tasks[index], payload, mdl.spec, keys[index])
+            row = _write_log_result(
+                tasks[index], payload, mdl.spec, keys[index], fit_request=fit_keys[index]
+            )
             rows[index] = row
             done = sum(r is not None for r in rows)
             say(f"[{done}/{len(tasks)}] {_describe(row)}")
@@ -257,8 +271,11 @@ def run_batch(
                 tick(done, len(tasks))
 
         items = []
+        undiagnosed = 0
         for k, task in enumerate(tasks):
             kept = _resumed_row(task, keys[k]) if resume else None
+            if resume and kept is None and diagnose and _resumed_row(task, fit_keys[k]):
+                undiagnosed += 1
             if kept is not None:
                 rows[k] = kept
             elif not _is_regular(Path(task.path)):
@@ -269,6 +286,11 @@ def run_batch(
             tick(sum(r is not None for r in rows), len(tasks))
         if resume:
             say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
+            if undiagnosed:
+                say(
+                    f"{undiagnosed} log(s) were identified without --diagnose: identified "
+                    "and diagnosed again"
+                )
         try:
             if not items:
                 pass
@@ -288,4 +310,15 @@ def run_batch(
             raise
         final = _fill_missing(rows, tasks, mdl.spec)
         summary = write_summary(out / SUMMARY_NAME, final)
-    return BatchResult(final, out, summary, seconds=time.perf_counter() - started)
+        shared = None
+        if per_log:
+            from balancer_id.batch.shared import fit_fleet_shared
+
+            say(f"fitting the counted logs together ({', '.join(per_log)} per log)")
+            shared = fit_fleet_shared(
+                final, out, per_log, model=model, fixed=fixed, options=options,
+                effects_files=effects_files, trajectory=trajectory,
+            )
+    return BatchResult(
+        final, out, summary, seconds=time.perf_counter() - started, shared_fit=shared
+    )

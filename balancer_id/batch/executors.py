@@ -26,6 +26,10 @@ _PRELOAD = ("balancer_id.batch.preload",)
 #: Each worker process runs one BLAS/OpenMP thread: the pool is the parallelism (and
 #: the fits' small matrices run faster on one thread anyway). A value the user set wins.
 _THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Worker processes start as ``python -c ...``, which puts the working folder first on
+#: ``sys.path``: a ``multiprocessing.py`` or ``json.py`` lying there would run as the
+#: user. ``PYTHONSAFEPATH`` (Python 3.11) keeps it off.
+_SAFE_PATH_ENV = "PYTHONSAFEPATH"
 
 
 _DASK_HINT = "pip install 'balancer-id[dask]'"
@@ -97,9 +101,23 @@ def _interrupt_ignored() -> Iterator[None]:
 
 
 @contextmanager
+def _safe_path() -> Iterator[None]:
+    """Processes started inside never import from the working folder (``PYTHONSAFEPATH``)."""
+    if os.environ.get(_SAFE_PATH_ENV):
+        yield
+        return
+    os.environ[_SAFE_PATH_ENV] = "1"
+    try:
+        yield
+    finally:
+        os.environ.pop(_SAFE_PATH_ENV, None)
+
+
+@contextmanager
 def _one_thread_env() -> Iterator[None]:
-    """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)."""
-    added = [name for name in _THREAD_ENV if name not in os.environ]
+    """Processes started inside inherit one BLAS/OpenMP thread (unless the user chose)
+    and never import from the working folder (``PYTHONSAFEPATH``)."""
+    added = [name for name in (*_THREAD_ENV, _SAFE_PATH_ENV) if name not in os.environ]
     for name in added:
         os.environ[name] = "1"
     try:
@@ -186,6 +204,19 @@ def run_in_processes(
     notify : callable, optional
         Told, in one line, when a worker died and the rest run one process each.
     """
+    with _safe_path():  # the pool's helpers (resource tracker) start before any submit
+        _run_pool(func, items, record, jobs, context=context, notify=notify)
+
+
+def _run_pool(
+    func: Callable[[Any], Payload],
+    items: Sequence[tuple[int, Any]],
+    record: Callable[[int, Payload], None],
+    jobs: int,
+    *,
+    context: Any = None,
+    notify: Callable[[str], None] | None = None,
+) -> None:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
@@ -337,6 +368,67 @@ def _dask() -> Any:
     return distributed
 
 
+#: Seconds to wait for a scheduler's port to answer, for Dask's handshake, and for a
+#: first worker: an address that never answers must not hang the batch.
+SCHEDULER_TIMEOUT_S = float(os.environ.get("BALANCER_ID_SCHEDULER_TIMEOUT", "10"))
+
+
+def probe_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Check that something listens at a Dask scheduler's ``address`` before Dask tries.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://host:port``, ``host:port`` or ``tls://host:port``.
+    timeout : float
+        Seconds for the name look-up and the TCP connection.
+
+    Raises
+    ------
+    UsageError
+        One line naming the problem: an address that is not ``host:port``, a host name
+        that does not resolve, a port nobody listens on, or no answer in ``timeout``.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    if address == "local":
+        return
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise UsageError(
+            f"--scheduler {address}: expected tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786) or local"
+        )
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror:
+        raise UsageError(
+            f"--scheduler {address}: the host '{host}' is not known (check the name)"
+        ) from None
+    family, kind, proto, _, sockaddr = infos[0]
+    with socket.socket(family, kind, proto) as sock:
+        sock.settimeout(timeout)
+        try:
+            sock.connect(sockaddr)
+        except ConnectionRefusedError:
+            raise UsageError(
+                f"--scheduler {address}: nothing listens on port {port} of {host} "
+                "(is the Dask scheduler running?)"
+            ) from None
+        except TimeoutError:
+            raise UsageError(
+                f"--scheduler {address}: no answer from {host}:{port} in {timeout:g} s "
+                "(a firewall, or the wrong address)"
+            ) from None
+        except OSError as exc:
+            why = exc.strerror or exc
+            raise UsageError(f"--scheduler {address}: cannot connect ({why})") from None
+
+
 def _run_dask(
     func: Callable[[Any], Payload],
     items: Sequence[tuple[int, Any]],
@@ -360,12 +452,25 @@ def _run_dask(
             client = distributed.Client(cluster)
             where = f"a local Dask cluster of {n_workers} workers"
         else:
-            client = distributed.Client(scheduler)
+            probe_scheduler(scheduler)
+            client = distributed.Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
             where = f"the Dask cluster at {scheduler}"
     except (OSError, TimeoutError, ValueError) as exc:
         if cluster is not None:
             cluster.close()
-        raise UsageError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        raise UsageError(
+            f"--scheduler {scheduler}: no Dask scheduler answered in {SCHEDULER_TIMEOUT_S:g} s "
+            f"({type(exc).__name__}; is it a Dask scheduler's address?)"
+        ) from None
+    if cluster is None:
+        try:
+            client.wait_for_workers(1, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError) as exc:
+            client.close()
+            raise UsageError(
+                f"--scheduler {scheduler}: the scheduler has no worker after "
+                f"{SCHEDULER_TIMEOUT_S:g} s; start one (dask worker {scheduler})"
+            ) from exc
     try:
         say(f"identifying {len(items)} logs on {where}")
         futures = {client.submit(func, arg, pure=False): key for key, arg in items}

@@ -98,7 +98,7 @@ def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
         doc = json.loads(task.output.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(doc, dict) or doc.get("request") != key:
+    if not isinstance(doc, dict) or key not in (doc.get("request"), doc.get("request_fit")):
         return None
     row = BatchRow(
         file=task.display,
@@ -269,12 +269,33 @@ def _check_out_dir(out: Path, given: Sequence[str | Path], logs: Sequence[Path])
             )
 
 
+#: The longest result name's stem in bytes: file systems allow 255 bytes a name, and the
+#: ``_2``, ``.json`` and temporary-file parts need room.
+_MAX_STEM_BYTES = 160
+
+
+def _result_stem(log: Path) -> str:
+    """The stem of ``log``'s result file: control characters made ``_``, and a stem too long
+    for the file system cut, with 8 hex digits of its hash to keep it apart."""
+    import hashlib
+
+    stem = "".join(ch if ch.isprintable() else "_" for ch in (log.stem or "log"))
+    raw = os.fsencode(stem)
+    if len(raw) <= _MAX_STEM_BYTES:
+        return stem
+    digest = hashlib.sha256(raw).hexdigest()[:8]
+    cut = raw[: _MAX_STEM_BYTES - 9].decode("utf-8", "ignore")  # never half a character
+    return f"{cut}_{digest}"
+
+
 def _output_names(logs: Sequence[Path]) -> list[str]:
-    """``<stem>.json`` per log; later logs with a taken stem get ``_2``, ``_3``, ..."""
+    """``<stem>.json`` per log; later logs with a taken stem get ``_2``, ``_3``, ...; a stem
+    with control characters or too long for the file system is made safe (see
+    :func:`_result_stem`)."""
     taken: set[str] = set()
     names = []
     for log in logs:
-        stem = log.stem or "log"
+        stem = _result_stem(log)
         name, k = stem, 2
         while name.lower() in taken:
             name, k = f"{stem}_{k}", k + 1

@@ -32,6 +32,9 @@ LEADING_PARAMETERS = ("m_a", "T_a")
 
 #: Exit code of a failed row that is not a balancer-id error (as the CLI's internal error).
 INTERNAL_EXIT_CODE = 1
+#: The exit code of a log the batch never reached because it was interrupted (CONTRACT.md:
+#: 130, interrupted): not a bug, and ``--resume`` identifies it.
+INTERRUPTED_EXIT_CODE = 130
 
 
 Payload = dict[str, Any]
@@ -174,12 +177,15 @@ class BatchResult:
         ``summary.csv`` in the output folder.
     seconds : float
         Wall time of the whole batch.
+    shared_fit : dict or None
+        With ``per_log``: the counted logs fitted together (``shared_fit.json``).
     """
 
     rows: list[BatchRow]
     out_dir: Path
     summary_path: Path
     seconds: float = 0.0
+    shared_fit: dict[str, Any] | None = None
 
     @property
     def n_ok(self) -> int:
@@ -207,6 +213,7 @@ class BatchResult:
             "exit_code": self.exit_code,
             "seconds": self.seconds,
             "rows": [row.to_dict() for row in self.rows],
+            **({"shared_fit": self.shared_fit} if self.shared_fit is not None else {}),
         }
 
 
@@ -225,8 +232,11 @@ def _fill_missing(rows: list[BatchRow | None], tasks: list[_Task], spec: str) ->
         else BatchRow(
             file=task.display,
             status="failed",
-            error=f"{task.display}: not identified: the batch stopped before this log",
-            exit_code=INTERNAL_EXIT_CODE,
+            error=(
+                f"{task.display}: not identified: the batch was stopped before this log "
+                "(run it again with --resume)"
+            ),
+            exit_code=INTERRUPTED_EXIT_CODE,
             model=spec,
         )
         for row, task in zip(rows, tasks, strict=True)
@@ -265,7 +275,12 @@ def _relabel(obj: Any, old: str, new: str) -> Any:
 
 
 def _write_log_result(
-    task: _Task, payload: Payload, spec: str, request: str | None = None
+    task: _Task,
+    payload: Payload,
+    spec: str,
+    request: str | None = None,
+    *,
+    fit_request: str | None = None,
 ) -> BatchRow:
     """Turn a worker's payload into a row, and write the log's JSON (with its request key,
     so that ``--resume`` knows what it was computed from)."""
@@ -295,6 +310,8 @@ def _write_log_result(
         doc["model"] = spec
     doc["seconds"] = row.seconds
     doc["request"] = request
+    if fit_request is not None and fit_request != request:
+        doc["request_fit"] = fit_request  # the key of the same fit without its diagnosis
     try:
         atomic_write_text(
             task.output, json.dumps(doc, indent=2, allow_nan=False, default=str) + "\n"
@@ -368,6 +385,33 @@ def summary_columns(rows: Sequence[BatchRow]) -> tuple[list[str], list[str]]:
     return columns, names
 
 
+#: What a spreadsheet reads as the start of a formula (CSV injection, OWASP).
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_cell(value: object) -> object:
+    """``value`` safe in a CSV opened by a spreadsheet or printed on a terminal.
+
+    Text starting like a formula (``=``, ``+``, ``-``, ``@``) gets a leading apostrophe,
+    which spreadsheets show as text; control characters (a carriage return that would break
+    the row, a terminal escape) are written visibly (``\\r``, ``\\x1b``). Numbers and
+    None pass unchanged.
+
+    Parameters
+    ----------
+    value : object
+        A cell.
+
+    Returns
+    -------
+    object
+    """
+    if not isinstance(value, str):
+        return "" if value is None else value
+    text = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in value)
+    return "'" + text if value.startswith(_FORMULA_START) else text
+
+
 def write_summary(path: str | Path, rows: Sequence[BatchRow]) -> Path:
     """Write ``summary.csv``: one row per log (atomically).
 
@@ -389,7 +433,7 @@ def write_summary(path: str | Path, rows: Sequence[BatchRow]) -> Path:
     writer.writeheader()
     for row in rows:
         rec = row.summary_record(names)
-        writer.writerow({k: "" if v is None else v for k, v in rec.items()})
+        writer.writerow({k: spreadsheet_cell(v) for k, v in rec.items()})
     path = Path(path)
     atomic_write_text(path, buffer.getvalue())
     return path

@@ -227,7 +227,7 @@ def inspect(
     options = read_options(
         thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
     )
-    check_outputs({"--plot": plot}, [log], overwrite)
+    check_outputs({"--plot": plot}, inputs_of([log], None, trajectory_text), overwrite)
     with stage(f"reading {log.name}"):
         data = read(log, options)
         try:
@@ -492,17 +492,12 @@ def _exit_if_untrusted(results: list[Any]) -> None:
 
 
 def _fit_groups(trial_set, group_by: str, *, json_out: bool, report, **kwargs) -> None:
-    """``fit --group-by``: one identification per group of trials."""
-    from balancer_id.identify.api import fit as run_fit
-    from balancer_id.identify.api import trial_data
-    from balancer_id.identify.data import group_trials
+    """``fit --group-by``: one identification per group of trials (``bid.fit_groups``)."""
+    from balancer_id.identify.api import fit_groups
 
     if report is not None:
         raise UsageError("--report takes one model: give it without --group-by")
-    groups = group_trials(trial_data(trial_set), group_by)
-    out: dict[str, object] = {"group_by": group_by, "groups": []}
-    for label, group in groups:
-        out["groups"].append({"group": label, **run_fit(group, **kwargs).to_dict()})  # type: ignore[attr-defined]
+    out = fit_groups(trial_set, group_by, **kwargs).to_dict()
     if json_out:
         emit_json(out)
     else:
@@ -1000,8 +995,6 @@ def improve(
         inputs_of(logs, effects_file, trajectory_text),
         overwrite,
     )
-    if report is not None and plot is not None and Path(report).resolve() == Path(plot).resolve():
-        raise UsageError("--report and --plot name the same file; give two names")
     if report is not None:
         from balancer_id.report.document import check_report_path
 
@@ -1171,23 +1164,12 @@ def batch(
             trajectory=trajectory(trajectory_text),
             diagnose=diagnose_logs,
             tick=tick,
+            per_log=[n.strip() for item in per_log or [] for n in item.split(",") if n.strip()],
         )
-    shared = None
-    own = [n.strip() for item in per_log or [] for n in item.split(",") if n.strip()]
-    if own:
-        from balancer_id.batch.shared import SHARED_NAME, fit_fleet_shared
+    shared = result.shared_fit
+    if shared is not None:
+        from balancer_id.batch.shared import SHARED_NAME
 
-        with stage(f"fitting the counted logs together ({', '.join(own)} per log)"):
-            shared = fit_fleet_shared(
-                result.rows,
-                out,
-                own,
-                model=model,
-                fixed=assignments(fix, "--fix"),
-                options=options,
-                effects_files=effects_file or (),
-                trajectory=trajectory(trajectory_text),
-            )
         said = shared.get("error") or f"shared fit: {shared.get('verdict')}"
         typer.echo(f"{one_line(said)}; wrote {out / SHARED_NAME}", err=True)
     if fleet_report is not None:
@@ -1196,7 +1178,7 @@ def batch(
         write_fleet_report(result.rows, fleet_report, shared)
         typer.echo(f"wrote {fleet_report}", err=True)
     if json_out:
-        emit_json({**result.to_dict(), **({"shared_fit": shared} if shared else {})})
+        emit_json(result.to_dict())
     else:
         typer.echo(
             f"{result.n_ok} identified, {result.n_failed} failed; wrote {result.summary_path}",
@@ -1241,8 +1223,15 @@ def main() -> None:
     """Entry point of the ``balancer-id`` console script.
 
     Usage errors (unknown option, a value of the wrong type) are one line on stderr with
-    exit 2, like every other error, instead of click's framed box.
+    exit 2, like every other error, instead of click's framed box. A terminal or pipe whose
+    encoding cannot show a character (``PYTHONIOENCODING=ascii``) gets it escaped.
     """
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (OSError, ValueError):
+                pass
     try:
         code = app(standalone_mode=False)
     except typer.Abort:

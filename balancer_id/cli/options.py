@@ -261,8 +261,36 @@ def emit_json(obj: object) -> None:
     ----------
     obj : object
         JSON-ready data.
+
+    Raises
+    ------
+    OutputWriteError
+        When stdout is closed or cannot take the text (a full disk): exit 3, one line.
     """
-    sys.stdout.write(json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n")
+    from balancer_id.errors import OutputWriteError
+
+    text = json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n"
+    if sys.stdout is None:
+        raise OutputWriteError("cannot print the JSON: stdout is closed; redirect it to a file")
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except (OSError, ValueError) as exc:
+        _stdout_to_null()  # the interpreter's last flush must not fail again
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise OutputWriteError(f"cannot print the JSON on stdout: {why}") from None
+
+
+def _stdout_to_null() -> None:
+    """Point stdout's file descriptor at the null device (and drop what is buffered)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 def fail(
@@ -281,10 +309,15 @@ def fail(
     json_out : bool
         Also print ``{"error": ...}`` on stdout.
     """
+    from balancer_id.errors import OutputWriteError
+
     line = one_line(message)
     typer.echo(f"balancer-id: error: {line}", err=True)
     if json_out:
-        emit_json({"error": error_record(line, code, exc)})
+        try:
+            emit_json({"error": error_record(line, code, exc)})
+        except (OutputWriteError, BrokenPipeError):
+            pass  # stdout is what failed: the line on stderr says it
     raise typer.Exit(code)
 
 
@@ -342,6 +375,10 @@ def guarded(func: F) -> F:
             name = f" '{exc.filename}'" if exc.filename else ""
             fail(f"cannot access{name}: {exc.strerror or exc}", 3, exc, json_out)
         except Exception as exc:  # never a traceback for the user
+            if isinstance(exc, RuntimeError) and str(exc).startswith("Symlink loop"):
+                # pathlib's answer to a link that leads back to itself (before Python 3.13)
+                fail(f"{exc}: a symbolic link that leads back to itself; give the real file",
+                     3, exc, json_out)
             if os.environ.get("BALANCER_ID_DEBUG"):
                 raise
             fail(
@@ -407,11 +444,18 @@ def check_outputs(
     overwrite : bool
         ``--overwrite``.
     """
-    from balancer_id.files import check_output
+    from balancer_id.errors import UsageError
+    from balancer_id.files import check_output, same_file
 
-    for option, path in outputs.items():
-        if path is not None:
-            check_output(path, inputs=inputs, overwrite=overwrite, option=option)
+    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    for i, (option, path) in enumerate(given):
+        for other, other_path in given[:i]:
+            if same_file(path, other_path):
+                raise UsageError(
+                    f"{other} and {option} name the same file '{path}'; one would replace "
+                    "the other: give two names"
+                )
+        check_output(path, inputs=inputs, overwrite=overwrite, option=option)
 
 
 def inputs_of(

@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from balancer_id.diagnostics.compare import ModelComparison, compare_models
+from balancer_id.diagnostics.compare import Comparisons, compare_models
 from balancer_id.diagnostics.diagnosis import Diagnosis
 from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
 from balancer_id.diagnostics.improve import ImproveResult
@@ -103,6 +103,8 @@ def improve(
     trajectory: Trapezoid | None = None,
     max_steps: int = 4,
     diagnosis: Diagnosis | None = None,
+    discover_to: str | Path | None = None,
+    overwrite: bool = False,
 ) -> ImproveResult:
     """Add effects to a fit while they help (see :func:`~balancer_id.diagnostics.improve.improve`).
 
@@ -127,6 +129,12 @@ def improve(
         Effects to add at most.
     diagnosis : Diagnosis, optional
         The diagnosis of a given FitResult, when already made (not made again).
+    discover_to : str or Path, optional
+        ``improve --discover --effects-out FILE.py``: when, after the library's effects, a
+        force is still missing, discover it, write it to this file as a user effect, add
+        it and refit.
+    overwrite : bool
+        Replace ``discover_to`` when an earlier discovery wrote it (a file of yours never).
 
     Returns
     -------
@@ -147,7 +155,13 @@ def improve(
         "registry": registry,
         "trajectory": trajectory,
     }
-    return improve_fit(_fitted(source, start, kw), max_steps=max_steps, diagnosis=diagnosis)
+    return improve_fit(
+        _fitted(source, start, kw),
+        max_steps=max_steps,
+        diagnosis=diagnosis,
+        discover_to=discover_to,
+        overwrite=overwrite,
+    )
 
 
 def compare(
@@ -159,7 +173,7 @@ def compare(
     effects_files: Sequence[str | Path] = (),
     registry: Registry | None = None,
     trajectory: Trapezoid | None = None,
-) -> list[ModelComparison]:
+) -> Comparisons:
     """Fit every model in ``models`` to the same trials and compare their errors.
 
     Parameters
@@ -182,8 +196,9 @@ def compare(
 
     Returns
     -------
-    list of ModelComparison
-        One row per model (see :func:`~balancer_id.diagnostics.compare.compare_models`).
+    Comparisons
+        A list of one ModelComparison per model, shown in a notebook as one table (see
+        :func:`~balancer_id.diagnostics.compare.compare_models`).
 
     Raises
     ------

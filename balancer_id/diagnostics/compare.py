@@ -66,11 +66,55 @@ class ModelComparison(Displayable):
         }
 
 
+class Comparisons(list[ModelComparison]):
+    """The models of one comparison, in the order given: a list that a notebook shows as
+    one table (model, RMSE, fit %, AIC, BIC, and the verdict of a validated model)."""
+
+    def rows(self) -> list[dict[str, object]]:
+        """One row per model: its spec and error metrics."""
+        out = []
+        for c in self:
+            m = c.match.metrics
+            out.append(
+                {
+                    "model": c.match.model.spec,
+                    "rmse": m["rmse"],
+                    "nrmse_fit_percent": m["nrmse_fit_percent"],
+                    "aic": m["aic"],
+                    "bic": m["bic"],
+                    "verdict": None if c.validation is None else c.validation.verdict,
+                }
+            )
+        return out
+
+    def lines(self) -> list[str]:
+        """The table as text, best BIC marked."""
+        rows = self.rows()
+        best = min(range(len(rows)), key=lambda i: float(rows[i]["bic"]), default=None)  # type: ignore[arg-type]
+        out = [f"{'model':<34} {'RMSE (m/s²)':>12} {'fit %':>7} {'BIC':>10}"]
+        for i, r in enumerate(rows):
+            mark = "  <- lowest BIC" if i == best and len(rows) > 1 else ""
+            verdict = f"  ({r['verdict']})" if r["verdict"] else ""
+            out.append(
+                f"{r['model']:<34} {r['rmse']:>12.4g} {r['nrmse_fit_percent']:>7.2f} "
+                f"{r['bic']:>10.1f}{mark}{verdict}"
+            )
+        return out
+
+    def __repr__(self) -> str:
+        return "\n".join(self.lines())
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return "<pre>" + html.escape("\n".join(self.lines())) + "</pre>"
+
+
 def compare_models(
     models: Sequence[Model],
     trials: Sequence[TrialData],
     fixed: Mapping[str, float] | None = None,
-) -> list[ModelComparison]:
+) -> Comparisons:
     """Fit each model to the same trials (started from the paper's method).
 
     Parameters
@@ -84,12 +128,13 @@ def compare_models(
 
     Returns
     -------
-    list of ModelComparison
-        In the order given; a model whose every value is held is simulated, not fitted,
-        and carries its :class:`~balancer_id.diagnostics.validate.Validation`.
+    Comparisons
+        A list of ModelComparison in the order given; a model whose every value is
+        held is simulated, not fitted, and carries its
+        :class:`~balancer_id.diagnostics.validate.Validation`.
     """
     classic = paper_method(trials)
-    out = []
+    out = Comparisons()
     for model in models:
         s = classic.start_values(model)
         fx = {k: v for k, v in (fixed or {}).items() if k in model.param_names}

@@ -71,6 +71,15 @@ class Validation:
             return [head + ": " + "; ".join(str(t["text"]) for t in self.tests)]
         return [head + ":", *(f"- {r}" for r in self.reasons)]
 
+    def __repr__(self) -> str:
+        return "\n".join(self.lines())
+
+    def _repr_html_(self) -> str:
+        """The verdict and its tests as text, in a notebook (not a dataclass dump)."""
+        import html
+
+        return "<pre>" + html.escape("\n".join(self.lines())) + "</pre>"
+
     def to_dict(self) -> dict[str, object]:
         """CONTRACT.md ``compare --params`` ``validation`` object."""
         return json_ready(

@@ -10,6 +10,7 @@ from balancer_id.errors import IdentificationError, UsageError
 from balancer_id.identify.basins import scaled_starts
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
+from balancer_id.identify.group_fits import GroupFits
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_log import PerLogFit
@@ -17,6 +18,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
+from balancer_id.identify.structure import structured_residual
 from balancer_id.model.registry import Registry
 from balancer_id.model.spec import Model, resolve_model
 from balancer_id.notes import Note
@@ -121,6 +123,63 @@ def from_parameters(
     return held, starts, spans
 
 
+def _held_from_fit(params: FitResult | str | Path, model: Model) -> dict[str, float]:
+    """The values of an earlier fit (a result or its JSON file) that ``model`` has."""
+    if isinstance(params, FitResult):
+        values = {k: float(v) for k, v in params.values.items() if k in model.param_names}
+        if not values:
+            raise UsageError(
+                f"params: the fit of '{params.model}' has none of the parameters of "
+                f"'{model.spec}'"
+            )
+        return values
+    from balancer_id.identify.params_file import read_params_file
+
+    values = {k: v for k, v in read_params_file(params).items() if k in model.param_names}
+    if not values:
+        raise UsageError(f"params {params}: holds none of the parameters of '{model.spec}'")
+    return values
+
+
+def fit_groups(trials: Sources, by: str, **kwargs: Any) -> GroupFits:
+    """Identify each group of trials apart (``fit --group-by``).
+
+    Parameters
+    ----------
+    trials : TrialSet, str, Path or sequence
+        What :func:`fit` takes.
+    by : str
+        ``run`` (each run), ``log`` (each log) or ``runs:1-3,4-6`` (runs of the logs in
+        order, grouped as given).
+    **kwargs
+        :func:`fit`'s options, the same for every group (``model``, ``fixed``, ...).
+
+    Returns
+    -------
+    GroupFits
+        One :class:`FitResult` per group.
+
+    Raises
+    ------
+    UsageError
+        ``by`` not understood, or an option that follows one fit (``track``,
+        ``per_log``, ``posterior``).
+    """
+    from balancer_id.identify.data import group_trials
+
+    for option in ("track", "per_log", "posterior", "priors"):
+        if kwargs.get(option):
+            raise UsageError(f"--{option.replace('_', '-')} follows one fit: not with --group-by")
+    ts = as_trial_set(trials, kwargs.pop("options", None), kwargs.pop("trajectory", None))
+    groups = group_trials(trial_data(ts), by)
+    fits = []
+    for label, group in groups:
+        result = fit(group, **kwargs)
+        assert isinstance(result, FitResult)
+        fits.append((label, result))
+    return GroupFits(by, tuple(fits))
+
+
 def fit(
     trials: Sources,
     *,
@@ -181,11 +240,15 @@ def fit(
         Start values (``--start``), instead of the paper's method's and the defaults.
     bounds : mapping of str to (float, float), optional
         Narrower bounds of some parameters (``--bounds NAME=MIN:MAX``).
-    params : lmfit.Parameters, optional
-        "Parameters in, Parameters out": each parameter's ``value`` is a start (``vary``)
-        or a held value (``vary=False``), and its ``min``/``max`` bound the fit where
-        they are narrower than the model's own. ``fixed``, ``start`` and ``bounds`` win
-        over it. The result's :attr:`~FitResult.params` gives Parameters back.
+    params : lmfit.Parameters, FitResult, str or Path, optional
+        An earlier fit (a :class:`FitResult`, or the file of ``fit --save`` / ``--json``):
+        its values of this model's parameters are **held**, as the CLI's ``--params``
+        holds them (a balancer identified first, then the robot's servo with it).
+        ``lmfit.Parameters``: "Parameters in, Parameters out": each parameter's
+        ``value`` is a start (``vary``) or a held value (``vary=False``), and its
+        ``min``/``max`` bound the fit where they are narrower than the model's own.
+        ``fixed``, ``start`` and ``bounds`` win over it. The result's
+        :attr:`~FitResult.params` gives Parameters back.
     track : sequence of str
         Parameters to track in time within the session (``--track``): each as a function
         of time with a 95 % band, in :attr:`FitResult.tracking`
@@ -216,7 +279,11 @@ def fit(
         No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
-    if params is not None:
+    if isinstance(params, str | Path | FitResult):
+        # an earlier fit (its file or the result): its values are held, as the CLI's
+        # --params holds them (one meaning, issue 29); --fix (fixed) wins
+        fixed = {**_held_from_fit(params, mdl), **(fixed or {})}
+    elif params is not None:
         held, starts, spans = from_parameters(params, mdl)
         fixed = {**held, **(fixed or {})}
         start = {**starts, **(start or {})}
@@ -296,6 +363,9 @@ def fit(
             "known values with --fix)"
         )
     match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
+    structured = structured_residual(match)  # a misfit beyond the noise seen at rest
+    if structured is not None:
+        notes.append(structured)
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals
 

@@ -13,6 +13,8 @@ import io
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from balancer_id.text import make_figure_text_safe
+
 __all__ = ["NotebookFigure"]
 
 
@@ -31,5 +33,5 @@ class NotebookFigure(Figure):
         bytes
         """
         buffer = io.BytesIO()
-        self.savefig(buffer, format="png", dpi=100)
+        make_figure_text_safe(self).savefig(buffer, format="png", dpi=100)
         return buffer.getvalue()

@@ -558,10 +558,16 @@ def match_trials(
                     "fit.not_identifiable",
                     f"{name} is only identifiable from trials at two or more thrust levels "
                     f"(found {len(levels)}: {', '.join(f'{x:g} N' for x in levels)}); "
-                    f"held at {value:g}, a guess: the values it trades with (D0) are no "
-                    "identification; give --fix with a known value or record more levels",
+                    f"held at {value:g}"
+                    + (
+                        ", a guess: the values it trades with (D0) are no identification; "
+                        "give --fix with a known value or record more levels"
+                        if any(abs(x) > 0 for x in levels)
+                        else " (with no operating force it changes nothing here)"
+                    ),
                     subject=name,
-                    severity="error",
+                    # at 0 N (a robot's moves) A changes nothing: D0 is the viscosity seen
+                    severity="error" if any(abs(x) > 0 for x in levels) else "info",
                 )
             )
     values = dict(start or {})

@@ -215,7 +215,7 @@ def write_report(
     all_sections = [*sections, _provenance_section(inputs, meta)]
     if fmt == "html":
         text = _render_html(title, subtitle, all_sections, meta)
-        data = text.encode("utf-8")
+        data = text.encode("utf-8", "backslashreplace")  # a non-UTF-8 file name
         return atomic_write(path, lambda fh: fh.write(data))
     return atomic_write(path, lambda fh: render_pdf(fh, title, subtitle, all_sections, meta))
 

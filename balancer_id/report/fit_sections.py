@@ -223,8 +223,10 @@ def _model_section(result: FitResult) -> Section:
             "first-order lag with time constant T_a; the virtual equivalent mass m_a is "
             "accelerated by f plus the force of every effect below; the accelerometer sees "
             "a = dv/dt (after gravity removal). State: drive force f (N), velocity v (m/s), "
-            "position z (m). Each trial is a step of u by the trial's thrust f_in at its "
-            "onset, from rest."
+            "position z (m). A step trial is a step of u by the trial's thrust f_in at its "
+            "onset, from the state the log shows then: at rest, or, for a change of thrust "
+            "while moving (a session), from the motion and drive force the trial before "
+            "left; a guided move is driven by the measured force throughout."
         )
     ]
     for eff in model.all_effects:

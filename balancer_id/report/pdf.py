@@ -25,6 +25,7 @@ from balancer_id.report.blocks import (
     Table,
 )
 from balancer_id.report.html import _html_text
+from balancer_id.text import make_figure_text_safe
 
 __all__ = ["code_lines", "render_pdf", "wrap_code"]
 
@@ -156,15 +157,29 @@ def _table(block: Table, styles: dict[str, Any], width: float) -> list[Any]:
     return out
 
 
-def _column_widths(block: Table, width: float) -> list[float]:
-    """Widths shared by the columns in proportion to their longest text (capped)."""
+def _column_widths(block: Table, width: float, size: float = 8.0) -> list[float]:
+    """Widths of the columns: each at least as wide as its longest word (a header such as
+    "unit" never breaks mid-word; a cell's word counts up to 30 % of the page), the rest of
+    the page shared in proportion to the columns' longest texts (capped)."""
+    from reportlab.pdfbase.pdfmetrics import stringWidth
+
+    pad = 7.0  # the cell's left and right padding, and a point to spare
+
+    def widest_word(text: str, font: str) -> float:
+        return max((stringWidth(w, font, size) for w in text.split()), default=0.0) + pad
+
+    floor = [widest_word(c, "Helvetica-Bold") for c in block.columns]
     longest = [len(c) for c in block.columns]
     for row in block.rows:
         for k, value in enumerate(row[: len(longest)]):
             text = value.text if isinstance(value, Cell) else str(value)
             longest[k] = max(longest[k], min(len(text), 60))
-    total = float(sum(max(n, 3) for n in longest)) or 1.0
-    return [width * max(n, 3) / total for n in longest]
+            floor[k] = max(floor[k], min(widest_word(text, "Helvetica"), 0.3 * width))
+    if sum(floor) >= width:  # too many columns for the page: shrink all alike
+        return [width * f / sum(floor) for f in floor]
+    share = [max(n, 3) for n in longest]
+    spare = width - sum(floor)
+    return [f + spare * n / sum(share) for f, n in zip(floor, share, strict=True)]
 
 
 def _figure(block: Plot, number: int, styles: dict[str, Any], width: float) -> list[Any]:
@@ -180,7 +195,7 @@ def _figure(block: Plot, number: int, styles: dict[str, Any], width: float) -> l
         if not isinstance(getattr(figure, "canvas", None), FigureCanvasAgg):
             FigureCanvasAgg(figure)
         buffer = io.BytesIO()
-        figure.savefig(buffer, format="png", dpi=PDF_DPI)
+        make_figure_text_safe(figure).savefig(buffer, format="png", dpi=PDF_DPI)
         png = buffer.getvalue()
     from reportlab.lib.utils import ImageReader
 

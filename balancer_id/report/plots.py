@@ -21,6 +21,7 @@ import numpy as np
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write
 from balancer_id.numbers import format_number
+from balancer_id.text import make_figure_text_safe
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -87,7 +88,7 @@ def figure_png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
     if fig.canvas is None or not isinstance(fig.canvas, FigureCanvasAgg):
         FigureCanvasAgg(fig)
     buf = BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, facecolor="white")
+    make_figure_text_safe(fig).savefig(buf, format="png", dpi=dpi, facecolor="white")
     return buf.getvalue()
 
 

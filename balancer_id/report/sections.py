@@ -117,22 +117,19 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
             caption="Residual by regime, direction and thrust level",
         )
     )
-    blocks.append(
-        Table(
-            ["change", "score (ΔBIC)", "error drop", "evidence", "command"],
-            [
-                [
-                    Cell(s["change"], "strong" if k == 0 else ""),
-                    f"{s['score']:.1f}",
-                    f"{s['excess_error_drop']:.0%}",
-                    s["evidence"],
-                    s["command"],
-                ]
-                for k, s in enumerate(d["suggestions"])
-            ],
-            caption="Candidate effects, best first (quick refit of each)",
+    if not d["suggestions"]:  # a table of headers only says nothing
+        blocks.append(
+            Paragraph(
+                "Candidate effects: none suggested ("
+                + (
+                    "the model is adequate)."
+                    if d.get("verdict") == "adequate"
+                    else "no effect tried improved the fit enough)."
+                )
+            )
         )
-    )
+    else:
+        blocks.append(_candidates_table(d))
     for f in d.get("failed_candidates", []):
         blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
     from balancer_id.report.residual_plots import plot_residual_analysis
@@ -148,6 +145,24 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
         )
     )
     return Section("Diagnosis", blocks=blocks)
+
+
+def _candidates_table(d: dict[str, Any]) -> Table:
+    """The diagnosis's suggestions as a table, best first."""
+    return Table(
+        ["change", "score (ΔBIC)", "error drop", "evidence", "command"],
+        [
+            [
+                Cell(s["change"], "strong" if k == 0 else ""),
+                f"{s['score']:.1f}",
+                f"{s['excess_error_drop']:.0%}",
+                s["evidence"],
+                s["command"],
+            ]
+            for k, s in enumerate(d["suggestions"])
+        ],
+        caption="Candidate effects, best first (quick refit of each)",
+    )
 
 
 def finding_section(diagnosis: Diagnosis) -> Section:
@@ -262,6 +277,15 @@ def improve_section(result: ImproveResult) -> Section:
             )
         )
     blocks.append(Paragraph(f"Final model: {d['final_model']}. {d['final_summary']}"))
+    if found is not None and not any(s.get("discovered") for s in d["steps"]):
+        blocks.append(
+            Paragraph(
+                f"A missing force was discovered, {found.formula} (N), bringing the error "
+                f"to {format_number(found.rmse)} m/s² (the last, hatched bar); it is not in "
+                "the final model because no effect file was written for it. To write it and "
+                f"add it: {found.command}"
+            )
+        )
     blocks += [Paragraph(f"Not taken: {r}") for r in d["rejected"]]
     return Section("Improving the model", blocks=blocks)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from rich.console import Console
@@ -17,7 +18,11 @@ def _stderr(console: Console) -> Console:
     """The console messages and warnings go to: stderr, at the same width and colours."""
     if console.stderr:
         return console
-    return Console(stderr=True, width=console.width if console.is_terminal else None)
+    if sys.stderr is not None and sys.stderr.isatty():
+        return Console(stderr=True)  # the terminal's own width
+    # piped or redirected: as wide as the tables (rich's default of 80 columns would
+    # break the warnings mid-sentence while the tables beside them run wider)
+    return Console(stderr=True, width=console.width)
 
 
 def print_command(console: Console, command: str, indent: str = "    ") -> None:
@@ -206,7 +211,7 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
     )
     console.print(f"errors: {metric_line(result['metrics'])}")
     trials = Table(title="per trial")
-    for col in ("#", "thrust (N)", "direction", "RMSE (m/s^2)"):
+    for col in ("#", "thrust (N)", "direction", "RMSE (m/s²)"):
         trials.add_column(col)
     for t in result["trials"]:
         trials.add_row(str(t["index"]), f"{t['thrust_N']:+.3f}", t["direction"], _fmt(t["rmse"]))
@@ -311,7 +316,7 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
             f"trial {w['trial']} {w['t_start']:.2f}-{w['t_end']:.2f} s" if w else "-",
         )
     console.print(table)
-    per = Table(title="RMSE per trial (m/s^2)")
+    per = Table(title="RMSE per trial (m/s²)")
     per.add_column("#")
     per.add_column("thrust (N)")
     for m in models:
@@ -350,7 +355,7 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     console.print(
         f"model [bold]{result['model']}[/bold]: [{colour}]{result['verdict']}[/{colour}]  "
         f"(RMSE {_fmt(m['rmse'])}, noise floor {_fmt(m['noise_floor'])}, "
-        f"above the floor {_fmt(m['excess_rmse'])} m/s^2)"
+        f"above the floor {_fmt(m['excess_rmse'])} m/s²)"
     )
     console.print(result["summary"])
     tests = result["residual_tests"]
@@ -373,7 +378,7 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
         )
     xc = tests["input_cross_correlation"]
     console.print(
-        f"residual against the thrust: peak {xc['peak_value']:+.4f} m/s^2 at "
+        f"residual against the thrust: peak {xc['peak_value']:+.4f} m/s² at "
         f"{xc['peak_lag_s']:.2f} s after the onset "
         f"({'significant' if xc['significant'] else 'within noise'})"
     )
@@ -407,8 +412,13 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
             f"{s['excess_error_drop']:.0%}",
             s["evidence"],
         )
-    if result["suggestions"] or not groups:
+    if result["suggestions"]:
         console.print(sug)
+    elif not groups:  # an empty table says nothing: say why there is no suggestion
+        why = "the model is adequate" if result.get("verdict") == "adequate" else (
+            "no effect tried improves the fit enough"
+        )
+        console.print(f"suggestions: none ({why})")
     if result["suggestions"]:
         console.print("to try a suggestion, run its command:")
     for k, s in enumerate(result["suggestions"], 1):
@@ -436,7 +446,7 @@ def _print_discovery(console: Console, d: dict[str, Any]) -> None:
         )
     console.print(table)
     console.print(
-        f"BIC falls by {d['bic_drop']:.0f}; RMSE after {_fmt(d['rmse_after'])} m/s^2. "
+        f"BIC falls by {d['bic_drop']:.0f}; RMSE after {_fmt(d['rmse_after'])} m/s². "
         "Write it as an effect and refit:"
     )
     print_command(console, d["command"])
@@ -467,8 +477,9 @@ def print_improve(console: Console, result: dict[str, Any]) -> None:
     console.print(table)
     for r in result.get("rejected", []):
         console.print(f"[yellow]not taken:[/yellow] {r}")
-    if result.get("discovery_note"):
-        console.print(f"discovery: {result['discovery_note']['text']}", markup=False)
+    note = result.get("discovery_note")
+    if note and note.get("code") != "improve.discovered":  # "wrote FILE" is said on stderr
+        console.print(f"discovery: {note['text']}", markup=False)
     if result["steps"]:
         console.print("the final model's fit:")
         print_command(console, result["steps"][-1]["command"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,8 +108,13 @@ class Trapezoid:
     start: float = 0.0
 
     def __post_init__(self) -> None:
+        values = (self.distance, self.speed, self.accel, self.start)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError("trapezoid: distance, speed, accel and start must be finite numbers")
         if self.speed <= 0 or self.accel <= 0:
             raise ValueError("trapezoid: speed and accel must be positive")
+        if self.distance == 0:
+            raise ValueError("trapezoid: distance must not be 0 (a move of 0 m is no move)")
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Reference position and velocity at times ``t``.
@@ -189,6 +195,8 @@ def parse_trajectory(text: str) -> Trapezoid:
             fields[key.strip()] = float(value)
         except ValueError:
             raise ValueError(f"trajectory '{text}': '{item}' is not NAME=NUMBER") from None
+        if not math.isfinite(fields[key.strip()]):
+            raise ValueError(f"trajectory '{text}': '{item}' is not a finite number")
     missing = {"distance", "speed", "accel"} - fields.keys()
     unknown = fields.keys() - {"distance", "speed", "accel", "start"}
     if missing or unknown:

@@ -22,7 +22,6 @@ import importlib.util
 import inspect
 import os
 import re
-import stat
 import sys
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -31,11 +30,11 @@ from pathlib import Path
 from typing import Any
 
 from balancer_id.errors import EffectError
-from balancer_id.files import cache_root
+from balancer_id.files import cache_root, private_folder
 from balancer_id.model.effect import Effect
 from balancer_id.model.registry import USER_MODULE_PREFIX
 from balancer_id.model.spec import Model
-from balancer_id.simulation.jit import HAVE_NUMBA
+from balancer_id.simulation.jit import HAVE_NUMBA, private_cache_path
 
 KERNEL_VERSION = "18"
 
@@ -839,8 +838,12 @@ _KERNELS: dict[tuple[object, ...], Kernel] = {}
 
 
 def _effect_fingerprint(cls: type[Effect]) -> str:
+    """What a kernel compiled from ``cls`` depends on: its module's whole source (a
+    module-level constant a hook reads is compiled into the machine code), else the
+    class's, else its hooks' byte code."""
     try:
-        return inspect.getsource(cls)
+        module = sys.modules.get(cls.__module__)
+        return inspect.getsource(module) if module is not None else inspect.getsource(cls)
     except (OSError, TypeError):
         return repr([(h, getattr(cls, h).__code__.co_code) for h in cls.hooks()])
 
@@ -976,7 +979,7 @@ def _compile_lock() -> Iterator[None]:
         yield
         return
     folder = cache_dir()
-    if _private_dir(folder) is not None:
+    if private_folder(folder) is not None:
         yield
         return
     with open(folder / ".compile.lock", "a") as fh:
@@ -1062,13 +1065,31 @@ def _compile_command(models: Sequence[Model], sensitivities: bool) -> list[str] 
     if not kernels:
         return None
     job = {"kernels": kernels, "sensitivities": sensitivities, "effects_files": files}
-    return [
-        sys.executable,
-        "-c",
+    return helper_command(
         "import json, sys; from balancer_id.simulation.kernel import compile_files; "
         "compile_files(**json.loads(sys.argv[1]))",
         json.dumps(job),
-    ]
+    )
+
+
+def helper_command(code: str, *args: str) -> list[str]:
+    """The command line of a helper Python process running ``code`` with ``args``.
+
+    ``python -c`` puts the working folder first on ``sys.path``: a ``json.py`` lying there
+    would run as the user. ``-P`` (Python 3.11) keeps it off.
+
+    Parameters
+    ----------
+    code : str
+        The program.
+    *args : str
+        Its arguments (``sys.argv[1:]``).
+
+    Returns
+    -------
+    list of str
+    """
+    return [sys.executable, "-P", "-c", code, *args]
 
 
 def _cpus() -> int:
@@ -1190,9 +1211,14 @@ def _compile_now(model: Model, kernel: Kernel, quiet: bool = False) -> None:
 _VERBOSE_COMPILE = os.environ.get("BALANCER_ID_QUIET", "") in ("", "0")
 
 
+def _numba_cache_of(path: Path) -> Path:
+    """The folder where numba caches the machine code of the kernel file ``path``."""
+    return Path(private_cache_path(str(path)) or path.parent / "__pycache__")
+
+
 def _is_cached_path(path: Path) -> bool:
     """Whether numba's cache already holds machine code for the kernel at ``path``."""
-    cached = path.parent / "__pycache__"
+    cached = _numba_cache_of(path)
     return path.exists() and all(
         any(cached.glob(f"{path.stem}.{func}-*.nbi"))
         for func in ("simulate_batch", "simulate_batch_sens")
@@ -1209,31 +1235,13 @@ def _is_cached(model: Model) -> bool:
 def _purge(path: Path) -> None:
     """Remove a kernel's source and every cached artefact of it (numba's and Python's)."""
     sys.modules.pop(path.stem, None)
-    for f in [path, *(path.parent / "__pycache__").glob(f"{path.stem}.*")]:
+    artefacts = [*(path.parent / "__pycache__").glob(f"{path.stem}.*")]
+    artefacts += _numba_cache_of(path).glob(f"{path.stem}.*")
+    for f in [path, *artefacts]:
         try:
             f.unlink()
         except OSError:
             pass
-
-
-def _private_dir(folder: Path) -> str | None:
-    """Create ``folder`` private (0700); the reason it cannot be trusted, or None.
-
-    A kernel is Python code run by import, and numba's cache holds pickles: a folder
-    that others can write would let them run code as the user.
-    """
-    try:
-        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-        st = os.lstat(folder)
-    except OSError as exc:
-        return f"cannot create {folder}: {exc.strerror or exc}"
-    if not stat.S_ISDIR(st.st_mode):
-        return f"{folder} is not a folder"
-    if hasattr(os, "getuid") and st.st_uid != os.getuid():
-        return f"{folder} belongs to another user"
-    if st.st_mode & 0o022:
-        return f"{folder} is writable by others (chmod 700 it)"
-    return None
 
 
 def _kernel_path(model: Model) -> tuple[Path | None, str]:
@@ -1327,7 +1335,7 @@ def _build(model: Model) -> Kernel:
     path, source = _kernel_path(model)
     if path is None:
         return _exec_in_memory(*generate_source(model, cache=False))
-    problem = _private_dir(path.parent)
+    problem = private_folder(path.parent)
     if problem is not None:
         if str(path.parent) not in _REFUSED:
             _REFUSED.add(str(path.parent))

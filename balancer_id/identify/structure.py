@@ -1,0 +1,94 @@
+"""Is the misfit more than the sensor's noise? The rest before each step says (issue 31).
+
+Before a step nothing moves: the residual there is the sensor's own noise, its level and
+its colour (a low-pass, a phone's filtering), measured on the very log. After the step
+the residual holds that noise plus whatever the model does not describe (a friction, a
+limit, a late force channel, a clipped sensor). Where the residual in motion carries
+clearly more power than at rest, the fitted values bend to follow what the model lacks,
+and their intervals (which assume the residual is noise) no longer hold the truth: the
+fit is not trusted, and the note says to diagnose it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.metrics import correlation_time
+from balancer_id.notes import Note
+
+#: Excess of the residual's power in motion over the noise's at rest (a fraction of it)
+#: above which the misfit is the model's: 0.25 is a misfit of half the noise's RMS.
+EXCESS = 0.25
+
+#: The excess must also pass this many of its standard errors (from the effective
+#: sample counts of both parts).
+SIGMAS = 3.0
+
+#: Fewest resting samples (over all trials) the test needs.
+MIN_REST = 50
+
+
+def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The residual of each trial that starts from rest: before its step, and after."""
+    rest, motion = [], []
+    residual = match.residual
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        if td.continues or td.input.x0 is not None:
+            continue
+        r = residual[sl]
+        t = np.asarray(td.time, dtype=float)
+        if t.size != r.size:
+            continue
+        before = t < td.t_step
+        rest.append(r[before])
+        motion.append(r[~before])
+    return rest, motion
+
+
+def _power(parts: Sequence[np.ndarray]) -> tuple[float, float]:
+    """Mean square and effective sample count (samples over correlation time)."""
+    kept = [p for p in parts if p.size >= 5]
+    if not kept:
+        return float("nan"), 0.0
+    x = np.concatenate(kept)
+    tau = max(correlation_time(kept, removed=0), 1.0)
+    return float(np.mean(x * x)), x.size / tau
+
+
+def structured_residual(match: MatchResult) -> Note | None:
+    """A ``fit.structured_residual`` note (severity ``error``) when the residual in motion
+    carries clearly more power than the sensor's noise at rest, else None.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    Note or None
+        None also when the trials hold fewer than :data:`MIN_REST` resting samples.
+    """
+    rest, motion = _parts(match)
+    if sum(p.size for p in rest) < MIN_REST:
+        return None
+    p_rest, n_rest = _power(rest)
+    p_motion, n_motion = _power(motion)
+    if not (np.isfinite(p_rest) and p_rest > 0 and np.isfinite(p_motion) and n_motion > 0):
+        return None
+    excess = p_motion / p_rest - 1.0
+    se = float(np.sqrt(2.0 / max(n_rest, 1.0) + 2.0 / max(n_motion, 1.0)))
+    if excess <= max(EXCESS, SIGMAS * se):
+        return None
+    return Note(
+        "fit.structured_residual",
+        f"the residual in motion is {np.sqrt(p_motion):.3g} m/s^2 RMS against the sensor's "
+        f"{np.sqrt(p_rest):.3g} m/s^2 at rest before the steps: the model does not describe "
+        "what the trials show (a force it lacks, a limit, a late or clipped channel), so the "
+        "values bend to follow it and their intervals do not hold; run 'balancer-id "
+        "diagnose' on the same logs",
+        severity="error",
+    )

@@ -1,0 +1,79 @@
+"""Text shown to a person: file and run names made safe for terminals, HTML and plots.
+
+A file name is whatever bytes the file system holds: terminal escape sequences, a
+carriage return, bytes that are not UTF-8 (Python keeps them as lone surrogates), or a
+``$`` that matplotlib would read as the start of a formula. Everything that shows a name
+passes it through :func:`shown`; every figure passes through :func:`make_figure_text_safe`
+before it is drawn.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["make_figure_text_safe", "shown"]
+
+
+def shown(text: object) -> str:
+    """``text`` as it may be shown: undecodable bytes and control characters written
+    visibly (``\\xff``, ``\\x1b``, ``\\r``), line breaks kept.
+
+    Parameters
+    ----------
+    text : object
+        A name or a message (``str()`` is taken).
+
+    Returns
+    -------
+    str
+        Printable text that encodes as UTF-8.
+    """
+    value = str(text)
+    if value.isprintable():
+        return value
+    value = value.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in value)
+
+
+def _math_ok(text: str) -> bool:
+    """Whether matplotlib can draw ``text`` (its ``$...$`` parts parse as mathtext)."""
+    if "$" not in text:
+        return True
+    from matplotlib.mathtext import MathTextParser
+
+    try:
+        MathTextParser("path").parse(text)
+    except Exception:  # mathtext raises ValueError or pyparsing's own errors
+        return False
+    return True
+
+
+def make_figure_text_safe(fig: Any) -> Any:
+    """Make every text of the matplotlib figure ``fig`` drawable, in place.
+
+    Names with undecodable bytes or control characters are shown escaped (:func:`shown`);
+    a text whose ``$`` signs do not form a formula matplotlib can parse (a ``$`` in a file
+    name) is drawn literally, its ``$`` escaped.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure about to be saved.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``fig``.
+    """
+    from matplotlib.text import Text
+
+    for artist in fig.findobj(Text):
+        text = artist.get_text()
+        if not text:
+            continue
+        safe = shown(text)
+        if not _math_ok(safe):
+            safe = safe.replace("\\$", "$").replace("$", "\\$")
+        if safe != text:
+            artist.set_text(safe)
+    return fig
