@@ -273,9 +273,9 @@ def _modest(scores: np.ndarray, grid: Sequence[Candidate], logdet: bool) -> int 
     top = float(np.min(scores[finite]))
     near = scores <= (top + MODEST_LOGDET if logdet else top * MODEST_VARIANCE)
     near &= finite
-    picks = np.flatnonzero(near)
+    picks = [int(i) for i in np.flatnonzero(near)]
     key = [(grid[i].duration_s + grid[i].rest_s, abs(grid[i].thrust_N), scores[i]) for i in picks]
-    return int(picks[min(range(len(picks)), key=lambda m: key[m])])
+    return picks[min(range(len(picks)), key=lambda m: key[m])]
 
 
 def design_trials(
@@ -363,10 +363,10 @@ def design_trials(
     else:
         if target is None:
             rel = {nm: now[nm] / _scale(match, nm) for nm in names if nm not in unreached}
-            goal = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
+            chosen = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
         else:
-            goal = target
-        order += [(goal, goal)] * count
+            chosen = str(target)  # a parameter's name (not None, not "all")
+        order += [(chosen, chosen)] * count
     order = order[: max(count, len(unreached) if target is None else 1)]
     proposals = []
     for goal, label in order:

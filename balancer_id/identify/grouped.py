@@ -241,7 +241,7 @@ def fit_grouped(
             if lam > 1e10:
                 converged = True  # no step lowers the cost: a minimum (at a bound)
                 break
-    n = n_total
+    n_obs = n_total
     k = p + q * len(groups)
     residuals = []
     own_time = []
@@ -261,7 +261,7 @@ def fit_grouped(
     segs = [r[sl] for pr, r in zip(problems, residuals, strict=True) for sl in pr.data.slices()]
     tau = max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
     cov_s, cov_o = _covariances(parts, p, q)
-    sigma2 = rss / max(n - k, 1) * tau
+    sigma2 = rss / max(n_obs - k, 1) * tau
     shared = {}
     for j, name in enumerate(shared_names):
         se = _se(cov_s, j, sigma2)
@@ -287,7 +287,7 @@ def fit_grouped(
         shared=shared,
         own=owns,
         rss=rss,
-        n_samples=n,
+        n_samples=n_obs,
         n_free=k,
         tau=tau,
         group_rss=[float(r @ r) for r in residuals],

@@ -62,7 +62,7 @@ def _held_fit(match: MatchResult, name: str, value: float) -> MatchResult | None
 
 
 def settle_unreached(
-    match: MatchResult, user_bounds: Mapping[str, object] = ()
+    match: MatchResult, user_bounds: Mapping[str, object] | None = None
 ) -> tuple[MatchResult, list[Note]]:
     """Report each limit, friction or delay the data do not reach as a bound.
 
@@ -86,7 +86,7 @@ def settle_unreached(
     free = [
         p.name
         for p in match.parameters.values()
-        if p.vary and p.name not in SMOOTH_PARAMETERS and p.name not in user_bounds
+        if p.vary and p.name not in SMOOTH_PARAMETERS and p.name not in (user_bounds or {})
     ]
     free = [n for n in free if n not in match.model.drive_lag_names]
     if not free:
