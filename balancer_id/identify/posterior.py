@@ -475,14 +475,22 @@ def sample_posterior(
     return post
 
 
-def _logged(match: MatchResult, names: Sequence[str], lo: np.ndarray) -> np.ndarray:
-    """Which parameters are sampled as their logarithm: those that cannot be negative.
+#: A parameter that cannot be negative is sampled as its logarithm when its fitted value
+#: is this many standard errors above 0 (or its lower bound is above 0). Nearer 0 the
+#: logarithm stretches the flat stretch down to the bound into an endless tail the walkers
+#: do not explore: near a bound (D0 = 0.2, 20 seeds) the credible coverage of D0 fell from
+#: 95 % to 75 % with every such parameter logged.
+LOG_AWAY = 3.0
 
-    Measured on short logs (6 steps of 1.5 s): the longest autocorrelation time falls
-    from 74-221 steps to 60-90; near a bound (D0 = 0.2) it rises from 8-16 to 14-27, still
-    short.
-    """
-    return np.asarray(lo >= 0, bool)
+
+def _logged(match: MatchResult, names: Sequence[str], lo: np.ndarray) -> np.ndarray:
+    """Which parameters are sampled as their logarithm (see :data:`LOG_AWAY`)."""
+    out = []
+    for n, a in zip(names, lo, strict=True):
+        p = match.parameters[n]
+        se = p.stderr if p.stderr is not None and math.isfinite(p.stderr) else math.inf
+        out.append(bool(a > 0 or (a >= 0 and p.value > LOG_AWAY * se)))
+    return np.array(out, bool)
 
 
 def _from_log(u: np.ndarray, logged: np.ndarray) -> np.ndarray:

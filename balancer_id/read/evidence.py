@@ -14,7 +14,8 @@ from balancer_id.read.plan import RunPlan
 _LAYOUT_SIGNS = {
     "pasco-capstone": "run suffixes 'Run #N' or a shared 'Time (s) Auto'",
     "pasco-sparkvue": "a 'Date and Time <run>' column beside 'Time (s) <run>'",
-    "phyphox": "'Time (s)' first, units written 'm/s^2', no run suffix",
+    "phyphox": "'Time (s)' first, no run suffix, units written 'm/s^2' or numbers written "
+    "as phyphox writes them (1.005775000E-2)",
     "sensor-logger": "'seconds_elapsed' with bare x, y, z columns",
     "vernier": "every column prefixed by its data set ('Run 1: Time (s)')",
 }

@@ -116,17 +116,30 @@ class Rest:
     constancy : float
         Relative robust spread of the mean vector's length from one resting window to
         another: small for gravity, large for the slow sway of a hand.
+    overall : float
+        Length of the whole log's mean vector over ``level``: near 1 when gravity keeps
+        its direction in the sensor's frame, small for a gravity-free acceleration.
     """
 
     level: float
     spread: float
     coherence: float
     constancy: float = 0.0
+    overall: float = 1.0
 
     @property
     def steady(self) -> bool:
-        """True when the resting vector holds one direction and one length (gravity)."""
-        return self.coherence >= STEADY_COHERENCE and self.constancy <= STEADY_LENGTH
+        """True when the resting vector holds one direction and one length (gravity).
+
+        Its windows hold their direction, its fluctuation there is small beside its
+        length, and either its length is the same from rest to rest or the whole log's
+        mean vector is nearly as long (gravity held in the sensor's frame while it
+        moves: walking, a ride). A hand's sway of a gravity-free acceleration fluctuates
+        by a third of its length or more.
+        """
+        if self.coherence < STEADY_COHERENCE or self.spread > STEADY_SPREAD * self.level:
+            return False
+        return self.constancy <= STEADY_LENGTH or self.overall >= STEADY_OVERALL
 
     def said(self, unit: str = "") -> str:
         """The evidence in words: ``"resting magnitude 0.998 ± 0.004, constant direction"``.
@@ -160,6 +173,10 @@ STEADY_COHERENCE = 0.8
 #: ... and gravity's length changes from one resting window to another by less than this
 #: (relative robust spread); a hand-held sway of a gravity-free acceleration does not.
 STEADY_LENGTH = 0.15
+#: ... or the whole log's mean vector is this share of the resting magnitude or more.
+STEADY_OVERALL = 0.8
+#: Gravity's vector fluctuates in its quietest windows by less than this share of its length.
+STEADY_SPREAD = 0.25
 
 
 def rest_of(block: np.ndarray) -> Rest:
@@ -195,11 +212,14 @@ def rest_of(block: np.ndarray) -> Rest:
     lengths = mean_vec[quiet]
     middle = float(np.median(lengths))
     spread = float(np.median(np.abs(lengths - middle))) * 1.4826
+    level = float(np.median(magnitude[quiet]))
+    overall = float(np.linalg.norm(rows.mean(axis=0))) / level if level > 0 else 0.0
     return Rest(
-        float(np.median(magnitude[quiet])),
+        level,
         float(np.median(motion[quiet])),
         float(np.median(coherence[quiet])),
         spread / middle if middle > 0 else float("inf"),
+        overall,
     )
 
 
@@ -362,7 +382,7 @@ def resolve_accel(
         accel = accel * g
         level *= g
         if includes_gravity is None:
-            includes_gravity = level > g / 2 and (rest.steady or accel.shape[1] == 1)
+            includes_gravity = level > g / 2
         if includes_gravity:
             _check_g(level, g)
         said.append(
@@ -414,7 +434,7 @@ def resolve_accel(
         return accel * g, True, warning, said
     if accel_unit == "m/s^2" or accel.shape[1] == 1:
         if includes_gravity is None:
-            includes_gravity = level > g / 2 and rest.steady
+            includes_gravity = level > g / 2
         if includes_gravity:
             _check_g(level, g)
         where = (
@@ -438,7 +458,7 @@ def resolve_accel(
         said.append(_gravity_inference(includes_gravity, rest, "m/s^2", from_header, gravity_given))
         return accel, includes_gravity, None, said
     if includes_gravity is None:
-        includes_gravity = (level >= _WITH_G_MIN and rest.steady) or looks_like_g
+        includes_gravity = level >= _WITH_G_MIN or looks_like_g  # 4 m/s^2 at rest is g
     if includes_gravity and not looks_like_g:
         _check_g(level, g)
     if includes_gravity and looks_like_g:

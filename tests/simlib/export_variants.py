@@ -555,8 +555,10 @@ def gravity_in_out(rng: np.random.Generator) -> Variant:
         if gravity
         else str(rng.choice(["named", "unnamed", "hand-held"]))
     )
-    if how == "hand-held":
+    if how in ("hand-held", "walking"):
         _hand_held(rng, sig)
+    if how == "walking":  # steps at ~2 Hz of ±3 m/s^2 on top of the sway, gravity in
+        sig.accel[:, 2] += 3.0 * np.sin(2 * np.pi * rng.uniform(1.6, 2.2) * sig.t)
     prefix = "linear_" if how == "named" and not gravity else ""
     names = [f"{prefix}acc_{a}" for a in "xyz"]
     factor = 1 / G_DEFAULT if how == "unnamed g" else 1.0
