@@ -173,6 +173,7 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
         "tracked": tracked,
         "drifting": case.param is not None,
         "moving": track.moving,
+        "p": track.walk.p_value,
         "coverage": inside,
         "window_coverage": w_inside,
         "rel_rmse": rmse,
@@ -205,6 +206,7 @@ def main() -> None:
                 continue
             print(
                 f"{row['case']:<40} track {row['tracked']:<4} moving={row['moving']!s:<5} "
+                f"p={row['p']:.1e} "
                 f"coverage {row['coverage']:.0%} (window {row['window_coverage']:.0%}) "
                 f"rel. RMSE {row['rel_rmse']:.3f} (window {row['window_rel_rmse']:.3f}) "
                 f"{row['blocks']} blocks {row['seconds']:.1f} s",
