@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -30,6 +30,9 @@ if TYPE_CHECKING:
     from balancer_id.identify.result import FitResult
 
 __all__ = ["ArenaInput", "Explanation", "Stage", "Verdict", "run_arena", "score", "standing"]
+
+#: One fit's arguments (:func:`fit_in_threads`).
+Job = TypeVar("Job")
 
 #: BIC improvement an explanation needs before it is a verdict. Calibrated on simulated
 #: logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -392,7 +395,7 @@ def is_null(refit: MatchResult, effect: str) -> bool:
 
 
 def fit_in_threads(
-    jobs: Sequence[object], fit_one: Callable[[object], Explanation], threads: int | None
+    jobs: Sequence[Job], fit_one: Callable[[Job], Explanation], threads: int | None
 ) -> list[Explanation]:
     """``fit_one`` over ``jobs``, the first in this thread (it loads the kernel), the rest in
     threads (the kernels release the GIL); results in the jobs' order.

@@ -88,7 +88,8 @@ class ForceDelay(ExplanationKind):
     def twin(self, e: Explanation, other: Explanation) -> bool:
         """A late acceleration and the balancer's ``dead_time`` of about the same length."""
         d = float(e.detail.get("force_delay_s", 0.0))  # type: ignore[arg-type]
-        tau = (other.detail.get("values") or {}).get("tau_d")  # type: ignore[union-attr]
+        values: dict[str, float] = other.detail.get("values") or {}  # type: ignore[assignment]
+        tau = values.get("tau_d")
         if d >= 0 or other.effects != ["dead_time"] or tau is None:
             return False
         dt = float(e.detail.get("sample_interval_s", 0.0))  # type: ignore[arg-type]
@@ -129,8 +130,10 @@ def _scan(inp: ArenaInput, shifted: object, dt: float) -> float:
     ys = [np.asarray(d.y, dtype=float) for d in sims.data]
     grid = np.arange(-MAX_DELAY_S, MAX_DELAY_S + 1e-12, max(dt / 2, 0.001))
     pairs = list(zip(ys, outs, strict=True))
-    cost = [
-        sum(float(np.sum((y - shifted(i, o, g)) ** 2)) for i, (y, o) in enumerate(pairs))  # type: ignore[operator]
-        for g in grid
-    ]
+    cost = []
+    for g in grid:
+        total = 0.0
+        for i, (y, o) in enumerate(pairs):
+            total += float(np.sum((y - shifted(i, o, float(g))) ** 2))  # type: ignore[operator]
+        cost.append(total)
     return float(grid[int(np.nanargmin(cost))])

@@ -163,7 +163,7 @@ def corrected(e: Explanation, fit: FitResult) -> str:
     -------
     str
     """
-    values = e.detail.get("values") or {}
+    values: dict[str, float] = e.detail.get("values") or {}  # type: ignore[assignment]
     now = fit.match.values()
     moved = [
         f"{k} {float(values[k]):.4g} (now {now[k]:.4g})"  # type: ignore[index]
