@@ -50,6 +50,7 @@ CODES: dict[str, str] = {
     "fit.worse_than_mean": "the fit follows the acceleration worse than its mean (fit % below 0)",
     "fit.not_reached": "a parameter the data do not reach: a bound from its profile, not a value",
     "fit.optima": "the distinct optima the starts ended at, and their costs",
+    "fit.held_at_limit": "a parameter held at its physical limit (0) against the data",
     "fit.structured_residual": "the residual in motion carries more than the noise at rest",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",

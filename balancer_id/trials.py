@@ -54,6 +54,10 @@ class ReadOptions:
     windows : tuple of (float, float)
         ``--window START:END``: stretches (s) where only the measured force acts; each is
         a trial and nothing is detected (a lab rig, a free motion).
+    force_delay : float
+        ``--force-delay S``: the force channel's time stamps run this late behind the
+        acceleration's (s; negative: the acceleration is the late one); the force is
+        moved back by it when read (``diagnose`` measures it: ``detail.force_delay_s``).
 
     Raises
     ------
@@ -69,6 +73,7 @@ class ReadOptions:
     accel_unit: str = "auto"
     windows: tuple[tuple[float, float], ...] = ()
     thrusts_signed: bool | None = None
+    force_delay: float = 0.0
 
     def __post_init__(self) -> None:
         from balancer_id.read.generic import MAP_KEYS
@@ -87,6 +92,18 @@ class ReadOptions:
             raise UsageError(f"--g {self.g}: gravity must be a positive number of m/s^2, e.g. 9.81")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
+        try:
+            delay = float(self.force_delay)
+        except (TypeError, ValueError):
+            raise UsageError(
+                f"--force-delay {self.force_delay!r}: give seconds, e.g. 0.04"
+            ) from None
+        if not (math.isfinite(delay) and abs(delay) < 1.0):
+            raise UsageError(
+                f"--force-delay {self.force_delay}: give the force channel's lag in seconds, "
+                "between -1 and 1 (e.g. 0.04)"
+            )
+        object.__setattr__(self, "force_delay", delay)
         if self.windows:
             from balancer_id.segment.given_windows import check_windows
 
@@ -121,6 +138,7 @@ class ReadOptions:
         g: float = G_DEFAULT,
         accel_unit: str = "auto",
         window: list[str] | None = None,
+        force_delay: float = 0.0,
     ) -> ReadOptions:
         """Build from the command-line spelling (``--thrust 2.45,-4.9``, ``--columns t=..``).
 
@@ -140,6 +158,8 @@ class ReadOptions:
             ``auto``, ``m/s^2`` or ``g``.
         window : list of str, optional
             ``START:END`` stretches in seconds (``--window``, repeatable).
+        force_delay : float
+            ``--force-delay``: the force channel's lag (s).
 
         Returns
         -------
@@ -193,6 +213,7 @@ class ReadOptions:
             accel_unit=accel_unit,
             windows=tuple(windows),
             thrusts_signed=signed,
+            force_delay=force_delay,
         )
 
     def to_dict(self) -> dict[str, object]:
@@ -206,6 +227,7 @@ class ReadOptions:
             "g": self.g,
             "accel_unit": self.accel_unit,
             "windows": [list(w) for w in self.windows],
+            **({"force_delay": self.force_delay} if self.force_delay else {}),
         }
 
     def cli_args(self) -> list[str]:
@@ -232,6 +254,8 @@ class ReadOptions:
             args += ["--accel-unit", self.accel_unit]
         for start, end in self.windows:
             args += ["--window", f"{start:g}:{end:g}"]
+        if self.force_delay:
+            args += ["--force-delay", f"{self.force_delay:g}"]
         return args
 
 
@@ -353,7 +377,32 @@ def read(path: str | Path, options: ReadOptions | None = None) -> Log:
     from balancer_id.read import read_log
 
     options = options or ReadOptions()
-    return read_log(path, columns=options.columns, g=options.g, accel_unit=options.accel_unit)
+    log = read_log(path, columns=options.columns, g=options.g, accel_unit=options.accel_unit)
+    return _force_moved(log, options.force_delay) if options.force_delay else log
+
+
+def _force_moved(log: Log, delay: float) -> Log:
+    """``log`` with each run's force moved ``delay`` s earlier (``--force-delay``).
+
+    The force sampled at ``t + delay`` belongs to ``t``: interpolated between its own
+    samples (blank cells left blank), held at the run's ends.
+    """
+    import dataclasses
+
+    import numpy as np
+
+    runs = []
+    for rec in log.recordings:
+        if rec.force is None:
+            runs.append(rec)
+            continue
+        force = np.asarray(rec.force, dtype=float)
+        ok = np.isfinite(force)
+        moved = np.full_like(force, np.nan)
+        if ok.sum() >= 2:
+            moved[ok] = np.interp(rec.time[ok] + delay, rec.time[ok], force[ok])
+        runs.append(dataclasses.replace(rec, force=moved))
+    return dataclasses.replace(log, recordings=runs)
 
 
 def segment(log: Log, options: ReadOptions | None = None, trajectory: Any = None) -> list[Trial]:

@@ -26,9 +26,11 @@ another parameter when their BIC differs by less than 6 (the log cannot tell the
 :func:`unresolvable_drift`); for the up-then-down lag ``effect missing`` naming
 ``asymmetric_lag`` or ``ambiguous`` with it among the explanations; for
 karnopp+payload a verdict naming both the mass change and karnopp; for drag anything
-but ``adequate``). The script also counts "adequate" verdicts where the fitted model
-misses the truth by more than 0.3x the noise (``sqrt(rmse^2 - sigma^2)`` with the noise
-``sigma`` known from the simulation) and the false alarms over the clean logs.
+but ``adequate``; for the dead time also ``ambiguous`` between it and a late
+acceleration channel: :func:`delay_twins`). The script also counts "adequate" verdicts
+where the fitted model misses the truth by more than 0.3x the noise
+(``sqrt(rmse^2 - sigma^2)`` with the noise ``sigma`` known from the simulation) and
+the false alarms over the clean logs.
 
 Works on any version of the code (it reads only the ``diagnose`` JSON), so the table
 "before" comes from main's code with ``PYTHONPATH`` pointing there.
@@ -378,10 +380,32 @@ def unresolvable_drift(d: dict, name: str) -> bool:
     return drifts and params[0] != params[1] and gap < UNRESOLVABLE_BIC
 
 
+def delay_twins(d: dict) -> bool:
+    """Whether an ``ambiguous`` verdict names the dead time and a late acceleration channel.
+
+    With the measured force as the input, a balancer's dead time and an acceleration
+    channel time-stamped late delay the response alike (a time-invariant balancer): one
+    log cannot tell them apart, and naming both with the trial that would (a tap seen by
+    both sensors, or one clock) is the right answer (issue 31.4).
+    """
+    amb = d.get("ambiguity") or {}
+    if d.get("verdict") != "ambiguous" or not amb:
+        return False
+    exps = {e.get("label"): e for e in d.get("explanations") or []}
+    pair = [exps.get(amb.get("best")), exps.get(amb.get("runner_up"))]
+    if any(e is None for e in pair):
+        return False
+    dead = any(e.get("effects") == ["dead_time"] for e in pair)  # type: ignore[union-attr]
+    late = any((e.get("detail") or {}).get("sensor") == "channel timing" for e in pair)  # type: ignore[union-attr]
+    return dead and late
+
+
 def judge(klass: str, verdict: str, named: list[str], d: dict | None = None) -> bool:
     """Whether the verdict is the class's (``d``: the diagnose JSON, for ambiguities)."""
     if klass.startswith("null"):
         return verdict == "adequate"
+    if klass == "dead_time" and d is not None and delay_twins(d):
+        return True
     if klass in (
         "karnopp",
         "speed_limit",

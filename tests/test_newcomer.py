@@ -4,6 +4,7 @@ results, logs a stopped batch never reached are "interrupted" (130), not "a bug"
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import pytest
@@ -107,3 +108,42 @@ def test_the_api_lists_fit_groups():
     import balancer_id as bid
 
     assert {"fit_groups", "GroupFits"} <= set(dir(bid))
+
+
+def test_the_fleet_gives_the_discovery_command_when_no_effect_explains(tmp_path):
+    from balancer_id.batch.rows import BatchRow
+    from balancer_id.report.fleet import _missing_blocks
+
+    doc = {"diagnosis": {
+        "verdict": "effect missing", "suggestions": [],
+        "discovery": {"formula": "F = -4.016*z",
+                      "command": "balancer-id improve hose.csv --discover --effects-out d.py"},
+    }}
+    rows = [BatchRow(file="hose.csv", status="ok")]
+    table = _missing_blocks(rows, [doc], [0])[1]
+    assert table.rows == [[
+        "hose.csv", "no built-in effect; a force was found: F = -4.016*z (N)",
+        "balancer-id improve hose.csv --discover --effects-out d.py",
+    ]]
+
+
+def test_fleet_dates_never_crowd_the_axis():
+    from datetime import datetime, timedelta
+
+    from matplotlib.figure import Figure
+
+    from balancer_id.report.fleet import _date_axis
+
+    fig = Figure(figsize=(3.2, 2))
+    ax = fig.add_subplot()
+    start = datetime(2026, 1, 1)
+    ax.plot([start + timedelta(hours=7 * k) for k in range(40)], range(40), "o")
+    _date_axis(ax)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    labels = [t for t in ax.get_xticklabels() if t.get_text()]
+    boxes = [t.get_window_extent() for t in labels]
+    assert 2 <= len(labels) <= 6
+    for a, b in itertools.pairwise(boxes):
+        assert not a.overlaps(b), [t.get_text() for t in labels]

@@ -58,7 +58,9 @@ def test_the_library_result_is_the_commands_json(cli, log, extra):
     data = fit(path, **extra).to_dict()
     args = [a for k, v in extra.items() for a in (f"--{k}", v)]
     code, out, err = cli("fit", path, *args, "--json")
-    assert code == 0, err
+    # 5: a fit that is not trusted (the robot's log alone leaves A to a guess) prints the
+    # same JSON, and says why
+    assert code == (0 if data["trusted"] else 5), err
     assert json.loads(out) == json.loads(json.dumps(data))
     if "trajectory" in extra:
         assert data["advice"]["settings"]  # computed by the library call, not the command

@@ -127,7 +127,8 @@ def _identify(
     Warnings raised by the fit go into the result's ``warnings`` list rather than to
     the worker's stderr (or, under a strict warnings filter, failing the log). The
     result carries when the log was recorded (:func:`recording_time`) and, with
-    ``diagnose``, the diagnosis's verdict, summary and first three suggestions.
+    ``diagnose``, the diagnosis's verdict, summary, first three suggestions and discovered
+    force (formula and command, or None).
     """
     start = time.perf_counter()
     try:
@@ -153,6 +154,11 @@ def _identify(
                     "verdict": found.verdict,
                     "summary": found.summary,
                     "suggestions": [s.to_dict() for s in found.suggestions[:3]],
+                    # a force no library effect explains, found in the states: its formula
+                    # and the command that writes it as an effect (the fleet view shows it)
+                    "discovery": None
+                    if found.discovery is None
+                    else {"formula": found.discovery.formula, "command": found.discovery.command},
                 }
         data["recorded"] = recording_time(result, path)
         notes = [str(w.message) for w in caught if not issubclass(w.category, _QUIET)]

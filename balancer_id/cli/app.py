@@ -21,6 +21,7 @@ from balancer_id.cli.options import (
     Command,
     EffectsFileOpt,
     FixOpt,
+    ForceDelayOpt,
     ForceSignOpt,
     GOpt,
     Group,
@@ -214,6 +215,7 @@ def inspect(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Show what was read from LOG and the step trials (or the robot move) found in it.
 
@@ -222,7 +224,9 @@ def inspect(
     from balancer_id.errors import NoTrialError
     from balancer_id.trials import describe_log, read, segment
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     check_outputs({"--plot": plot}, inputs_of([log], None, trajectory_text), overwrite)
     with stage(f"reading {log.name}"):
         data = read(log, options)
@@ -355,6 +359,7 @@ def fit(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Identify the parameters of the model over all trials of all LOGS.
 
@@ -362,7 +367,9 @@ def fit(
     """
     from balancer_id.cli.request import FitRequest
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     fixed = assignments(fix, "--fix")
     if params is not None:  # issue 9: hold an earlier fit's values; --fix wins
         from balancer_id.identify.params_file import held_for_model
@@ -706,6 +713,7 @@ def compare(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Measured vs simulated for several models: errors per trial and where each fails.
 
@@ -716,7 +724,9 @@ def compare(
     """
     from balancer_id.diagnostics.api import compare as run_compare
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     fixed = assignments(fix, "--fix")
     if params is not None:  # issue 11: an identified model on new logs, as MATLAB's compare
         from balancer_id.identify.params_file import read_params_file
@@ -827,6 +837,7 @@ def diagnose(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Residual tests and ranked suggestions of missing effects.
 
@@ -834,7 +845,9 @@ def diagnose(
     """
     from balancer_id.diagnostics.diagnosis import diagnose as run_diagnose
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     fitted = _fit(
         logs,
         options,
@@ -888,6 +901,7 @@ def plan(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """The trials to record next: those that shrink the widest interval most.
 
@@ -896,7 +910,9 @@ def plan(
     from balancer_id.workflows.plan import plan as run_plan
 
     at_least(count, 1, "--count")
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     check_outputs({"--report": report}, inputs_of(logs, effects_file, None), overwrite)
     if report is not None:
         from balancer_id.report.document import check_report_path
@@ -962,6 +978,7 @@ def improve(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Add effects one by one while the error falls and BIC and held-out trials improve.
 
@@ -969,7 +986,9 @@ def improve(
     """
     from balancer_id.diagnostics.improve import improve as run_improve
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     at_least(max_steps, 0, "--max-steps")
     check_outputs(
         {"--report": report, "--plot": plot},
@@ -1035,6 +1054,7 @@ def report(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """The full report: identification, paper's method, diagnosis and per-trial plots.
 
@@ -1042,7 +1062,9 @@ def report(
     """
     from balancer_id.workflows import full_report as run_report
 
-    options = read_options(thrust, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(
+        thrust, force_sign, vertical, columns, g, accel_unit, window, force_delay
+    )
     with stage(f"reporting on {len(logs)} log(s)"):
         done = run_report(
             logs,
@@ -1109,6 +1131,7 @@ def batch(
     g: GOpt = G_DEFAULT,
     accel_unit: AccelUnitOpt = "auto",
     window: WindowOpt = None,
+    force_delay: ForceDelayOpt = 0.0,
 ) -> None:
     """Identify many logs in parallel; summary.csv plus one JSON per log in OUT.
 
@@ -1117,7 +1140,7 @@ def batch(
     from balancer_id.batch import run_batch
     from balancer_id.cli.progress import batch_progress
 
-    options = read_options(None, force_sign, vertical, columns, g, accel_unit, window)
+    options = read_options(None, force_sign, vertical, columns, g, accel_unit, window, force_delay)
     if fleet_report is not None:
         from balancer_id.report.document import check_report_path
 

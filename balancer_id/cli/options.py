@@ -124,6 +124,14 @@ AccelUnitOpt = Annotated[
         "--accel-unit", metavar="TEXT", help="auto|m/s^2|g: unit of the acceleration columns."
     ),
 ]
+ForceDelayOpt = Annotated[
+    float,
+    typer.Option(
+        "--force-delay",
+        metavar="SECONDS",
+        help="The force channel's lag behind the acceleration (s; diagnose measures it).",
+    ),
+]
 WindowOpt = Annotated[
     list[str] | None,
     typer.Option(
@@ -169,6 +177,7 @@ def read_options(
     g: float,
     accel_unit: str,
     window: list[str] | None,
+    force_delay: float = 0.0,
 ) -> ReadOptions:
     """The reading options of a command (its ``--thrust`` ... ``--window``), checked.
 
@@ -192,6 +201,8 @@ def read_options(
         ``--accel-unit``.
     window : list of str or None
         ``--window`` (repeatable).
+    force_delay : float
+        ``--force-delay``.
 
     Returns
     -------
@@ -212,6 +223,7 @@ def read_options(
         g=g,
         accel_unit=accel_unit,
         window=window,
+        force_delay=force_delay,
     )
 
 

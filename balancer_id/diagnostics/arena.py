@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -30,6 +30,9 @@ if TYPE_CHECKING:
     from balancer_id.identify.result import FitResult
 
 __all__ = ["ArenaInput", "Explanation", "Stage", "Verdict", "run_arena", "score", "standing"]
+
+#: One fit's arguments (:func:`fit_in_threads`).
+Job = TypeVar("Job")
 
 #: BIC improvement an explanation needs before it is a verdict. Calibrated on simulated
 #: logs with nothing hidden (benchmarks/bench_diagnose.py, false alarms <= 5 %).
@@ -150,8 +153,8 @@ def bic(rss: float, n: int, k: int) -> float:
 class Trials:
     """The trials simulated one by one (each may have its own parameter vector)."""
 
-    def __init__(self, trials: Sequence[TrialData]) -> None:
-        self.data = [FitData.build([td]) for td in trials]
+    def __init__(self, trials: Sequence[TrialData], data: Sequence[FitData] | None = None) -> None:
+        self.data = list(data) if data is not None else [FitData.build([td]) for td in trials]
         self.n = int(sum(d.y.size for d in self.data))
 
     def outputs(self, model: Model, pvecs: Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -169,12 +172,14 @@ def fit_varying(
     extra: tuple[float, float, float] | None = None,
     c_start: np.ndarray | None = None,
     max_nfev: int = 60,
+    solution: list[object] | None = None,
 ) -> tuple[list[np.ndarray], dict[str, float], np.ndarray, float | None]:
     """Least squares of ``model`` where ``name = base + c * design[i]`` in trial ``i``.
 
     ``post(i, y)`` (optional) transforms each trial's simulated output, with one extra
     parameter ``extra = (start, lo, hi)`` passed as ``post.param``. Returns the RSS, the
-    fitted base values, the coefficient(s) and the extra parameter.
+    fitted base values, the coefficient(s) and the extra parameter; ``solution`` (a list)
+    receives the optimizer's result (its Jacobian gives the standard errors).
     """
     names = [n for n in model.param_names if n not in fixed]
     lo = np.array([model.param(n).min for n in names])
@@ -220,6 +225,8 @@ def fit_varying(
         return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
 
     sol = least_squares(resid, xs, bounds=(lo_all, hi_all), x_scale=xscale, max_nfev=max_nfev)
+    if solution is not None:
+        solution.append(sol)
     r = resid(sol.x)
     cuts = np.cumsum([y.size for y in ys])[:-1]
     base = dict(fixed)
@@ -388,7 +395,7 @@ def is_null(refit: MatchResult, effect: str) -> bool:
 
 
 def fit_in_threads(
-    jobs: Sequence[object], fit_one: Callable[[object], Explanation], threads: int | None
+    jobs: Sequence[Job], fit_one: Callable[[Job], Explanation], threads: int | None
 ) -> list[Explanation]:
     """``fit_one`` over ``jobs``, the first in this thread (it loads the kernel), the rest in
     threads (the kernels release the GIL); results in the jobs' order.
@@ -511,6 +518,7 @@ def standing(explanations: Sequence[Explanation], tests_failed: bool) -> list[Ex
         if parts and min(e.delta_bic - p for p in parts) <= BIC_THRESHOLD:
             continue
         out.append(e)
+    out = [e for e in out if not any(x.explainer.absorbs(x, e) for x in out if x is not e)]
     return sorted(out, key=lambda e: -e.delta_bic)
 
 

@@ -27,6 +27,7 @@ from balancer_id.diagnostics.arena import (
 )
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
 from balancer_id.diagnostics.explanations import Verdict
+from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.sensor_lowpass import rest_cutoff
 from balancer_id.diagnostics.residual_tests import (
     input_correlation,
@@ -359,7 +360,7 @@ def diagnose(
         checks=checks,
         notes=judgement.notes,
         ambiguity=judgement.ambiguity,
-        discovery=next((e.source for e in explanations if e.kind == "discovered"), None),  # type: ignore[arg-type]
+        discovery=next((e.source for e in explanations if e.kind == Discovered.kind), None),  # type: ignore[arg-type]
     )
 
 

@@ -69,6 +69,7 @@ from balancer_id.diagnostics.discovery.terms import (
     library_effect,
     library_source,
 )
+from balancer_id.diagnostics.explanations.effect import LibraryEffect
 from balancer_id.model.registry import Registry
 
 if TYPE_CHECKING:
@@ -160,7 +161,7 @@ def challenges(best: Explanation | None, registry: Registry) -> bool:
     -------
     bool
     """
-    if best is None or best.key != "effect":
+    if best is None or best.key != LibraryEffect.key:
         return False
     return any(name in registry and "friction" in registry[name].hooks() for name in best.effects)
 

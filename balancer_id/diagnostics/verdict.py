@@ -11,6 +11,9 @@ import numpy as np
 from balancer_id.diagnostics import adequacy, arena
 from balancer_id.diagnostics.arena import CLOSE_BIC, FLOOR_DROP, ArenaInput, Explanation
 from balancer_id.diagnostics.explanations import KINDS, Verdict
+from balancer_id.diagnostics.explanations.discovered import Discovered
+from balancer_id.diagnostics.explanations.effect import LibraryEffect
+from balancer_id.diagnostics.explanations.pair import Pair
 from balancer_id.diagnostics.explanations.split import confound, record_hint
 from balancer_id.diagnostics.suggest import Suggestion, is_missing
 from balancer_id.notes import Note
@@ -77,12 +80,12 @@ def judge(
         rival = next((e for e in standing[1:] if rivals(best, e, how is not None)), None)
     out = Judgement(best.verdict, best.explainer.sentence(best, fit), notes, None, best)
     if how is not None and rival is None:
-        rival = next((e for e in standing[1:] if e.kind == "effect"), None)
+        rival = next((e for e in standing[1:] if e.kind == LibraryEffect.kind), None)
     if rival is not None:
         _ambiguous(out, best, rival, how, inp)
     if best.explainer.measurement:
         notes.append(Note("diagnose.sensor", out.summary, None, "warning"))
-    if best.kind == "discovered":
+    if best.kind == Discovered.kind:
         out.summary = f"{out.summary} {unknown_hint(tests)}"
         notes.append(Note("diagnose.discovered", out.summary, None, "warning"))
     return out
@@ -158,9 +161,9 @@ def offered(suggestions: list[Suggestion], j: Judgement) -> list[Suggestion]:
         return []  # nothing offered without benefit
     if best is not None and best.explainer.stands_alone and j.ambiguity is None:
         return []  # no effect that would only mimic it
-    if best is not None and best.kind == "discovered":
+    if best is not None and best.kind == Discovered.kind:
         return [s for s in suggestions if is_missing(s) and not s.null]
-    keep = set(best.effects) if best is not None and best.kind == "pair" else None
+    keep = set(best.effects) if best is not None and best.kind == Pair.kind else None
     return [
         s
         for s in suggestions
@@ -206,7 +209,9 @@ def rivals(best: Explanation, e: Explanation, confounded: bool) -> bool:
     alone: a rival 100 BIC units behind is e^50 times less likely. An explanation of the same
     verdict naming other effects or parameters (D0 drifting against A drifting) is one
     when within :data:`CLOSE_BIC`: the verdict stands, but not what it names. Another
-    boundary of the same parameter's split is not a rival (what changed is known).
+    boundary of the same parameter's split is not a rival (what changed is known). A
+    twin (the same delay read as the sensor's or the balancer's:
+    :meth:`~balancer_id.diagnostics.explanations.base.ExplanationKind.twin`) always is.
 
     Parameters
     ----------
@@ -219,6 +224,8 @@ def rivals(best: Explanation, e: Explanation, confounded: bool) -> bool:
     bool
     """
     gap = best.delta_bic - e.delta_bic
+    if best.explainer.twin(best, e) or e.explainer.twin(e, best):
+        return True
     if e.verdict != best.verdict:
         relative = CLOSE_SHARE * best.delta_bic if best.excess_drop < FLOOR_DROP else 0.0
         return confounded or gap <= max(CLOSE_BIC, relative)

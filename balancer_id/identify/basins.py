@@ -253,7 +253,20 @@ def mirror_start(
 
 
 def inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``x`` moved strictly inside ``[lo, hi]`` (a start on a bound has no gradient)."""
+    """``x`` moved strictly inside ``[lo, hi]`` (a start on a bound has no gradient).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Start values.
+    lo, hi : numpy.ndarray
+        Their bounds (infinite where unbounded).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``x`` at least a thousandth of the span (or of ``|lo|``) inside each bound.
+    """
     span = np.where(np.isfinite(hi - lo), hi - lo, np.abs(lo) + 1.0)
     inner = np.minimum(1e-3 * span, np.abs(lo) + 1e-9)
     return np.clip(x, lo + inner, hi - 1e-3 * span)

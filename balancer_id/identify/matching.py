@@ -891,7 +891,7 @@ def _bound_note(
         return _unresolved_lag_note(name, value, problem.lag_floor)
     if side == "min" and spec.min == 0.0 and pull > PULL_PAST_LIMIT:
         return Note(
-            "fit.at_bound",
+            "fit.held_at_limit",
             f"{name} = 0 {spec.unit} is held at its physical limit against the data (they "
             f"would take it {pull:.0f} standard errors below 0): the model cannot follow "
             "these trials at this optimum (another basin, or a force the model lacks); "

@@ -520,7 +520,7 @@ def _plots(
                     f"(95 % {low * day:.3g} .. {high * day:.3g}; Theil-Sen over "
                     f"{int(fit_on.sum())} logs, outliers left out)"
                 )
-            ax.tick_params(axis="x", labelrotation=30, labelsize=7)
+            _date_axis(ax)
             ax.set_xlabel("recorded")
         ax.set_ylabel(label)
     blocks.append(
@@ -542,6 +542,17 @@ def _plots(
     return blocks
 
 
+def _date_axis(ax: Any) -> None:
+    """Dates on ``ax``'s x axis that never overlap: matplotlib's concise date labels (as
+    many ticks as fit, the year or day said once), slanted."""
+    import matplotlib.dates as mdates
+
+    locator = mdates.AutoDateLocator(minticks=2, maxticks=5)
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    ax.tick_params(axis="x", labelrotation=30, labelsize=7)
+
+
 def _missing_blocks(
     rows: Sequence[BatchRow], docs: list[dict[str, Any]], diagnosed: list[int]
 ) -> list[Any]:
@@ -556,6 +567,9 @@ def _missing_blocks(
         if isinstance(top, dict):
             suggestion = str(top.get("change") or top.get("effect") or "-")
             command = str(top.get("command") or "-")
+        elif isinstance(found := diag.get("discovery"), dict) and found.get("command"):
+            suggestion = f"no built-in effect; a force was found: {found.get('formula')} (N)"
+            command = str(found["command"])
         else:
             suggestion, command = "no built-in effect explains the residual", "-"
         body.append([rows[k].file, suggestion, command])

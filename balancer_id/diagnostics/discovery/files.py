@@ -109,4 +109,3 @@ def write_effect(
     name = effect_name(path)
     atomic_write_text(path, discovery.effect_source(name, evidence))
     return path, name
-

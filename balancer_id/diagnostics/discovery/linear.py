@@ -212,7 +212,6 @@ def held_out_gain(lin: _Linear, support: Sequence[int], folds: int = 3) -> list[
     return [sse([c for c in support if c != s]) / max(full, 1e-300) for s in support]
 
 
-
 def term_price(terms: Sequence[Term], support: Sequence[int], j: int) -> float:
     """The BIC fall term ``j`` must bring beyond BIC's own penalty to stay in ``support``.
 
@@ -236,7 +235,6 @@ def term_price(terms: Sequence[Term], support: Sequence[int], j: int) -> float:
         terms[k].name.startswith(STRIBECK) for k in support if k != j
     )
     return 0.0 if law else TERM_BIC
-
 
 
 def _linearize(
@@ -267,7 +265,6 @@ def _linearize(
         lin.p.append(_whiten(sens[sl, :k], ar))
         lin.q.append(_whiten(sens[sl, k:], ar))
     return lin
-
 
 
 def _final_inclusion(

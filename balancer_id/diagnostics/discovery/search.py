@@ -409,7 +409,7 @@ def _settle_friction(
     options: list[list[int]] = [list(support)]
     if coulomb is not None and coulomb not in support:
         options.append([*support, coulomb])
-    best = (
+    best: tuple[float, MatchResult, dict[str, float], dict[str, float], list[int]] = (
         arena.score(inp, [refit.residual[sl] for sl in refit.data.slices()], len(support))[0],
         refit,
         hold,

@@ -16,22 +16,31 @@ from balancer_id.diagnostics.explanations.base import (
 from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.drift import Drift
 from balancer_id.diagnostics.explanations.effect import LibraryEffect
+from balancer_id.diagnostics.explanations.force_delay import ForceDelay
 from balancer_id.diagnostics.explanations.pair import Pair
+from balancer_id.diagnostics.explanations.sensor_clipping import SensorClipping
+from balancer_id.diagnostics.explanations.sensor_gain import SensorGain
 from balancer_id.diagnostics.explanations.sensor_lowpass import SensorLowpass
 from balancer_id.diagnostics.explanations.split import Split
+from balancer_id.diagnostics.explanations.time_trend import TimeTrend
 
 #: Every kind, in the order the arena fits them within a stage.
 KINDS: tuple[ExplanationKind, ...] = (
     LibraryEffect(),
     Split(),
     Drift(),
+    TimeTrend(),
     SensorLowpass(),
+    SensorClipping(),
+    SensorGain(),
+    ForceDelay(),
     Pair(),
     Discovered(),
 )
 
 _BY_KEY = {k.key: k for k in KINDS}
-assert len(_BY_KEY) == len(KINDS), "two explanation kinds share a key"
+if len(_BY_KEY) != len(KINDS):
+    raise RuntimeError("two explanation kinds share a key")
 
 
 def kind_of(key: str) -> ExplanationKind:

@@ -226,6 +226,37 @@ class ExplanationKind:
         """
         return []
 
+    def absorbs(self, e: Explanation, other: Explanation) -> bool:
+        """Whether ``other`` is the same fit as ``e`` read another way (a sensor's gain and
+        the bias effect): ``other`` then leaves the standing ones while ``e`` stands, and
+        ``e``'s sentence names it.
+
+        Parameters
+        ----------
+        e, other : Explanation
+
+        Returns
+        -------
+        bool
+        """
+        return False
+
+    def twin(self, e: Explanation, other: Explanation) -> bool:
+        """Whether ``other`` names the same thing ``e`` does by another cause, so that no
+        recording of this kind can tell them apart (a late acceleration channel and the
+        balancer's dead time): the verdict is then ambiguous between them, whatever
+        their BIC gap, with the trial that separates them.
+
+        Parameters
+        ----------
+        e, other : Explanation
+
+        Returns
+        -------
+        bool
+        """
+        return False
+
     def sentence(self, e: Explanation, fit: FitResult) -> str:
         """The verdict's paragraph naming ``e`` (what it is, what it changes, what to run).
 

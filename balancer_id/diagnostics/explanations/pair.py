@@ -14,6 +14,7 @@ from balancer_id.diagnostics.explanations.base import (
     Verdict,
 )
 from balancer_id.diagnostics.explanations.drift import drift_of, drift_sentence
+from balancer_id.diagnostics.explanations.effect import LibraryEffect
 from balancer_id.diagnostics.explanations.run_changes import REFINE_NFEV, fit_changes
 from balancer_id.diagnostics.explanations.split import REPEAT_FIRST_RUN, split_of, split_sentence
 
@@ -53,7 +54,7 @@ class Pair(ExplanationKind):
 
     def propose(self, inp: ArenaInput) -> list[Explanation]:
         """The best effect (and perhaps the second) paired with each split and drift."""
-        effects = [e for e in inp.found if e.kind == "effect" and arena.valid(e, True)]
+        effects = [e for e in inp.found if e.kind == LibraryEffect.kind and arena.valid(e, True)]
         if not effects:
             return []
         top = max(effects, key=lambda e: e.delta_bic)
@@ -68,7 +69,7 @@ class Pair(ExplanationKind):
             (
                 e
                 for e in inp.found
-                if e.kind == "effect"
+                if e.kind == LibraryEffect.kind
                 and e is not top
                 and not e.null
                 and e.delta_bic > arena.BIC_THRESHOLD

@@ -120,7 +120,7 @@ class SensorLowpass(ExplanationKind):
         d = e.detail
         said = head(e)
         if e.delta_bic <= arena.BIC_THRESHOLD:
-            values = d.get("values") or {}
+            values: dict[str, float] = d.get("values") or {}  # type: ignore[assignment]
             now = fit.match.values()
             moved = [
                 f"{k} {float(values[k]):.4g} with it, {now[k]:.4g} without"  # type: ignore[index]

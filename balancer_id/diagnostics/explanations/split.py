@@ -104,7 +104,7 @@ def split_sentence(e: Explanation, fit: FitResult) -> str:
     str
     """
     d = e.detail
-    k = int(d["split_after_run"])  # type: ignore[call-overload]
+    k = int(str(d["split_after_run"]))
     n = int(str(d["group_by"]).rsplit("-", 1)[-1])
     p = e.parameters[0]
     u = " kg" if p == "m_a" else ""
@@ -138,12 +138,13 @@ def confound(e: Explanation, trials: Sequence[TrialData], runs: Sequence[str]) -
         ``"direction"`` when every run before the split goes one way and every run after
         the other, ``"thrust level"`` when the two groups share no thrust level; None.
     """
-    k = e.detail.get("split_after_run")
-    if k is None:
+    at = e.detail.get("split_after_run")
+    if at is None:
         return None
+    k = int(str(at))
     run = arena.run_index(runs)
-    before = [td for td, r in zip(trials, run, strict=True) if r < int(k)]
-    after = [td for td, r in zip(trials, run, strict=True) if r >= int(k)]
+    before = [td for td, r in zip(trials, run, strict=True) if r < k]
+    after = [td for td, r in zip(trials, run, strict=True) if r >= k]
     sb = {np.sign(td.thrust_N) for td in before}
     sa = {np.sign(td.thrust_N) for td in after}
     if len(sb) == 1 and len(sa) == 1 and sb != sa:

@@ -1,0 +1,139 @@
+"""The force channel's timing against the acceleration's: two clocks that disagree."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from balancer_id.diagnostics import arena
+from balancer_id.diagnostics.explanations.base import (
+    Explanation,
+    ExplanationKind,
+    Verdict,
+    head,
+)
+from balancer_id.diagnostics.explanations.measured_output import corrected, fit_mapped
+
+if TYPE_CHECKING:
+    from balancer_id.diagnostics.arena import ArenaInput
+    from balancer_id.identify.result import FitResult
+
+#: Offsets searched (s): a wireless sensor's time stamp is late by tens of milliseconds.
+MAX_DELAY_S = 0.25
+#: Trials whose input has more breakpoints than this are driven by a measured force.
+MEASURED_BREAKPOINTS = 3
+
+
+class ForceDelay(ExplanationKind):
+    """The force channel time-stamped ``d`` later than the acceleration (``d < 0``: the
+    acceleration is the late one).
+
+    A balancer is time-invariant: driven by the force ``d`` late, its response comes ``d``
+    late as a whole, so the model's output shifted by ``d`` is the fit with the true
+    timing (one parameter; the start from a scan of the shift at the current values).
+    Proposed only where a measured force drives the trials. A force step must precede
+    its response: with ``d > 0`` the acceleration moves before the force says it steps,
+    which no balancer does. With ``d < 0`` a balancer's dead time fits alike: the
+    recording cannot tell them apart (the ``dead_time`` effect is then its rival).
+    Correction: ``--force-delay d`` and the refit.
+    """
+
+    key = "force_delay"
+    kind = "sensor"
+    verdict = Verdict.SENSOR_EFFECT
+    stands_alone = True
+    measurement = True
+    tried = "the force channel's timing"
+    mimics: ClassVar[str] = "a dead time of the balancer (when the acceleration is the late one)"
+    separating_trial: ClassVar[str] = (
+        "tap the load once with both sensors recording (or record both channels on one "
+        "device's clock): the force and the acceleration must jump at the same instant; "
+        "a later jump of the acceleration is then the balancer's dead time"
+    )
+
+    def propose(self, inp: ArenaInput) -> list[Explanation]:
+        """The shift of the model's output between the channels, fitted."""
+        driven = [len(td.input.thrust.times) > MEASURED_BREAKPOINTS for td in inp.trials]
+        if not inp.trials or sum(driven) < max(1, len(driven) // 2):
+            return []
+        times = [np.asarray(td.time, dtype=float) for td in inp.trials]
+        dt = float(np.median([np.median(np.diff(t)) for t in times if t.size > 1]))
+
+        def shifted(i: int, y: np.ndarray, d: float) -> np.ndarray:
+            t = times[i]
+            return np.interp(t + d, t, y) if t.size == y.size else y
+
+        d0 = _scan(inp, shifted, dt)
+        fit = fit_mapped(inp, shifted, d0, -MAX_DELAY_S, MAX_DELAY_S)
+        d, se = fit.param, fit.stderr
+        late = "force" if d > 0 else "acceleration"
+        return [
+            self.make(
+                f"{late} channel {abs(d) * 1e3:.0f} ms late",
+                fit.delta_bic,
+                fit.rmse,
+                detail={
+                    "sensor": "channel timing",
+                    "force_delay_s": d,
+                    "force_delay_stderr_s": se,
+                    "late_channel": late,
+                    "sample_interval_s": dt,
+                    "values": fit.values,
+                },
+                null=abs(d) < 0.5 * dt,
+            )
+        ]
+
+    def twin(self, e: Explanation, other: Explanation) -> bool:
+        """A late acceleration and the balancer's ``dead_time`` of about the same length."""
+        d = float(e.detail.get("force_delay_s", 0.0))  # type: ignore[arg-type]
+        values: dict[str, float] = other.detail.get("values") or {}  # type: ignore[assignment]
+        tau = values.get("tau_d")
+        if d >= 0 or other.effects != ["dead_time"] or tau is None:
+            return False
+        dt = float(e.detail.get("sample_interval_s", 0.0))  # type: ignore[arg-type]
+        se = e.detail.get("force_delay_stderr_s")
+        tol = max(2.0 * dt, 3.0 * se if isinstance(se, float) else 0.0, 0.25 * abs(d))
+        return abs(float(tau) + d) <= tol
+
+    def sentence(self, e: Explanation, fit: FitResult) -> str:
+        """The offset, its interval, which channel is late, the correction and the refit."""
+        d = float(e.detail["force_delay_s"])  # type: ignore[arg-type]
+        se = e.detail.get("force_delay_stderr_s")
+        ms = f"{abs(d) * 1e3:.0f} ms" + (
+            f" (95 % interval {(abs(d) - 1.96 * se) * 1e3:.0f}-{(abs(d) + 1.96 * se) * 1e3:.0f} ms)"
+            if isinstance(se, float)
+            else ""
+        )
+        why = (
+            "the acceleration moves before the force says it steps, and a force step must "
+            "precede its response: the force channel's time stamps are late (a wireless "
+            "sensor, two devices' clocks), not the balancer"
+            if d > 0
+            else "the acceleration answers late: the acceleration channel's time stamps are "
+            "late, or the balancer acts with a dead time (both delay the response alike)"
+        )
+        return (
+            f"the {e.detail['late_channel']} channel runs {ms} behind the other: {why}; "
+            f"{head(e)}; {corrected(e, fit)}. Correct the timing and refit: "
+            f"{fit.command()} --force-delay {d:.3f}"
+        )
+
+
+def _scan(inp: ArenaInput, shifted: object, dt: float) -> float:
+    """The shift that best matches the current fit's output to the data (a start)."""
+    sims = arena.Trials(inp.trials)
+    values = inp.match.values()
+    pvec = np.array([values[n] for n in inp.match.model.param_names])
+    outs = sims.outputs(inp.match.model, [pvec] * len(inp.trials))
+    ys = [np.asarray(d.y, dtype=float) for d in sims.data]
+    grid = np.arange(-MAX_DELAY_S, MAX_DELAY_S + 1e-12, max(dt / 2, 0.001))
+    pairs = list(zip(ys, outs, strict=True))
+    cost = []
+    for g in grid:
+        total = 0.0
+        for i, (y, o) in enumerate(pairs):
+            total += float(np.sum((y - shifted(i, o, float(g))) ** 2))  # type: ignore[operator]
+        cost.append(total)
+    return float(grid[int(np.nanargmin(cost))])
