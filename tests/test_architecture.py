@@ -143,6 +143,7 @@ def _request_variants():
         "accel_unit": "g",
         "windows": ((2.0, 5.0),),
         "thrusts_signed": True,
+        "force_delay": 0.04,
     }
     fields = {f.name for f in dataclasses.fields(FitRequest)} - {"options"}
     assert fields == set(changed), "a new request field needs a variant here"
