@@ -8,8 +8,10 @@ exist and, when the callable takes arguments besides ``self``/``cls``, its numpy
 undocumented argument fails here, and the failure lists every offender at once.
 
 Left out: :mod:`balancer_id.cli`, whose typer commands document their options through
-``help=``, and the hook staticmethods of the effects in :mod:`balancer_id.model.effects`,
-whose equation is the class docstring.
+``help=``, the hook staticmethods of the effects in :mod:`balancer_id.model.effects`,
+whose equation is the class docstring, and a method that overrides one of a base class
+whose docstring is complete for the same arguments (documented once, where the contract is
+stated: an explanation kind's ``propose`` or ``sentence``).
 """
 
 from __future__ import annotations
@@ -71,7 +73,24 @@ def _methods(module: ModuleType, cls: type) -> Iterator[tuple[str, Callable, boo
         else:
             continue
         if inspect.isfunction(func) and func.__module__ == module.__name__:
+            if _documented_by_base(cls, name, func, bound):
+                continue
             yield f"{cls.__name__}.{name}", func, bound
+
+
+def _documented_by_base(cls: type, name: str, func: Callable, bound: bool) -> bool:
+    """Whether a base class defines ``name`` with the same arguments and a complete
+    docstring (the override is documented there)."""
+    for base in cls.__mro__[1:]:
+        member = vars(base).get(name)
+        if member is None:
+            continue
+        parent = getattr(member, "__func__", None) or getattr(member, "fget", None) or member
+        if not inspect.isfunction(parent):
+            return False
+        same = _arguments(parent, bound) == _arguments(func, bound)
+        return same and _offences(parent, bound) is None
+    return False
 
 
 def _arguments(func: Callable, bound: bool) -> list[str]:

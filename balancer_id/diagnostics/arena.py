@@ -158,6 +158,19 @@ class Trials:
         self.n = int(sum(d.y.size for d in self.data))
 
     def outputs(self, model: Model, pvecs: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Each trial's simulated output (acceleration) with its own parameter vector.
+
+        Parameters
+        ----------
+        model : Model
+            The model simulated.
+        pvecs : sequence of numpy.ndarray
+            One parameter vector per trial, in the trials' order.
+
+        Returns
+        -------
+        list of numpy.ndarray
+        """
         return [d.packed.run(model, p)[:, 0] for d, p in zip(self.data, pvecs, strict=True)]
 
 
@@ -180,6 +193,37 @@ def fit_varying(
     parameter ``extra = (start, lo, hi)`` passed as ``post.param``. Returns the RSS, the
     fitted base values, the coefficient(s) and the extra parameter; ``solution`` (a list)
     receives the optimizer's result (its Jacobian gives the standard errors).
+
+    Parameters
+    ----------
+    model : Model
+        The model fitted.
+    sims : Trials
+        The trials, packed for simulation.
+    start : dict of str to float
+        Start values of the free parameters.
+    fixed : dict of str to float
+        Parameters held.
+    name : str
+        The parameter that varies across trials.
+    design : numpy.ndarray
+        Its design: one row per trial, one column per coefficient ``c``.
+    post : callable, optional
+        ``post(i, y)``: each trial's output transformed (a sensor's gain, delay).
+    extra : (float, float, float), optional
+        ``(start, lo, hi)`` of ``post``'s own parameter.
+    c_start : numpy.ndarray, optional
+        Start values of the coefficients (default 0).
+    max_nfev : int
+        Budget of model evaluations.
+    solution : list, optional
+        Receives the optimizer's result.
+
+    Returns
+    -------
+    (list of numpy.ndarray, dict of str to float, numpy.ndarray, float or None)
+        The residual of each trial, the fitted base values, the coefficients and the
+        extra parameter.
     """
     names = [n for n in model.param_names if n not in fixed]
     lo = np.array([model.param(n).min for n in names])
@@ -300,7 +344,17 @@ def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[
 
 
 def current(inp: ArenaInput) -> tuple[float, int, int]:
-    """Whitened RSS, samples and fitted parameters of the current fit."""
+    """Whitened RSS, samples and fitted parameters of the current fit.
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit and the resting noise's colour.
+
+    Returns
+    -------
+    (float, int, int)
+    """
     r = inp.match.residual
     parts = [r[sl] for sl in inp.match.data.slices()]
     rss, n = whitened_rss(parts, inp.ar)

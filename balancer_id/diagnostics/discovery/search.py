@@ -120,7 +120,17 @@ class Library:
     fixed: dict[str, float]
 
     def holding(self, support: Sequence[int]) -> dict[str, float]:
-        """What a refit with the terms ``support`` holds: the rest at 0."""
+        """What a refit with the terms ``support`` holds: the rest at 0.
+
+        Parameters
+        ----------
+        support : sequence of int
+            The indices of the terms taken.
+
+        Returns
+        -------
+        dict of str to float
+        """
         off = {self.q_names[k]: 0.0 for k in range(len(self.terms)) if k not in support}
         return {**self.fixed, **off}
 
@@ -149,7 +159,31 @@ def search(
 ) -> Discovery | None:
     """:func:`~balancer_id.diagnostics.discover.discover` without the floating-point
     warnings: the library, the forward rounds, the pruning, the friction settled, the
-    result scored against ``rival``."""
+    result scored against ``rival``.
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit.
+    ctx : DiagnosisContext
+        The diagnosis's views of the trials (states, residual).
+    rival : Explanation or None
+        The best other explanation, which a discovery must beat.
+    command : str
+        The command that writes the discovery as an effect.
+    terms : sequence of Term or None
+        The candidate terms (None: the default library).
+    extra_terms : sequence of Term
+        Terms added to the library.
+    seed : int
+        Seed of the bootstrap of the terms' inclusion.
+    margin : float
+        BIC by which a discovery must beat ``rival``.
+
+    Returns
+    -------
+    Discovery or None
+    """
     lib = library(inp, ctx, terms, extra_terms)
     if lib is None:
         return None
@@ -206,7 +240,23 @@ def library(
 ) -> Library | None:
     """The candidate terms (the defaults from the trials' speed and period over position
     unless given) as one library effect added to the current model; None when the trials
-    never move."""
+    never move.
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit.
+    ctx : DiagnosisContext
+        The diagnosis's views of the trials.
+    terms : sequence of Term or None
+        The candidate terms (None: the defaults).
+    extra_terms : sequence of Term
+        Terms added to them.
+
+    Returns
+    -------
+    Library or None
+    """
     match = inp.match
     skip: set[str] = set()
     if terms is None:
@@ -344,6 +394,15 @@ def prune(inp: ArenaInput, lib: Library, path: Pursuit) -> None:
     A term taken while an earlier one's refit had not settled may not pay at the end:
     each must still cost more than :func:`term_price` when the whole model is refitted
     without it.
+
+    Parameters
+    ----------
+    inp : ArenaInput
+        The current fit.
+    lib : Library
+        The library effect and its terms.
+    path : Pursuit
+        The search so far; its support and refit are updated in place.
     """
     trials = list(inp.trials)
     while len(path.support) > 1:
