@@ -68,3 +68,21 @@ def test_a_listener_that_never_answers_dask_is_refused_in_bounded_time(monkeypat
             conn.close()
         server.close()
     assert time.monotonic() - start < 30
+
+
+def test_a_real_scheduler_passes_the_probe_and_its_handshake():
+    """The control: a Dask scheduler is reached and answers who it is."""
+    distributed = pytest.importorskip("dask.distributed")
+    import logging
+
+    from balancer_id.batch.executors import _ask_identity
+
+    cluster = distributed.LocalCluster(
+        n_workers=0, processes=True, dashboard_address=None, silence_logs=logging.ERROR,
+        protocol="tcp://",
+    )
+    try:
+        probe_scheduler(cluster.scheduler_address, timeout=5)
+        _ask_identity(cluster.scheduler_address, 10)
+    finally:
+        cluster.close()

@@ -429,6 +429,46 @@ def probe_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> None:
             raise UsageError(f"--scheduler {address}: cannot connect ({why})") from None
 
 
+def _ask_identity(address: str, timeout: float) -> None:
+    """Ask the scheduler at ``address`` who it is, within ``timeout`` seconds in all.
+
+    Dask's own connection timeout does not bound its handshake: a listener that accepts
+    and never answers (a stuck process, a server of another protocol) would hold
+    ``Client()`` forever. The question runs on an event loop of its own, in a thread, so
+    a caller's running loop (a notebook) does not matter.
+
+    Raises
+    ------
+    UsageError
+        Nothing answered as a Dask scheduler in time.
+    """
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed.core import rpc
+
+    async def ask() -> object:
+        remote = rpc(address, timeout=timeout)
+        try:
+            return await remote.identity()
+        finally:
+            await remote.close_rpc()
+
+    def run() -> object:
+        return asyncio.run(asyncio.wait_for(ask(), timeout))
+
+    pool = ThreadPoolExecutor(1, thread_name_prefix="balancer-id-dask-probe")
+    try:
+        pool.submit(run).result(timeout=timeout + 5)
+    except Exception as exc:  # TimeoutError, OSError, a reply that is not Dask's
+        raise UsageError(
+            f"--scheduler {address}: no Dask scheduler answered in {timeout:g} s "
+            f"({type(exc).__name__}; is it a Dask scheduler's address?)"
+        ) from None
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
 def _run_dask(
     func: Callable[[Any], Payload],
     items: Sequence[tuple[int, Any]],
@@ -453,6 +493,7 @@ def _run_dask(
             where = f"a local Dask cluster of {n_workers} workers"
         else:
             probe_scheduler(scheduler)
+            _ask_identity(scheduler, SCHEDULER_TIMEOUT_S)
             client = distributed.Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
             where = f"the Dask cluster at {scheduler}"
     except (OSError, TimeoutError, ValueError) as exc:
