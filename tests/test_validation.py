@@ -41,7 +41,12 @@ def identified(tmp_path_factory) -> tuple[Path, Path]:
     res = runner.invoke(
         app, ["fit", str(root / "a.csv"), "-m", "viscous", "--save", str(root / "model.json")]
     )
-    assert res.exit_code == 0, res.stderr
+    # a viscous balancer's step response is symmetric in T_a and m_a/D0: steps alone cannot
+    # tell the lag from the mass's own time constant, and the fit says so (exit 5, issue 31);
+    # either optimum predicts every step alike, which is what the saved model is used for
+    assert res.exit_code in (0, 5), res.stderr
+    if res.exit_code == 5:
+        assert "different optima" in " ".join(res.stderr.split()), res.stderr
     assert f"wrote {root / 'model.json'}" in res.stderr
     return root / "a.csv", root / "model.json"
 
