@@ -133,12 +133,9 @@ def _held_from_fit(params: FitResult | str | Path, model: Model) -> dict[str, fl
                 f"'{model.spec}'"
             )
         return values
-    from balancer_id.identify.params_file import read_params_file
+    from balancer_id.identify.params_file import held_for_model
 
-    values = {k: v for k, v in read_params_file(params).items() if k in model.param_names}
-    if not values:
-        raise UsageError(f"params {params}: holds none of the parameters of '{model.spec}'")
-    return values
+    return held_for_model(params, model)
 
 
 def fit_groups(trials: Sources, by: str, **kwargs: Any) -> GroupFits:

@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 
 from balancer_id.errors import UsageError
+from balancer_id.model.spec import Model, resolve_model
 
 
 def read_params_file(path: str | Path) -> dict[str, float]:
@@ -65,7 +66,9 @@ def read_params_file(path: str | Path) -> dict[str, float]:
 
 
 def held_for_model(
-    path: str | Path, model: str | None, effects_files: tuple[Path, ...] | list[Path] = ()
+    path: str | Path,
+    model: str | Model | None,
+    effects_files: tuple[Path, ...] | list[Path] = (),
 ) -> dict[str, float]:
     """The values of ``path`` (:func:`read_params_file`) that are parameters of ``model``.
 
@@ -73,8 +76,8 @@ def held_for_model(
     ----------
     path : str or Path
         The JSON of an earlier fit.
-    model : str or None
-        The model spec of this fit (None: the default).
+    model : str, Model or None
+        The model of this fit, or its spec (None: the default).
     effects_files : sequence of Path
         User effect files the spec may name.
 
@@ -88,8 +91,6 @@ def held_for_model(
     UsageError
         When the file holds none of the model's parameters.
     """
-    from balancer_id.identify.api import resolve_model
-
     names = set(resolve_model(model, effects_files).param_names)
     values = read_params_file(path)
     held = {k: v for k, v in values.items() if k in names}
