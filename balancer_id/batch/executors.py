@@ -174,6 +174,7 @@ def _mp_context(
     return ctx
 
 
+@_safe_path()  # the pool's helpers (resource tracker) start before any submit
 def run_in_processes(
     func: Callable[[Any], Payload],
     items: Sequence[tuple[int, Any]],
@@ -204,19 +205,6 @@ def run_in_processes(
     notify : callable, optional
         Told, in one line, when a worker died and the rest run one process each.
     """
-    with _safe_path():  # the pool's helpers (resource tracker) start before any submit
-        _run_pool(func, items, record, jobs, context=context, notify=notify)
-
-
-def _run_pool(
-    func: Callable[[Any], Payload],
-    items: Sequence[tuple[int, Any]],
-    record: Callable[[int, Payload], None],
-    jobs: int,
-    *,
-    context: Any = None,
-    notify: Callable[[str], None] | None = None,
-) -> None:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
