@@ -62,10 +62,15 @@ def reports(tmp_path_factory):
     from balancer_id.cli import app
 
     folder = tmp_path_factory.mktemp("rendered")
+    # A log in a deep folder, as on a CI machine: its path and SHA-256 fill the provenance table.
+    deep = folder.joinpath(*["a_long_folder_name_on_a_build_machine"] * 4)
+    deep.mkdir(parents=True)
+    log = deep / "paper_balancer.csv"
+    shutil.copyfile(SAMPLE_LOGS / "paper_balancer.csv", log)
     runner = CliRunner()
     for suffix in ("html", "pdf"):
         res = runner.invoke(
-            app, ["fit", str(SAMPLE_LOGS / "paper_balancer.csv"), "--report",
+            app, ["fit", str(log), "--report",
                   str(folder / f"fit.{suffix}")],
         )
         assert res.exit_code == 0, res.stderr

@@ -41,10 +41,11 @@ h3 { font-size: 15px; margin: 16px 0 4px; color: #14213d; }
 p { margin: 8px 0; }
 pre { background: #f3f5f8; border-left: 3px solid var(--accent); padding: 8px 12px;
       font: 13px/1.4 "DejaVu Sans Mono", Menlo, Consolas, monospace; overflow-x: auto; }
-table { border-collapse: collapse; margin: 10px 0 4px; font-size: 13px; }
+table { border-collapse: collapse; margin: 10px 0 4px; font-size: 13px; max-width: 100%; }
 caption { caption-side: bottom; text-align: left; color: var(--mute); font-size: 12px;
           padding-top: 4px; max-width: 900px; }
 th, td { border: 1px solid var(--line); padding: 4px 9px; vertical-align: top; }
+td { overflow-wrap: anywhere; }
 th { background: var(--head); text-align: left; font-weight: 600; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 td.strong { font-weight: 600; }
