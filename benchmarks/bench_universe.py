@@ -19,7 +19,8 @@ Each world is drawn afresh from a seed printed at the start (a new seed each run
 
 Each log is fitted as a user would (``balancer_id.identify.fit``, default model and
 starts). Scored against the truth, over the trusted fits: the share of trusted parameters
-(``m_a, T_a, D0, A`` fitted) outside their 99 % interval (target <= 2 %), each parameter's
+(``m_a, T_a, D0, A`` fitted; a parameter's own ``trusted`` where the fit gives one, so
+an untrusted fit's parameters that keep their trust count too) outside their 99 % interval (target <= 2 %), each parameter's
 95 % coverage (target >= 90 %); the share of worlds trusted per class (clean, sensor,
 effect); refusals, tracebacks and hangs (a world over ``--timeout`` s).
 
@@ -324,12 +325,14 @@ def report(outcomes: list[Outcome]) -> None:
     by_kind: dict[str, Counter] = defaultdict(Counter)
     for o in outcomes:
         by_kind[o.world.kind][o.status] += 1
-        if o.status != "trusted":
+        if o.status not in ("trusted", "untrusted"):
             continue
         missed = []
         for name in FITTED:
             p = o.params.get(name)
             if p is None or not p.get("vary"):
+                continue
+            if not p.get("trusted", o.status == "trusted"):  # a per-parameter flag, or the fit's
                 continue
             truth = o.world.truth[name]
             iv99 = interval(p, Z99)
