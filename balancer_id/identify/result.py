@@ -14,6 +14,8 @@ from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from balancer_id.identify.advice import viscosity_factor
 from balancer_id.identify.classic import ClassicResult, paper_method
 from balancer_id.identify.coupling import Coupling, coupling_of
@@ -381,7 +383,25 @@ class FitResult(Displayable):
             out["tracking"] = self.tracking.to_dict()
         if self.posterior is not None:
             out["posterior"] = self.posterior.to_dict()
+        out["band"] = self.band_summary()
         return json_ready(out)
+
+    def band_summary(self) -> dict[str, object] | None:
+        """The ``band`` object of the JSON (:func:`~balancer_id.identify.band.band_summary`):
+        the 95 % band's median half-width per trial and the share of the measured samples
+        outside the band widened by the noise; None when the band cannot be drawn.
+
+        Returns
+        -------
+        dict or None
+        """
+        from balancer_id.identify.band import band_summary
+
+        try:
+            band = self.band()
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            return None
+        return band_summary(band, self.match.y)
 
 
 def robot_coupling(
