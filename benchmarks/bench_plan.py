@@ -26,6 +26,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from balancer_id.errors import IdentificationError
 from balancer_id.identify.api import fit
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.design import TRAVEL_FACTOR, Candidate, candidate_grid
@@ -79,15 +80,26 @@ def halfwidth(result, name: str) -> float:
     return 1.96 * p.stderr if p.vary and p.stderr else float("inf")
 
 
-def one(case: str, seed: int) -> tuple[float, float, float, str] | None:
-    """(achieved / predicted, achieved, random's achieved, target) for one seed."""
+def one(case: str, seed: int) -> tuple[float, float, float, str] | str:
+    """(achieved / predicted, achieved, random's achieved, target) for one seed, or why
+    the seed was skipped (a first fit that is not trusted or fails: nothing to plan on;
+    a refit that fails)."""
+    try:
+        return _one(case, seed)
+    except IdentificationError as exc:
+        return f"a fit failed: {str(exc)[:80]}"
+
+
+def _one(case: str, seed: int) -> tuple[float, float, float, str] | str:
     spec, truth, thrusts, seconds, noise = CASES[case]
     rng = np.random.default_rng(seed)
     trials = start_trials(spec, truth, thrusts, seconds, noise, rng)
     first = fit(trials, model=spec, profile=False)
+    if any(p.at_bound and p.vary for p in first.match.parameters.values()):
+        return "the first fit ended at a bound"
     proposal = plan(first, count=1, separate=False)
     if not proposal.design.proposals:
-        return None
+        return "no proposal"
     p = proposal.design.proposals[0]
     target = p.target
     predicted = p.after[target]
@@ -129,7 +141,10 @@ def main() -> None:
     print("|---|---|---|---:|---:|---:|")
     for case in CASES:
         rows = [one(case, seed0 + s) for s in range(args.seeds)]
-        rows = [r for r in rows if r is not None]
+        skipped = [r for r in rows if isinstance(r, str)]
+        rows = [r for r in rows if not isinstance(r, str)]
+        for why in skipped:
+            print(f"<!-- {case}: a seed skipped: {why} -->")
         if not rows:
             print(f"| {case} | - | no proposal | - | - | - |")
             continue

@@ -27,6 +27,11 @@ Fresh cases every run (the seed is printed; ``--seed`` repeats a run).
     python benchmarks/bench_tracking.py --cases 12 [--minutes 5,10] [--seed N]
     python benchmarks/bench_tracking.py --cases 40 --minutes 5,10,20,30,60
     python benchmarks/bench_tracking.py --cases 40 --controls 1   # false tracking
+    python benchmarks/bench_tracking.py --cases 20 --controls 0 --diagnose  # the diagnosis
+
+``--diagnose`` also fits each drifting log plainly and diagnoses it, as a user would: the
+case counts as named when the verdict's explanation (or the ambiguity's two) lets the
+moving parameter change (a trend in time, or a drift or split over runs).
 """
 
 from __future__ import annotations
@@ -130,8 +135,33 @@ def _draw(
 
 
 
-def run_case(case: Case, folder: Path) -> dict[str, object]:
-    """Simulate, fit and score one case."""
+def _names_moving(d: dict, name: str) -> bool:
+    """Whether a diagnosis (its JSON) names ``name`` as changing: the verdict's explanation
+    (or the ambiguity's two) lets ``name`` change in time or between runs (trend, drift,
+    split)."""
+    exps = d.get("explanations") or []
+    if d["verdict"] == "ambiguous":
+        amb = d.get("ambiguity") or {}
+        labels = {amb.get("best"), amb.get("runner_up")}
+        top = [e for e in exps if e.get("label") in labels]
+    else:
+        top = [e for e in exps if e.get("verdict") == d["verdict"]][:1]
+    return any(
+        e.get("kind") in ("trend", "drift", "split") and name in (e.get("parameters") or [])
+        for e in top
+    )
+
+
+def diagnose_case(path: Path, param: str) -> tuple[bool, str]:
+    """Fit the log as a user would and diagnose it: (names ``param`` moving, verdict)."""
+    from balancer_id.diagnostics.diagnosis import diagnose
+
+    d = diagnose(fit(str(path), profile=False)).to_dict()
+    return _names_moving(d, param), str(d["verdict"])
+
+
+def run_case(case: Case, folder: Path, diagnosis: bool = False) -> dict[str, object]:
+    """Simulate, fit and score one case (and diagnose a drifting one)."""
     rng = np.random.default_rng(case.seed)
     dur = case.minutes * 60.0
     hold = float(rng.integers(6, 11))  # whole seconds: see the module's docstring
@@ -160,6 +190,9 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
         return {"case": case.label(), "tracked": tracked, "drifting": case.param is not None,
                 "error": str(exc), "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0
+    named, verdict = (
+        diagnose_case(path, case.param) if diagnosis and case.param else (None, None)
+    )
     tr = result.tracking
     track = tr.tracks[tracked]
     truth = case.value(tracked, track.time_s)  # at the time each block's estimate stands for
@@ -180,6 +213,8 @@ def run_case(case: Case, folder: Path) -> dict[str, object]:
         "window_rel_rmse": w_rmse,
         "blocks": int(track.time_s.size),
         "seconds": seconds,
+        "named": named,
+        "verdict": verdict,
     }
 
 
@@ -191,6 +226,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--controls", type=float, default=0.25,
                         help="share of controls (nothing moves); 1 for controls only")
+    parser.add_argument("--diagnose", action="store_true",
+                        help="also diagnose each drifting log: is the moving parameter named?")
     args = parser.parse_args()
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % 2**31)
     print(f"seed {seed} (repeat with --seed {seed})")
@@ -199,7 +236,7 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:
-            row = run_case(case, Path(tmp))
+            row = run_case(case, Path(tmp), args.diagnose)
             rows.append(row)
             if "error" in row:
                 print(f"{row['case']:<40} track {row['tracked']:<4} FAILED: {row['error']}")
@@ -209,7 +246,9 @@ def main() -> None:
                 f"p={row['p']:.1e} "
                 f"coverage {row['coverage']:.0%} (window {row['window_coverage']:.0%}) "
                 f"rel. RMSE {row['rel_rmse']:.3f} (window {row['window_rel_rmse']:.3f}) "
-                f"{row['blocks']} blocks {row['seconds']:.1f} s",
+                f"{row['blocks']} blocks {row['seconds']:.1f} s"
+                + (f"; diagnose: {row['verdict']}, names it: {row['named']}"
+                   if row["named"] is not None else ""),
                 flush=True,
             )
     failed = [r for r in rows if "error" in r]
@@ -230,6 +269,10 @@ def main() -> None:
     if drifting:
         print(f"| drifting parameter found moving ({len(drifting)} cases) | "
               f"{np.mean([r['moving'] for r in drifting]):.0%} | - | |")
+    named = [r for r in drifting if r["named"] is not None]
+    if named:
+        print(f"| diagnosis names the drifting parameter ({len(named)} cases) | "
+              f"{np.mean([r['named'] for r in named]):.0%} | - | >= 90 % |")
     if controls:
         print(f"| false tracking on controls ({len(controls)} cases) | "
               f"{np.mean([r['moving'] for r in controls]):.0%} | - | <= 5 % |")

@@ -93,3 +93,37 @@ def test_fit_series_writes_band_columns(cli, tmp_path):
     assert code == 0, err
     header = out.read_text().splitlines()[0].split(",")
     assert header[-4:] == ["model_low", "model_high", "noise_low", "noise_high"]
+
+
+def test_fit_json_summarises_the_band(fitted, cli):
+    # the right model: about 5 % of the samples outside the noise band, no failing stretch,
+    # one entry per trial whose half-widths are the band's own
+    _, result = fitted
+    d = result.to_dict()["band"]
+    band = result.band()
+    assert d["method"] == "covariance" and d["level"] == 0.95
+    assert 0.03 <= d["share_outside"] <= 0.07
+    assert d["failing_stretches"] == 0
+    assert [t["index"] for t in d["trials"]] == [td.index for td in band.trials]
+    first = band.slices()[0]
+    half = (band.model_high[first] - band.model_low[first]) / 2
+    assert d["trials"][0]["model_halfwidth_median"] == pytest.approx(np.median(half))
+    assert all(t["noise_halfwidth_median"] > t["model_halfwidth_median"] for t in d["trials"])
+    assert d["noise_halfwidth_median"] == pytest.approx(1.96 * d["sigma"], rel=0.05)
+    code, out, err = cli("fit", "sample_logs/paper_balancer.csv", "--json", "--no-cache")
+    assert code == 0, err
+    import json
+
+    assert 0.0 <= json.loads(out)["band"]["share_outside"] <= 0.1
+
+
+def test_fit_json_band_shows_a_wrong_model():
+    from balancer_id.identify.band import band_summary
+
+    rng = np.random.default_rng(5)
+    trials = step_trials("variable_viscosity", TRUTH, [2.45, -7.35], 0.02, rng, seconds=8.0)
+    match = match_trials(parse_model("viscous"), trials, start={"m_a": 14.0, "T_a": 0.3})
+    d = band_summary(response_band(match), match.y)
+    assert d["share_outside"] > 0.1
+    assert d["failing_stretches"] >= 1
+    assert max(t["share_outside"] for t in d["trials"]) > 0.15

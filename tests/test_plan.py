@@ -104,3 +104,47 @@ def test_plan_command_json(cli):
     assert {"thrust_N", "direction", "rest_s", "duration_s"} <= set(prop)
     code, _, err = cli("plan", "sample_logs/paper_balancer.csv", "--count", "0")
     assert code == 2 and "--count" in err
+
+
+def _record(trials, candidate, seed):
+    inp = candidate.trial_input()
+    (sim,) = simulate_many(parse_model(), TRUTH, [inp])
+    rng = np.random.default_rng(seed)
+    new = TrialData(
+        len(trials), candidate.thrust_N, candidate.direction, candidate.rest_s, inp,
+        sim.accel + rng.normal(0, 0.03, inp.time.size),
+    )
+    return fit([*trials, new], profile=False)
+
+
+def test_one_level_plan_holds_for_the_other_values_of_the_guess():
+    # one level: A is held at a guess (1 / the level: half the truth). The trial is planned
+    # at the values the guess could have too, each with the others refitted: all fit the
+    # one level alike (D0 exp(-A |F|) the same there); the trial fills the travel the
+    # recorded trials allow, and recorded on the true balancer it pins A as predicted
+    import balancer_id.identify.design as design
+
+    rng = np.random.default_rng(101)
+    trials = step_trials("variable_viscosity", TRUTH, [4.9, -4.9], 0.03, rng, seconds=8.0)
+    result = fit(trials, profile=False)
+    match = result.match
+    values = match.values()
+    points = design._guessed_points(match, ["A"], values)
+    assert len(points) == len(design.GUESS_FACTORS)
+    viscosity = [pt["D0"] * np.exp(-pt["A"] * 4.9) for pt in points]
+    assert np.allclose(viscosity, values["D0"] * np.exp(-values["A"] * 4.9), rtol=0.02)
+    assert sorted(pt["A"] / values["A"] for pt in points) == pytest.approx(
+        sorted(design.GUESS_FACTORS), rel=1e-6
+    )
+    grid = design.candidate_grid(trials)
+    with np.errstate(all="ignore"):
+        out0 = match.data.packed.run(match.model, np.asarray(match.model.vector(values)))
+    travel = design.TRAVEL_FACTOR * float(np.max(np.abs(out0[:, 2])))
+    fills = design._filling_travel(match, grid, values, travel)
+    assert fills
+    _, _, moves = design._candidate_information(match, fills, values, ["m_a"], 1.0)
+    assert max(moves) <= travel and min(moves) > 0.6 * travel
+    q = plan(result, separate=False, count=1).design.proposals[0]
+    assert q.target == "A" and abs(abs(q.candidate.thrust_N) - 4.9) > 0.5
+    got = 1.96 * _record(trials, q.candidate, 5).match.parameters["A"].stderr
+    assert got == pytest.approx(q.after["A"], rel=0.15)

@@ -27,7 +27,7 @@ from balancer_id.identify.data import FitData, TrialData
 if TYPE_CHECKING:
     from balancer_id.identify.display import ShownFit
 
-__all__ = ["ResponseBand", "Stretch", "covariance_of", "response_band"]
+__all__ = ["ResponseBand", "Stretch", "band_summary", "covariance_of", "response_band"]
 
 #: Normal quantile of a two-sided 95 % band.
 Z95 = 1.959963984540054
@@ -205,6 +205,57 @@ class ResponseBand:
             "model_halfwidth_max": float(np.max(width) / 2) if width.size else 0.0,
             "model_halfwidth_median": float(np.median(width) / 2) if width.size else 0.0,
         }
+
+
+def band_summary(band: ResponseBand, measured: np.ndarray) -> dict[str, object]:
+    """The ``band`` object of ``fit --json``: the band's widths and the measurement against it.
+
+    Parameters
+    ----------
+    band : ResponseBand
+        The fit's band over its own trials.
+    measured : numpy.ndarray
+        The measured acceleration at the band's samples (m/s^2).
+
+    Returns
+    -------
+    dict
+        ``method``, ``level``, ``sigma``; over all samples the model band's median and
+        largest half-width, the noise band's median half-width, the share of the measured
+        samples outside the noise band (``share_outside``, nominally 0.05) and the number
+        of stretches where the model fails (:meth:`ResponseBand.stretches`); per trial
+        (``trials``, in order) its ``index``, ``model_halfwidth_median``,
+        ``noise_halfwidth_median`` and ``share_outside``.
+    """
+    y = np.asarray(measured, float)
+    ok = np.isfinite(y)
+    out_all = ~band.inside(y) & ok
+    model_half = (band.model_high - band.model_low) / 2
+    noise_half = (band.noise_high - band.noise_low) / 2
+
+    def med(x: np.ndarray) -> float:
+        return float(np.median(x)) if x.size else 0.0
+
+    def share(sl: slice) -> float | None:
+        n = int(ok[sl].sum())
+        return float(out_all[sl].sum() / n) if n else None
+
+    trials = [
+        {
+            "index": td.index,
+            "model_halfwidth_median": med(model_half[sl]),
+            "noise_halfwidth_median": med(noise_half[sl]),
+            "share_outside": share(sl),
+        }
+        for td, sl in zip(band.trials, band.slices(), strict=True)
+    ]
+    return {
+        **band.to_dict(),
+        "noise_halfwidth_median": med(noise_half),
+        "share_outside": share(slice(None)),
+        "failing_stretches": len(band.stretches(y)),
+        "trials": trials,
+    }
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:

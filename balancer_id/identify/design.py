@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from balancer_id.errors import UsageError
+from balancer_id.errors import BalancerIdError, UsageError
 from balancer_id.identify.band import Z95
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
@@ -242,6 +242,132 @@ def _sensitivities(match: MatchResult, packed, values: dict[str, float], names: 
     return out, sens
 
 
+#: Where a parameter is held at a guess (``A`` from one thrust level), the trials are
+#: planned for its value at these multiples of the guess too, the others refitted there.
+GUESS_FACTORS = (0.25, 0.5, 2.0, 4.0)
+
+
+def _guessed_points(
+    match: MatchResult, also: Sequence[str], values: dict[str, float]
+) -> list[dict[str, float]]:
+    """The other values a held-at-a-guess parameter may have, each with the free
+    parameters refitted to the data (one thrust level fits ``D0 exp(-A |F|)`` at that level
+    equally well for any ``A``: the refit moves ``D0``); refits that fail are skipped.
+    """
+    from balancer_id.identify.matching import match_trials
+
+    guessed = [nm for nm in also if nm in values and values[nm] != 0]
+    if not guessed:
+        return []
+    model = match.model
+    held = {nm: p.value for nm, p in match.parameters.items() if not p.vary}
+    out = []
+    for f in GUESS_FACTORS:
+        fixed = dict(held)
+        for nm in guessed:
+            lo, hi = model.param(nm).min, model.param(nm).max
+            fixed[nm] = float(np.clip(values[nm] * f, lo, hi))
+        try:
+            refit = match_trials(model, match.data.trials, start=values, fixed=fixed)
+        except BalancerIdError:  # a point that cannot be fitted is not planned for
+            continue
+        if refit.success:
+            out.append({**values, **refit.values(), **fixed})
+    return out
+
+
+#: A trial that fills the travel is recorded this much shorter than the time the fitted
+#: model takes to reach the limit (s, and at least this share of it).
+FILL_MARGIN_S = 0.5
+FILL_SHARE = 0.95
+
+
+def _filling_travel(
+    match: MatchResult, grid: Sequence[Candidate], fitted: dict[str, float], travel: float
+) -> list[Candidate]:
+    """Per level and rest, the trial as long as the travel allows, where the grid's
+    durations jump past it: information grows with every second recorded, so the best trial
+    at a level is often the longest one that fits (a duration of the grid alone would
+    leave a level's best trial out or cut it to half)."""
+    if not math.isfinite(travel):
+        return []
+    model = match.model
+    longest: dict[tuple[float, float], Candidate] = {}
+    for c in grid:
+        key = (c.thrust_N, c.rest_s)
+        if key not in longest or c.duration_s > longest[key].duration_s:
+            longest[key] = c
+    shortest = min(c.duration_s for c in grid)
+    pvec = np.asarray(model.vector(fitted), float)
+    out = []
+    for c in longest.values():
+        inp = c.trial_input()
+        with np.errstate(all="ignore"):
+            pos = PackedTrials.pack([inp]).run(model, pvec)[:, 2]
+        beyond = np.flatnonzero(~(np.abs(pos) <= travel))
+        if beyond.size == 0:
+            continue
+        reach = float(inp.time[beyond[0]]) - c.rest_s
+        dur = math.floor(min(reach - FILL_MARGIN_S, FILL_SHARE * reach) * 2) / 2
+        if dur > shortest and all(
+            abs(g.duration_s - dur) > 0.25 for g in grid if (g.thrust_N, g.rest_s) == (
+                c.thrust_N, c.rest_s)
+        ):
+            out.append(Candidate(c.thrust_N, c.rest_s, float(dur), c.rate_hz))
+    return out
+
+
+def _candidate_information(
+    match: MatchResult, grid: Sequence[Candidate], point: dict[str, float],
+    names: list[str], s2: float,
+) -> tuple[list[np.ndarray], list[float], list[float]]:
+    """Each candidate's information at ``point``, its peak speed and farthest move."""
+    model = match.model
+    longest: dict[tuple[float, float], Candidate] = {}
+    for c in grid:  # one simulation per level and rest: shorter durations are prefixes
+        key = (c.thrust_N, c.rest_s)
+        if key not in longest or c.duration_s > longest[key].duration_s:
+            longest[key] = c
+    runs = {}
+    pvec = np.asarray(model.vector(point), float)
+    cols = [list(model.param_names).index(n) for n in names]
+    for key, c in longest.items():
+        packed = PackedTrials.pack([c.trial_input()])
+        with np.errstate(all="ignore"):
+            out, sens = packed.run_sens(model, pvec, cols)
+        runs[key] = (np.asarray(c.trial_input().time), out, np.where(np.isfinite(sens), sens, 0.0))
+    adds, peaks, moves = [], [], []
+    for c in grid:
+        t, out, s = runs[(c.thrust_N, c.rest_s)]
+        rows = t <= c.rest_s + c.duration_s + 1e-9
+        moves.append(float(np.nanmax(np.abs(out[rows, 2]))) if rows.any() else 0.0)
+        adds.append(s[rows].T @ s[rows] / s2)
+        v = out[rows, 1]
+        peaks.append(float(np.nanmax(np.abs(v))) if v.size else 0.0)
+    return adds, peaks, moves
+
+
+def _mean_score(infos: list[np.ndarray], adds_at: list[list[np.ndarray]], j: int | None):
+    """Each candidate's objective over the points: the mean of the log target variance (or
+    minus the log-determinant), a pseudo-Bayesian design over a guessed parameter."""
+    total = np.zeros(len(adds_at[0]))
+    for info, adds in zip(infos, adds_at, strict=True):
+        sc = np.array([_objective(info + add, j) for add in adds])
+        if j is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sc = np.where(sc > 0, np.log(sc), np.inf)
+        total += sc
+    return total / len(infos) if j is None else np.exp(total / len(infos))
+
+
+def _typical_halfwidths(infos: list[np.ndarray], names: list[str]) -> dict[str, float]:
+    """The half-widths' geometric mean over the points (the fitted point's alone when one)."""
+    each = [_halfwidths(info, names) for info in infos]
+    return {
+        n: float(np.exp(np.mean([np.log(max(h[n], 1e-300)) for h in each]))) for n in names
+    }
+
+
 def _halfwidths(info: np.ndarray, names: list[str]) -> dict[str, float]:
     cov = np.linalg.inv(info)
     return {n: float(Z95 * math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(names)}
@@ -324,38 +450,34 @@ def design_trials(
     s2 = float(np.sum(match.residual**2)) / max(n - k, 1)
     s2 *= max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     ridge = np.diag([1.0 / (VAGUE * _scale(match, nm)) ** 2 for nm in names])
-    _, sens = _sensitivities(match, match.data.packed, values, names)
-    info = sens.T @ sens / s2 + ridge
     fitted = match.values()  # where the load goes (the bound point only for information)
     with np.errstate(all="ignore"):
         out0 = match.data.packed.run(model, np.asarray(model.vector(fitted), float))
     travel = TRAVEL_FACTOR * float(np.nanmax(np.abs(out0[:, 2]))) if out0.size else math.inf
     fastest = float(np.nanmax(np.abs(out0[:, 1]))) if out0.size else 0.0
-    now = _halfwidths(info, names)
 
     grid = candidate_grid(match.data.trials)
-    adds, peaks = [], []
-    longest: dict[tuple[float, float], Candidate] = {}
-    for c in grid:  # one simulation per level and rest: shorter durations are prefixes
-        key = (c.thrust_N, c.rest_s)
-        if key not in longest or c.duration_s > longest[key].duration_s:
-            longest[key] = c
-    runs = {}
-    for key, c in longest.items():
-        packed = PackedTrials.pack([c.trial_input()])
-        _, s = _sensitivities(match, packed, values, names)
-        with np.errstate(all="ignore"):
-            out = packed.run(model, np.asarray(model.vector(fitted), float))
-        runs[key] = (np.asarray(c.trial_input().time), out, s)
-    for c in grid:
-        t, out, s = runs[(c.thrust_N, c.rest_s)]
-        rows = t <= c.rest_s + c.duration_s + 1e-9
-        moved = float(np.nanmax(np.abs(out[rows, 2]))) if rows.any() else 0.0
-        # too far a move adds nothing: it cannot be recorded on this hoist
-        adds.append(s[rows].T @ s[rows] / s2 if moved <= travel else np.zeros_like(info))
-        v = out[rows, 1]
-        peaks.append(float(np.nanmax(np.abs(v))) if v.size else 0.0)
-    peak_arr = np.array(peaks)
+    grid += _filling_travel(match, grid, fitted, travel)
+    # the information now and each candidate's, at the fitted point and, where a parameter
+    # is held at a guess, at the other values the data allow (each refitted): the
+    # proposals are chosen for all of them (module docstring)
+    points = [values, *_guessed_points(match, also, values)]
+    infos, adds_at = [], []
+    for point in points:
+        _, sens = _sensitivities(match, match.data.packed, point, names)
+        infos.append(sens.T @ sens / s2 + ridge)
+        adds_p, peaks, moves = _candidate_information(match, grid, point, names, s2)
+        adds_at.append(adds_p)
+        if point is values:
+            peak_arr, moved_arr = np.array(peaks), np.array(moves)
+    # too far a move adds nothing: it cannot be recorded on this hoist
+    far = moved_arr > travel
+    for adds_p in adds_at:
+        for i in np.flatnonzero(far):
+            adds_p[i] = np.zeros_like(infos[0])
+    info = infos[0]
+    now = _halfwidths(info, names)
+    peaks = list(peak_arr)
 
     order: list[tuple[str | None, str]] = [(u, u) for u in unreached if target in (None, u)]
     if target == "all":
@@ -371,7 +493,7 @@ def design_trials(
     proposals = []
     for goal, label in order:
         j = names.index(goal) if goal is not None else None
-        scores = np.array([_objective(info + add, j) for add in adds])
+        scores = _mean_score(infos, adds_at, j)
         if goal in unreached and match.parameters[goal].not_reached == "above":
             # a speed limit is reached by a trial faster than both the bound the data
             # leave open and every trial so far (in the model without the limit)
@@ -381,14 +503,14 @@ def design_trials(
         best = _modest(scores, grid, j is None)
         if best is None:
             break
-        before = _halfwidths(info, names)
-        info = info + adds[best]
+        before = _typical_halfwidths(infos, names)
+        infos = [inf + adds_p[best] for inf, adds_p in zip(infos, adds_at, strict=True)]
         proposals.append(
             Proposal(
                 grid[best],
                 label,
                 before,
-                _halfwidths(info, names),
+                _typical_halfwidths(infos, names),
                 peaks[best],
                 goal if goal in unreached else None,
             )

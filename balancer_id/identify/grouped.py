@@ -126,6 +126,7 @@ def fit_grouped(
     own_start: Sequence[Mapping[str, float]] | None = None,
     fixed: Mapping[str, float] | None = None,
     max_iterations: int = MAX_ITERATIONS,
+    robust_shared: bool = False,
 ) -> GroupedFit:
     """Fit ``model`` over ``groups``: ``own`` parameters per group, the rest shared.
 
@@ -146,6 +147,11 @@ def fit_grouped(
         Parameters held (shared).
     max_iterations : int
         Most Levenberg-Marquardt iterations.
+    robust_shared : bool
+        Widen the shared parameters' covariance (and the part of every group's error
+        that comes through it) to the groups' cluster-robust (sandwich) covariance where
+        that is larger (:func:`_robust_shared`): the groups then need not agree with the
+        model's noise, and a residual correlated within a group counts as it is.
 
     Returns
     -------
@@ -260,8 +266,8 @@ def fit_grouped(
     rss = float(sum(float(r @ r) for r in residuals))
     segs = [r[sl] for pr, r in zip(problems, residuals, strict=True) for sl in pr.data.slices()]
     tau = max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
-    cov_s, cov_o = _covariances(parts, p, q)
     sigma2 = rss / max(n_obs - k, 1) * tau
+    cov_s, cov_o = _covariances(parts, p, q, sigma2 if robust_shared else None)
     shared = {}
     for j, name in enumerate(shared_names):
         se = _se(cov_s, j, sigma2)
@@ -352,10 +358,12 @@ def _lm_step(parts, p: int, q: int, lam: float, cost: float, n: int):
     return ds, do, se_s, se_o
 
 
-def _covariances(parts, p: int, q: int):
+def _covariances(parts, p: int, q: int, robust_sigma2: float | None = None):
     """``inv(J^T J)``: its shared block, and each group's own block in two parts: given the
     shared values (independent from group to group) and through the shared values' error
-    (common to all groups); their sum is the marginal covariance."""
+    (common to all groups); their sum is the marginal covariance. With ``robust_sigma2``
+    (the noise variance the covariances are later scaled by) the shared block is widened
+    to the groups' sandwich covariance where that is larger (:func:`_robust_shared`)."""
     hss = np.zeros((p, p))
     blocks = []
     for jt, _ in parts:
@@ -370,6 +378,12 @@ def _covariances(parts, p: int, q: int):
             invs.append(inv)
             schur -= hso @ inv @ hso.T
         cov_s = np.linalg.inv(schur) if p else np.zeros((0, 0))
+        if robust_sigma2 is not None and p:
+            scores = []
+            for (jt, rt), (hso, _), inv in zip(parts, blocks, invs, strict=True):
+                a, b = jt[:, :p], jt[:, p:]
+                scores.append(a.T @ rt - hso @ inv @ (b.T @ rt))
+            cov_s = _robust_shared(cov_s, np.array(scores), robust_sigma2)
         cov_o = []
         for (hso, _), inv in zip(blocks, invs, strict=True):
             m = inv @ hso.T  # q x p
@@ -377,3 +391,44 @@ def _covariances(parts, p: int, q: int):
     except np.linalg.LinAlgError:
         return None, [(None, None)] * len(parts)
     return cov_s, cov_o
+
+
+def _robust_shared(cov: np.ndarray, scores: np.ndarray, sigma2: float) -> np.ndarray:
+    """The shared parameters' covariance widened to the groups' sandwich where larger.
+
+    The sandwich ``C U C`` (``C = inv`` of the shared Schur complement, ``U`` the sum over
+    groups of each group's score on the shared parameters, its own ones profiled out,
+    squared; times ``G / (G - p)`` for few groups) holds whatever the groups disagree by
+    beyond the noise (a residual correlated within a group, a group the model fits less
+    well than the others); the model-based ``sigma2 C`` holds the noise. The larger of the
+    two in every direction (their positive semi-definite maximum) is returned, in the units
+    of ``cov`` (to be scaled by ``sigma2`` as it is).
+
+    Parameters
+    ----------
+    cov : numpy.ndarray
+        ``inv`` of the shared parameters' Schur complement (``p x p``).
+    scores : numpy.ndarray
+        One row per group: its score on the shared parameters (``J_s^T r`` with the own
+        parameters profiled out).
+    sigma2 : float
+        The noise variance the model-based covariance is scaled by.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    g, p = scores.shape
+    if g <= p + 1 or not np.all(np.isfinite(scores)) or sigma2 <= 0:
+        return cov
+    u = scores.T @ scores * g / (g - p)
+    sandwich = cov @ u @ cov / sigma2
+    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+    if np.any(w <= 0):
+        return cov
+    half = v @ np.diag(np.sqrt(w)) @ v.T
+    inv_half = v @ np.diag(1 / np.sqrt(w)) @ v.T
+    m = inv_half @ sandwich @ inv_half
+    lam, e = np.linalg.eigh(0.5 * (m + m.T))
+    widened = e @ np.diag(np.maximum(lam, 1.0)) @ e.T
+    return half @ widened @ half

@@ -600,6 +600,7 @@ def track_parameters(
             start=values,
             own_start=own_start,
             fixed=fixed,
+            robust_shared=True,
         )
         own_start = [{n: p.value for n, p in own.items()} for own in fit.own]
         per_trial = [{}] * len(trials)
