@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +27,60 @@ if TYPE_CHECKING:
 
 #: Values of ``vertical``.
 VERTICAL_AXES = ("auto", "x", "y", "z")
+
+
+@dataclass(frozen=True)
+class OptionSpelling:
+    """How one reading option is spelled on the command line.
+
+    Every command that reads logs declares these options from :data:`READ_OPTION_SPELLINGS`
+    (:func:`balancer_id.cli.options.reads_logs`) and hands their values to
+    :meth:`ReadOptions.from_text`, so a new reading option is a row there, a field of
+    :class:`ReadOptions` and its spelling in :meth:`ReadOptions.from_text`: this module.
+
+    Attributes
+    ----------
+    name : str
+        The keyword of :meth:`ReadOptions.from_text` (and of the command's parameter).
+    flag : str
+        The option (``--thrust``).
+    kind : object
+        The value's type as the command line gives it (``str | None``).
+    default : object
+        The value when the option is not given.
+    metavar : str
+        What the value is, in words (TEXT, NUMBER...).
+    help : str
+        One line of help.
+    """
+
+    name: str
+    flag: str
+    kind: Any
+    default: Any
+    metavar: str
+    help: str
+
+
+#: The reading options of every command that reads logs, in the order ``--help`` lists them.
+READ_OPTION_SPELLINGS: tuple[OptionSpelling, ...] = (
+    OptionSpelling("thrust", "--thrust", str | None, None, "TEXT",
+                   "Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."),
+    OptionSpelling("force_sign", "--force-sign", int | None, None, "INTEGER",
+                   "+1 or -1: fix the sign of the force channel."),
+    OptionSpelling("vertical", "--vertical", str, "auto", "TEXT",
+                   "auto|x|y|z|-z|...: up axis of logs without gravity."),
+    OptionSpelling("columns", "--columns", str | None, None, "TEXT",
+                   "Column map of a generic CSV: time=t,force=F,ax=..."),
+    OptionSpelling("g", "--g", float, G_DEFAULT, "NUMBER", "Gravity in m/s^2."),
+    OptionSpelling("accel_unit", "--accel-unit", str, "auto", "TEXT",
+                   "auto|m/s^2|g: unit of the acceleration columns."),
+    OptionSpelling("window", "--window", list[str] | None, None, "TEXT...",
+                   "START:END in s: a stretch where only the measured force acts (repeatable); "
+                   "each is a trial, nothing is detected (a lab rig)."),
+    OptionSpelling("force_delay", "--force-delay", float, 0.0, "SECONDS",
+                   "The force channel's lag behind the acceleration (s; diagnose measures it)."),
+)
 
 
 @dataclass(frozen=True)
@@ -609,7 +664,7 @@ def refuse_same_file_twice(paths: Sequence[str | Path]) -> None:
             size = Path(path).stat().st_size
             digest = hashlib.sha256()
             with open(path, "rb") as fh:
-                for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                for block in iter(partial(fh.read, 1 << 20), b""):
                     digest.update(block)
         except OSError:
             continue  # the reader says what is wrong with it

@@ -18,10 +18,12 @@ Each world is drawn afresh from a seed printed at the start (a new seed each run
   that clips, a dead time, an asymmetric lag.
 
 Each log is fitted as a user would (``balancer_id.identify.fit``, default model and
-starts). Scored against the truth, over the trusted fits: the share of trusted parameters
-(``m_a, T_a, D0, A`` fitted) outside their 99 % interval (target <= 2 %), each parameter's
-95 % coverage (target >= 90 %); the share of worlds trusted per class (clean, sensor,
-effect); refusals, tracebacks and hangs (a world over ``--timeout`` s).
+starts). Scored against the truth, over the trusted parameters (``m_a, T_a, D0, A``
+fitted; a parameter's own ``trusted`` where the fit gives one, so an untrusted fit's
+parameters that keep their trust count too): the share outside their 99 % interval
+(target <= 2 %), each parameter's 95 % coverage (target >= 90 %); the share of worlds
+trusted per class (clean, sensor, effect); refusals, tracebacks and hangs (a world over
+``--timeout`` s).
 
 Works on any version of the code (it reads only ``fit``'s result), so "before" comes from
 an older checkout with ``PYTHONPATH`` pointing there.
@@ -324,12 +326,14 @@ def report(outcomes: list[Outcome]) -> None:
     by_kind: dict[str, Counter] = defaultdict(Counter)
     for o in outcomes:
         by_kind[o.world.kind][o.status] += 1
-        if o.status != "trusted":
+        if o.status not in ("trusted", "untrusted"):
             continue
         missed = []
         for name in FITTED:
             p = o.params.get(name)
             if p is None or not p.get("vary"):
+                continue
+            if not p.get("trusted", o.status == "trusted"):  # a per-parameter flag, or the fit's
                 continue
             truth = o.world.truth[name]
             iv99 = interval(p, Z99)

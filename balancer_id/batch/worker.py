@@ -148,7 +148,9 @@ def _identify(
             data: dict[str, Any] = dict(result.to_dict())
             if diagnose:
                 from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
+                from balancer_id.identify.result import FitResult
 
+                assert isinstance(result, FitResult), "a fit without per_log is one fit"
                 found = diagnose_fit(result, threads=1)  # the workers share the cores
                 data["diagnosis"] = {
                     "verdict": found.verdict,

@@ -269,11 +269,11 @@ class Diagnosis(Displayable):
             d = self.discovery
             lines.append("[[Discovered term]] (sparse regression of the force discrepancy)")
             lines.append(f"    {d.formula} (N); BIC falls by {d.delta_bic:.0f}")
-            for t in d.terms:
-                se = f" +/- {t.stderr:.2g}" if t.stderr is not None else ""
+            for found in d.terms:
+                se = f" +/- {found.stderr:.2g}" if found.stderr is not None else ""
                 lines.append(
-                    f"    {t.expression}: {t.coefficient:.4g}{se} {t.term.unit},"
-                    f" kept in {t.inclusion:.0%} of the bootstrap resamples"
+                    f"    {found.expression}: {found.coefficient:.4g}{se} {found.term.unit},"
+                    f" kept in {found.inclusion:.0%} of the bootstrap resamples"
                 )
             lines.append(f"    {d.command}")
         return lines
@@ -468,7 +468,9 @@ def arena_input(
         independence=independence(match),
         effect_fits=[(s.effect, s.refit) for s in suggestions if s.refit is not None],
         rest_cutoff_hz=rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
-        ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
+        ar=arena.ar_coefficients(
+            colour["rest_acf"], int(colour["n_rest"])  # type: ignore[arg-type, call-overload]
+        ),
         threads=threads,
         tests_failed=any(not t["passed"] for t in checks),
         fit=fit,
@@ -523,8 +525,8 @@ def parameter_drift(fit: FitResult) -> list[dict[str, object]]:
         vals = [v for v in vals if v[3] is not None and np.isfinite(v[3]) and v[3] > 0]
         if len(vals) < 3:
             continue
-        h, d, x, s = zip(*vals, strict=True)
-        h, x, s = np.array(h), np.array(x), np.array(s)
+        h_, d, x_, s_ = zip(*vals, strict=True)
+        h, x, s = np.array(h_, float), np.array(x_, float), np.array(s_, float)
         w = 1 / s**2
         row: dict[str, object] = {"parameter": name, "values": [float(v) for v in x]}
         if np.ptp(h) > 0:

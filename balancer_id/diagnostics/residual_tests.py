@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from balancer_id.diagnostics.context import REGIMES, DiagnosisContext
@@ -189,7 +191,8 @@ def state_correlations(ctx: DiagnosisContext) -> dict[str, float]:
         ``time`` (signed by the thrust), over the samples after the onsets; a state
         that does not vary is left out.
     """
-    res, states = [], {"velocity": [], "position": [], "drive force": [], "time": []}
+    res: list[Any] = []
+    states: dict[str, list[Any]] = {"velocity": [], "position": [], "drive force": [], "time": []}
     for tv in ctx.trials:
         m = tv.t >= 0
         res.append(tv.residual[m])

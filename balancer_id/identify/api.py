@@ -19,6 +19,7 @@ from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
+from balancer_id.identify.timing import check_timing
 from balancer_id.model.registry import Registry
 from balancer_id.model.spec import Model, resolve_model
 from balancer_id.notes import Note
@@ -129,8 +130,7 @@ def _held_from_fit(params: FitResult | str | Path, model: Model) -> dict[str, fl
         values = {k: float(v) for k, v in params.values.items() if k in model.param_names}
         if not values:
             raise UsageError(
-                f"params: the fit of '{params.model}' has none of the parameters of "
-                f"'{model.spec}'"
+                f"params: the fit of '{params.model}' has none of the parameters of '{model.spec}'"
             )
         return values
     from balancer_id.identify.params_file import held_for_model
@@ -363,6 +363,7 @@ def fit(
     structured = structured_residual(match)  # a misfit beyond the noise seen at rest
     if structured is not None:
         notes.append(structured)
+    notes.extend(check_timing(match))  # a drive late or early against the acceleration
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals
 

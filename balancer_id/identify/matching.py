@@ -38,6 +38,9 @@ class ParameterEstimate:
     #: delay below what the data resolve): the estimate is the bound its profile
     #: interval's inner end gives, not a value (:mod:`~balancer_id.identify.reach`).
     not_reached: str | None = None
+    #: Why this parameter alone is not trusted (a check that moves it beyond its
+    #: standard error, :mod:`~balancer_id.identify.timing`); empty: nothing against it.
+    distrust: list[str] = field(default_factory=list)
 
     @property
     def claim(self) -> str | None:

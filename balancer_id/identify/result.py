@@ -147,6 +147,26 @@ class FitResult(Displayable):
         """Why the fit is not trusted: the texts of its ``error`` notes (empty: trusted)."""
         return [n.text for n in self.all_notes if isinstance(n, Note) and n.severity == "error"]
 
+    def parameter_distrust(self) -> dict[str, list[str]]:
+        """Why each fitted parameter is not trusted (empty list: trusted).
+
+        A parameter loses its trust by an ``error`` note (a bound the data did not
+        choose, starts that disagree, a structured residual, a parameter the data cannot
+        determine: the others trade with it, so none is trusted), or by a check that
+        moves it beyond its standard error (its own ``distrust``, e.g. the drive's
+        timing, ``fit.timing``). So a fit can
+        be trusted for ``m_a`` and not for ``A``; the fit is trusted when every fitted
+        parameter is and no note says otherwise.
+        """
+        errors = [n for n in self.all_notes if isinstance(n, Note) and n.severity == "error"]
+        whole = [n.text for n in errors if n.code != "fit.timing"]
+        out: dict[str, list[str]] = {}
+        for name, est in self.match.parameters.items():
+            if not est.vary:
+                continue
+            out[name] = [*whole, *est.distrust]
+        return out
+
     @property
     def stuck(self) -> bool:
         """Whether a parameter ended on a bound the data did not choose, or the starts
@@ -309,6 +329,19 @@ class FitResult(Displayable):
             for (rate, out, q), n in groups.items()
         ]
 
+    def _parameters_json(self) -> dict[str, dict[str, object]]:
+        """Each parameter's JSON, with its own ``trusted`` and ``untrusted_because``
+        (fitted ones; a held value is neither)."""
+        distrust = self.parameter_distrust()
+        out = {}
+        for name, p in self.match.parameters.items():
+            d = p.to_dict()
+            if name in distrust:
+                d["trusted"] = not distrust[name]
+                d["untrusted_because"] = distrust[name]
+            out[name] = d
+        return out
+
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""
         trials = []
@@ -328,7 +361,7 @@ class FitResult(Displayable):
         out: dict[str, object] = {
             "model": self.model,
             "files": self.sources,
-            "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
+            "parameters": self._parameters_json(),
             "correlations": self.match.correlations,
             "classic": self.classic.to_dict(),
             "trials": trials,

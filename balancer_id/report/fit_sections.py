@@ -9,6 +9,7 @@ from __future__ import annotations
 import inspect
 import re
 import textwrap
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -46,14 +47,16 @@ TRIALS_PER_FIGURE = 6
 STRONG_CORRELATION = 0.9
 
 
-def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[Section]:
+def fit_sections(
+    result: FitResult, warnings: Sequence[object] | None = None
+) -> list[Section]:
     """The sections of a fit report, for composing a bigger report.
 
     Parameters
     ----------
     result : FitResult
         A fit.
-    warnings : list of str, optional
+    warnings : sequence of str or Note, optional
         The warnings to show (a diagnosis reads them in the light of its verdict:
         :meth:`~balancer_id.diagnostics.diagnosis.Diagnosis.fit_warnings`); None shows
         the fit's own.

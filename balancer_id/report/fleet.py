@@ -52,7 +52,7 @@ _MISSING = Verdict.EFFECT_MISSING
 
 
 def robust_outliers(
-    values: Sequence[float], stderrs: Sequence[float | None] | None = None
+    values: Sequence[float] | np.ndarray, stderrs: Sequence[float | None] | None = None
 ) -> np.ndarray:
     """Which values lie more than :data:`OUTLIER_Z` scaled MADs from the median.
 

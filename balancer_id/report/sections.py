@@ -62,7 +62,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     Section
         The "Diagnosis" section of a report.
     """
-    d = diagnosis.to_dict()
+    d: dict[str, Any] = diagnosis.to_dict()
     m = d["metrics"]
     tests = d["residual_tests"]
     style = "good" if d["verdict"] == Verdict.ADEQUATE else "bad"
@@ -239,7 +239,7 @@ def improve_section(result: ImproveResult) -> Section:
     """
     from balancer_id.report.plots import plot_error_ladder
 
-    d = result.to_dict()
+    d: dict[str, Any] = result.to_dict()
     rows = [
         [
             str(k),

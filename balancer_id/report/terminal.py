@@ -501,6 +501,21 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
         console.print(line)
 
 
+def print_groups(console: Console, result: dict[str, Any]) -> None:
+    """Print one fit per group (``fit --group-by``), each under its group's label.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The ``fit --group-by`` JSON object (:meth:`GroupFits.to_dict`).
+    """
+    for item in result["groups"]:
+        console.print(f"[bold]group {item['group']}[/bold]")
+        print_fit(console, item)
+
+
 def print_per_log(console: Console, result: dict[str, Any]) -> None:
     """Print a fit with per-log parameters (``fit --per-log``): the shared values, each
     log's own, the sharings compared and the verdict.

@@ -1,0 +1,249 @@
+"""Is the acceleration on time with its drive? A score test at the fit's optimum (issue 31).
+
+A force channel time-stamped late (a wireless sensor, a second device), a balancer's own
+dead time or a sensor's low-pass all shift the measured acceleration in time against the
+simulated one. The fitted values then bend to absorb the shift (``T_a`` shorter or longer
+by about the delay, ``m_a`` and ``A`` with it) and their intervals, which assume the model
+is right, no longer hold the truth.
+
+A shift of the drive by ``d`` seconds moves the simulated output by ``-d`` times its own
+time derivative to first order (every response of a time-invariant model to a shifted
+input is the shifted response). So the residual is regressed on the fit's sensitivities
+``J`` and on that one extra column ``g = dy_model/dt``:
+
+    r ~ J dtheta + g d
+
+``d`` estimates the acceleration's lead over the recorded drive (positive: the
+acceleration moves before the force says it should, i.e. the force channel is late;
+negative: a dead time or a low-pass), with its standard error (the residual's variance
+widened by its correlation time, as the fit's own errors are). ``dtheta`` is how far
+each parameter would move were the shift modelled: the first-order bias the omitted shift
+puts in it. Where ``d`` is clearly non-zero (:data:`TIMING_Z` standard errors), each
+parameter that it moves by more than :data:`SHIFT_SE` of its own standard error is no
+longer trusted: its interval does not account for the shift. The others keep their trust.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.identify.matching import MatchResult
+from balancer_id.notes import Note
+
+#: The shift must be this many standard errors from zero to be called.
+TIMING_Z = 4.0
+
+#: A parameter the shift moves by more than this many of its standard errors loses trust.
+SHIFT_SE = 1.0
+
+#: Rows simulated per block (a long session is never held whole with its sensitivities).
+BLOCK_ROWS = 1 << 16
+
+
+@dataclass(frozen=True)
+class TimingCheck:
+    """The acceleration's lead over its drive, at a fit's optimum.
+
+    Attributes
+    ----------
+    lead_s : float
+        Estimated lead (s): positive, the acceleration moves before the recorded drive.
+    stderr_s : float
+        Its standard error (s).
+    shift : dict of str to float
+        How far each fitted parameter would move were the shift modelled.
+    moved : tuple of str
+        Parameters moved by more than :data:`SHIFT_SE` of their standard error, when the
+        lead is clear (:attr:`clear`); empty otherwise.
+    """
+
+    lead_s: float
+    stderr_s: float
+    shift: dict[str, float]
+    moved: tuple[str, ...]
+
+    @property
+    def z(self) -> float:
+        """The lead in standard errors."""
+        return self.lead_s / self.stderr_s if self.stderr_s > 0 else 0.0
+
+    @property
+    def clear(self) -> bool:
+        """Whether the lead is :data:`TIMING_Z` standard errors from zero."""
+        return bool(np.isfinite(self.z) and abs(self.z) >= TIMING_Z)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict (``metrics``-style figures)."""
+        return {
+            "lead_s": self.lead_s,
+            "stderr_s": self.stderr_s,
+            "z": self.z,
+            "shift": self.shift,
+            "moved": list(self.moved),
+        }
+
+
+def _row_times(match: MatchResult) -> np.ndarray:
+    """The time of every fitted row, trials in order (rows of ``match.y``)."""
+    parts = []
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        t = np.asarray(td.time, dtype=float)
+        n = sl.stop - sl.start
+        parts.append(t[:n] if t.size >= n else np.linspace(0.0, 1.0, n))
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """``dy/dt`` row by row, one-sided at each trial's first and last row."""
+    g = np.zeros_like(y)
+    if y.size < 2:
+        return g
+    dt = np.diff(t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(dt > 0, np.diff(y) / np.where(dt > 0, dt, 1.0), 0.0)
+    forward = np.append(slope, 0.0)
+    backward = np.insert(slope, 0, 0.0)
+    first = np.zeros(y.size, dtype=bool)
+    first[starts] = True
+    last = np.roll(first, -1)
+    last[-1] = True
+    g = 0.5 * (forward + backward)
+    g[first] = forward[first]
+    g[last] = backward[last]
+    return g
+
+
+def timing_check(match: MatchResult) -> TimingCheck | None:
+    """Regress the fit's residual on its sensitivities and on ``dy_model/dt``.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A converged fit.
+
+    Returns
+    -------
+    TimingCheck or None
+        None when nothing was fitted, too few samples, or the design is singular.
+    """
+    model = match.model
+    names = [p.name for p in model.params if match.parameters[p.name].vary]
+    free = [model.param_names.index(n) for n in names]
+    n, k = int(match.y.size), len(free)
+    if k == 0 or n <= k + 2:
+        return None
+    pvec = np.array([match.parameters[p.name].value for p in model.params], dtype=float)
+    t = _row_times(match)
+    starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
+    y = match.data.y
+    gram = np.zeros((k + 2, k + 2))
+    with np.errstate(all="ignore"):
+        blocks = match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS)
+        for first, out, sens in blocks:
+            stop = first + out.shape[0]
+            local = starts[(starts >= first) & (starts < stop)] - first
+            g = _derivative(out[:, 0], t[first:stop], np.append(local, 0).astype(int))
+            r = y[first:stop] - out[:, 0]
+            x = np.column_stack([sens, g, r])
+            if not np.isfinite(x).all():
+                return None
+            gram += x.T @ x
+    xtx, xtr, rtr = gram[: k + 1, : k + 1], gram[: k + 1, k + 1], gram[k + 1, k + 1]
+    try:
+        inv = np.linalg.inv(xtx)
+    except np.linalg.LinAlgError:
+        return None
+    coef = inv @ xtr
+    rss = max(float(rtr - coef @ xtr), 0.0)
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    s2 = rss / max(n - k - 1, 1) * tau
+    var_d = float(inv[k, k]) * s2
+    if not (np.isfinite(var_d) and var_d > 0):
+        return None
+    shift = {name: float(coef[j]) for j, name in enumerate(names)}
+    check = TimingCheck(float(coef[k]), float(np.sqrt(var_d)), shift, ())
+    if not check.clear:
+        return check
+    moved = tuple(
+        name
+        for name in names
+        if (se := match.parameters[name].stderr) is not None
+        and np.isfinite(se)
+        and abs(shift[name]) > SHIFT_SE * se
+    )
+    return TimingCheck(check.lead_s, check.stderr_s, shift, moved)
+
+
+def timing_note(check: TimingCheck) -> Note:
+    """The ``fit.timing`` note of a clear lead: what it is, what it moves, what to do.
+
+    Parameters
+    ----------
+    check : TimingCheck
+        A clear check (:attr:`TimingCheck.clear`).
+
+    Returns
+    -------
+    Note
+        Severity ``error`` when it moves a parameter (those lose their trust), else
+        ``warning``.
+    """
+    ms = check.lead_s * 1e3
+    se = check.stderr_s * 1e3
+    if check.lead_s > 0:
+        what = (
+            f"the acceleration moves {ms:.0f} ± {se:.0f} ms before the recorded force says "
+            f"it should (a force channel time-stamped late: try --force-delay "
+            f"{check.lead_s:.3f})"
+        )
+    else:
+        what = (
+            f"the acceleration follows the recorded force {-ms:.0f} ± {se:.0f} ms later "
+            "than the model does (a dead time, a sensor's low-pass, or an "
+            "accelerometer time-stamped late)"
+        )
+    if check.moved:
+        tail = (
+            f"; modelling it would move {', '.join(check.moved)} by more than their "
+            "standard error, so those values are not trusted: run 'balancer-id diagnose' "
+            "on the same logs"
+        )
+        return Note("fit.timing", what + tail, severity="error")
+    return Note(
+        "fit.timing", what + "; no fitted value moves by its standard error", severity="warning"
+    )
+
+
+def check_timing(match: MatchResult) -> list[Note]:
+    """Run :func:`timing_check` on a fit and mark what it finds on the fit itself.
+
+    The lead and its standard error go into ``match.metrics`` (``timing_lead_s``,
+    ``timing_lead_stderr_s``); each parameter a clear lead moves gets a reason in its
+    :attr:`~balancer_id.identify.matching.ParameterEstimate.distrust`.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (changed in place).
+
+    Returns
+    -------
+    list of Note
+        The ``fit.timing`` note of a clear lead, else nothing.
+    """
+    check = timing_check(match)
+    if check is None:
+        return []
+    match.metrics["timing_lead_s"] = check.lead_s
+    match.metrics["timing_lead_stderr_s"] = check.stderr_s
+    if not check.clear:
+        return []
+    for name in check.moved:
+        match.parameters[name].distrust.append(
+            f"modelling the drive's timing ({check.lead_s * 1e3:+.0f} ms) moves it by "
+            f"{abs(check.shift[name]) / (match.parameters[name].stderr or 1.0):.1f} "
+            "standard errors"
+        )
+    return [timing_note(check)]

@@ -1,0 +1,62 @@
+"""The drive's timing at the optimum (issue 31): a late force channel is measured and
+takes the trust of the values it moves; an on-time log keeps every value trusted."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from balancer_id.identify.api import fit
+from balancer_id.model.spec import resolve_model
+from balancer_id.read.writers import write_log
+from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
+
+TRUTH = {"m_a": 15.0, "T_a": 0.3, "D0": 60.0, "A": 0.05}
+
+
+def _log(tmp_path, delay_s: float) -> str:
+    recs = synthetic_recordings(
+        resolve_model("variable_viscosity"),
+        TRUTH,
+        [8.0, -8.0, 16.0, -16.0],
+        sensor=SensorSettings(rate_hz=200.0),
+        duration_s=4.0,
+        seed=3,
+    )
+    if delay_s:
+        late = []
+        for rec in recs:
+            t = np.asarray(rec.time, dtype=float)
+            f = np.interp(t - delay_s, t, np.asarray(rec.force, dtype=float))
+            late.append(dataclasses.replace(rec, force=f))
+        recs = late
+    path = tmp_path / f"late_{delay_s * 1e3:.0f}ms.csv"
+    write_log(path, recs, "pasco-capstone")
+    return str(path)
+
+
+def test_late_force_channel_is_measured_and_untrusts_what_it_moves(tmp_path) -> None:
+    out = fit(_log(tmp_path, 0.040)).to_dict()
+    lead, se = out["metrics"]["timing_lead_s"], out["metrics"]["timing_lead_stderr_s"]
+    # the force 40 ms late: the acceleration leads it by about that (first order)
+    assert lead == pytest.approx(0.040, abs=max(3 * se, 0.01))
+    codes = [n["code"] for n in out["notes"] if n["severity"] == "error"]
+    assert "fit.timing" in codes
+    assert out["trusted"] is False
+    # T_a absorbs the shift: it is not trusted, and says why
+    t_a = out["parameters"]["T_a"]
+    assert t_a["trusted"] is False
+    assert any("timing" in why for why in t_a["untrusted_because"])
+
+
+def test_on_time_log_keeps_every_value_trusted(tmp_path) -> None:
+    out = fit(_log(tmp_path, 0.0)).to_dict()
+    assert abs(out["metrics"]["timing_lead_s"]) < 4 * out["metrics"]["timing_lead_stderr_s"]
+    assert out["trusted"] is True
+    for name in ("m_a", "T_a", "D0", "A"):
+        p = out["parameters"][name]
+        assert p["trusted"] is True and p["untrusted_because"] == []
+        lo, hi = p["ci95"]
+        assert lo - 0.5 * (hi - lo) <= TRUTH[name] <= hi + 0.5 * (hi - lo)
