@@ -271,6 +271,12 @@ def main() -> None:
     wcov = [r["window_coverage"] for r in rows]
     print(f"| blocks inside the 95 % band (all {len(rows)} cases) | {np.mean(cov):.1%} | "
           f"{np.mean(wcov):.1%} | >= 90 % |")
+    for label, group in (("drifting", drifting), ("controls", controls)):
+        if group and len(group) < len(rows):
+            print(f"| blocks inside the 95 % band ({label}, {len(group)} cases) | "
+                  f"{np.mean([r['coverage'] for r in group]):.1%} | "
+                  f"{np.mean([r['window_coverage'] for r in group]):.1%} | "
+                  f"{'>= 90 %' if label == 'drifting' else ''} |")
     print(f"| cases with >= 90 % of blocks inside | {np.mean([c >= 0.9 for c in cov]):.0%} | "
           f"{np.mean([c >= 0.9 for c in wcov]):.0%} | |")
     print(f"| relative RMSE of the curve (median) | {np.median([r['rel_rmse'] for r in rows]):.4f}"
