@@ -10,7 +10,8 @@ from __future__ import annotations
 import functools
 import importlib.util
 import sys
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from balancer_id.model.effect import Effect
@@ -112,20 +113,71 @@ class _Layout:
     config_size: int
 
 
+@dataclass
+class _Pieces:
+    """The lines and expressions of a kernel, collected effect by effect."""
+
+    h_lines: list[str] = field(default_factory=list)
+    t_lines: list[str] = field(default_factory=list)
+    force_lines: list[str] = field(default_factory=list)
+    friction_lines: list[str] = field(default_factory=list)
+    event_lines: list[str] = field(default_factory=list)
+    limit_lines: str = ""
+    vmax_of_expr: str = "0.0"
+    delay_expr: str = "0.0"
+    output_expr: str = "a"
+
+    def add(self, alias: str, hooks: Sequence[str], a: str, switch: str | None) -> None:
+        """The calls of one effect's hooks (``a``: its parameter arguments; ``switch``: the
+        parameter that turns it on in a shared kernel)."""
+        guard = None if switch is None else f"{switch} > 0.5"
+        on = "" if switch is None else f"{switch} * "
+        if "operating_force" in hooks:
+            self.h_lines.append(f"    h = {alias}_operating_force(t, u, z, v, zr, vr{a})")
+        if "time_constant" in hooks:
+            self.t_lines.append(f"    T = {alias}_time_constant(h, f{a})")
+        if "force" in hooks:
+            self.force_lines.append(f"    F += {on}{alias}_force(f, v, z, h{a})")
+        if "friction" in hooks:
+            self.friction_lines.append(f"    F += {alias}_friction(v, F{a})")
+            self.event_lines.append(_FRICTION_EVENT)
+        if "speed_limit" in hooks:
+            vmax = f"{alias}_speed_limit({a[2:]})"
+            self.limit_lines = _speed_limit_lines(vmax)
+            self.event_lines.append(_LIMIT_CLAMP)
+            self.vmax_of_expr = vmax
+        if "input_delay" in hooks:
+            delay = f"{alias}_input_delay({a[2:]})"
+            before = self.delay_expr
+            self.delay_expr = delay if guard is None else f"({delay} if {guard} else {before})"
+        if "output" in hooks:
+            out = f"{alias}_output({self.output_expr}, v, z{a})"
+            before = self.output_expr
+            self.output_expr = out if guard is None else f"({out} if {guard} else {before})"
+
+
+def _speed_limit_lines(vmax: str) -> str:
+    """The right-hand side's approach to the speed limit ``vmax`` (smooth in every parameter)."""
+    return (
+        f"    vm = {vmax}\n"
+        "    if a * v > 0.0:\n"
+        "        gap = vm - abs(v)\n"
+        f"        band = {2.0 * SPEED_LIMIT_TAU!r} * abs(a)\n"
+        "        if gap < band:\n"
+        "            if gap <= 0.0:\n"
+        "                a = 0.0\n"
+        "            else:\n"
+        "                x = gap / band\n"
+        "                a = a * x * (2.0 - x)"
+    )
+
+
 def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effect]]]:
     """The kernel module's source for ``layout`` (see :func:`generate_source`)."""
     aliases: dict[str, type[Effect]] = {}
     imports: list[str] = []
     hook_defs: list[str] = []
-    h_lines: list[str] = []
-    t_lines = [f"    T = {layout.lag}"] if layout.lag else []
-    force_lines: list[str] = []
-    friction_lines: list[str] = []
-    limit_lines = ""
-    event_lines: list[str] = []
-    vmax_of_expr = "0.0"
-    delay_expr = "0.0"
-    output_expr = "a"
+    pieces = _Pieces(t_lines=[f"    T = {layout.lag}"] if layout.lag else [])
     for j, cls in enumerate(layout.effects):
         alias = f"_E{j}"
         aliases[alias] = cls
@@ -133,69 +185,58 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
         imports.append(line or f"# {alias} = {cls.__module__}.{cls.__qualname__} (in memory)")
         for hook in cls.hooks():
             hook_defs.append(f"{alias}_{hook} = jit({alias}.{hook})")
-        a = layout.args[cls]
         # a switched hook's value is chosen without a branch around the call (a branch
         # there keeps the compiler from folding the right-hand side into RK4: 4x slower);
         # structural hooks cannot be switched so (see _STRUCTURAL_HOOKS)
         switch = layout.switches.get(cls)
-        hooks = cls.hooks()
         if switch is not None and _is_structural(cls):
             raise ValueError(f"effect '{cls.name}' has a structural hook: it cannot be switched")
-        guard = None if switch is None else f"{switch} > 0.5"
-        on = "" if switch is None else f"{switch} * "
-        if "operating_force" in hooks:
-            h_lines.append(f"    h = {alias}_operating_force(t, u, z, v, zr, vr{a})")
-        if "time_constant" in hooks:
-            t_lines.append(f"    T = {alias}_time_constant(h, f{a})")
-        if "force" in hooks:
-            force_lines.append(f"    F += {on}{alias}_force(f, v, z, h{a})")
-        if "friction" in hooks:
-            friction_lines.append(f"    F += {alias}_friction(v, F{a})")
-            event_lines.append(_FRICTION_EVENT)
-        if "speed_limit" in hooks:
-            vmax = f"{alias}_speed_limit({a[2:]})"
-            limit_lines = (
-                f"    vm = {vmax}\n"
-                "    if a * v > 0.0:\n"
-                "        gap = vm - abs(v)\n"
-                f"        band = {2.0 * SPEED_LIMIT_TAU!r} * abs(a)\n"
-                "        if gap < band:\n"
-                "            if gap <= 0.0:\n"
-                "                a = 0.0\n"
-                "            else:\n"
-                "                x = gap / band\n"
-                "                a = a * x * (2.0 - x)"
-            )
-            event_lines.append(_LIMIT_CLAMP)
-            vmax_of_expr = vmax
-        if "input_delay" in hooks:
-            delay = f"{alias}_input_delay({a[2:]})"
-            delay_expr = delay if guard is None else f"({delay} if {guard} else {delay_expr})"
-        if "output" in hooks:
-            out = f"{alias}_output({output_expr}, v, z{a})"
-            output_expr = out if guard is None else f"({out} if {guard} else {output_expr})"
-    if not t_lines:
+        pieces.add(alias, cls.hooks(), layout.args[cls], switch)
+    if not pieces.t_lines:
         raise ValueError(
             f"model '{layout.spec}' replaces T_a but no effect sets the time constant"
         )
     fields: dict[str, Any] = {
         "cache": "True" if cache else "False",
-        "delay_expr": delay_expr,
-        "output_expr": output_expr,
+        "delay_expr": pieces.delay_expr,
+        "output_expr": pieces.output_expr,
         "config_size": f" - {layout.config_size}" if layout.config_size else "",
         "ref_slopes": (
             "            szr = (zref[i] - zref[i - 1]) / (t - t0)\n"
             "            svr = (vref[i] - vref[i - 1]) / (t - t0)"
-            if h_lines
+            if pieces.h_lines
             else "            szr = 0.0\n            svr = 0.0"
         ),
     }
+    integrators = _integrators(fields, pieces)
+    source = _TEMPLATE.format(
+        **fields,
+        spec=layout.spec,
+        imports="\n".join(imports),
+        hook_defs="\n".join(hook_defs),
+        h_line="\n".join(pieces.h_lines),
+        t_line="\n".join(pieces.t_lines),
+        force_lines="\n".join(pieces.force_lines),
+        friction_line="\n".join(pieces.friction_lines),
+        m_expr=layout.mass,
+        limit_lines=pieces.limit_lines,
+        vmax_of_expr=pieces.vmax_of_expr,
+        rel_step=REL_STEP,
+        integrator=integrators[False],
+        integrator_sens=integrators[True],
+    )
+    return source, aliases
+
+
+def _integrators(fields: dict[str, Any], pieces: _Pieces) -> dict[bool, str]:
+    """The RK4 integrator's source, plain (False) and with sensitivities (True)."""
     integrators = {}
     for sens, names in _VARIANTS.items():
         events = "\n".join(
-            _variant(e, sens).format(vmax_expr=vmax_of_expr, **names) for e in event_lines
+            _variant(e, sens).format(vmax_expr=pieces.vmax_of_expr, **names)
+            for e in pieces.event_lines
         )
-        save = sens and bool(friction_lines)  # the step's start, for a friction event
+        save = sens and bool(pieces.friction_lines)  # the step's start, for a friction event
         integrators[sens] = _variant(_INTEGRATOR, sens).format(
             **fields,
             **names,
@@ -208,23 +249,7 @@ def _assemble(layout: _Layout, *, cache: bool) -> tuple[str, dict[str, type[Effe
                 else ""
             ),
         )
-    source = _TEMPLATE.format(
-        **fields,
-        spec=layout.spec,
-        imports="\n".join(imports),
-        hook_defs="\n".join(hook_defs),
-        h_line="\n".join(h_lines),
-        t_line="\n".join(t_lines),
-        force_lines="\n".join(force_lines),
-        friction_line="\n".join(friction_lines),
-        m_expr=layout.mass,
-        limit_lines=limit_lines,
-        vmax_of_expr=vmax_of_expr,
-        rel_step=REL_STEP,
-        integrator=integrators[False],
-        integrator_sens=integrators[True],
-    )
-    return source, aliases
+    return integrators
 
 
 def _shared_effects() -> tuple[type[Effect], ...]:
