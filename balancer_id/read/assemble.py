@@ -116,21 +116,7 @@ def build_recordings(
             warnings.append(_guess_note(plan, header))
         for col, (factor, offset) in plan.scales.items():  # the column map's scales
             table.columns[col] = table.columns[col] * factor + offset
-        base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
-        if plan.clock is not None and base.started_at is None:
-            clock = to_seconds(table.columns[plan.clock])
-            rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
-            if clock.started_at is not None and rows.any():
-                first = int(np.argmax(rows))
-                base = TimeBase(
-                    base.seconds - base.seconds[first],
-                    base.unit,
-                    base.source,
-                    clock.started_at + float(clock.seconds[first]),
-                    clock=header[plan.clock],
-                    stated=base.stated,
-                    spacing=base.spacing,
-                )
+        base = _time_base(plan, table, header)
         time = base.seconds
         said = base.note(header[plan.time])
         if said and said not in stated:
@@ -165,14 +151,37 @@ def build_recordings(
             )
             warnings.extend(rec_warnings)
             if rec is not None:
-                rec.started_at = (
-                    base.started_at if base.started_at is not None else plan.clock_start
-                )
-                if base.started_at is not None and rec.n_samples:
-                    rec.started_at = base.started_at + float(rec.time[0])
-                    rec.time = rec.time - rec.time[0]
-                recordings.append(rec)
+                recordings.append(_started(rec, base, plan))
     return recordings, warnings
+
+
+def _time_base(plan: RunPlan, table: Table, header: list[str]) -> TimeBase:
+    """The run's time in seconds; with a clock column beside a relative time, its start."""
+    base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
+    if plan.clock is not None and base.started_at is None:
+        clock = to_seconds(table.columns[plan.clock])
+        rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
+        if clock.started_at is not None and rows.any():
+            first = int(np.argmax(rows))
+            base = TimeBase(
+                base.seconds - base.seconds[first],
+                base.unit,
+                base.source,
+                clock.started_at + float(clock.seconds[first]),
+                clock=header[plan.clock],
+                stated=base.stated,
+                spacing=base.spacing,
+            )
+    return base
+
+
+def _started(rec: Recording, base: TimeBase, plan: RunPlan) -> Recording:
+    """The recording's start (a clock time counted from its first sample, or the plan's)."""
+    rec.started_at = base.started_at if base.started_at is not None else plan.clock_start
+    if base.started_at is not None and rec.n_samples:
+        rec.started_at = base.started_at + float(rec.time[0])
+        rec.time = rec.time - rec.time[0]
+    return rec
 
 
 def _guess_note(plan: RunPlan, header: list[str]) -> Note:
