@@ -678,8 +678,8 @@ def match_trials(
             tell(f"start {k}/{len(starts)}")
         used = problem.nfev
         # a default search's other starts look for a basin, not a last digit
-        full = k == 1 or not auto or k - 1 == polish
-        budget = max_nfev if full else min(max_nfev, basins.SPREAD_NFEV)
+        whole = k == 1 or not auto or k - 1 == polish
+        budget = max_nfev if whole else min(max_nfev, basins.SPREAD_NFEV)
         if diff_step is None:
             x0, last = problem.gauss_newton(x0, lo, hi, used + budget)
             if last is not None:
