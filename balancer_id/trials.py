@@ -83,6 +83,20 @@ READ_OPTION_SPELLINGS: tuple[OptionSpelling, ...] = (
 )
 
 
+def _checked_delay(value: object) -> float:
+    """``--force-delay`` as seconds, refused beyond a second either way."""
+    try:
+        delay = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise UsageError(f"--force-delay {value!r}: give seconds, e.g. 0.04") from None
+    if not (math.isfinite(delay) and abs(delay) < 1.0):
+        raise UsageError(
+            f"--force-delay {value}: give the force channel's lag in seconds, "
+            "between -1 and 1 (e.g. 0.04)"
+        )
+    return delay
+
+
 @dataclass(frozen=True)
 class ReadOptions:
     """How logs are read and segmented (the CLI's common options); checked when made.
@@ -131,7 +145,6 @@ class ReadOptions:
     force_delay: float = 0.0
 
     def __post_init__(self) -> None:
-        from balancer_id.read.generic import MAP_KEYS
         from balancer_id.read.units import check_accel_unit
 
         if self.force_sign not in (None, 1, -1):
@@ -147,18 +160,13 @@ class ReadOptions:
             raise UsageError(f"--g {self.g}: gravity must be a positive number of m/s^2, e.g. 9.81")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
-        try:
-            delay = float(self.force_delay)
-        except (TypeError, ValueError):
-            raise UsageError(
-                f"--force-delay {self.force_delay!r}: give seconds, e.g. 0.04"
-            ) from None
-        if not (math.isfinite(delay) and abs(delay) < 1.0):
-            raise UsageError(
-                f"--force-delay {self.force_delay}: give the force channel's lag in seconds, "
-                "between -1 and 1 (e.g. 0.04)"
-            )
-        object.__setattr__(self, "force_delay", delay)
+        object.__setattr__(self, "force_delay", _checked_delay(self.force_delay))
+        self._check_lists()
+
+    def _check_lists(self) -> None:
+        """Check and normalize the windows, thrusts and column map."""
+        from balancer_id.read.generic import MAP_KEYS
+
         if self.windows:
             from balancer_id.segment.given_windows import check_windows
 

@@ -78,7 +78,7 @@ def _compile_candidates(model: Model, with_trajectory: bool) -> None:
     the workers then load them instead of each compiling them again.
     """
     from balancer_id.diagnostics.candidates import candidates
-    from balancer_id.simulation.kernel import compile_models
+    from balancer_id.simulation.kernel_compile import compile_models
 
     compile_models([c.model for c in candidates(model, with_trajectory=with_trajectory)])
 

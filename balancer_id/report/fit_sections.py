@@ -10,7 +10,7 @@ import inspect
 import re
 import textwrap
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -254,6 +254,24 @@ def _model_section(result: FitResult) -> Section:
     return Section(f"Model: {model.spec}", blocks=blocks)
 
 
+def _friction_hint(c: Any) -> str:
+    """What the free line's intercept says of friction (against the scatter about it)."""
+    hint = ""
+    if np.isfinite(c.intercept_N) and np.isfinite(c.scatter_N) and c.scatter_N > 0:
+        if abs(c.intercept_N) > 2 * c.scatter_N:
+            hint = (
+                f" The free line's intercept ({c.intercept_N:+.3g} N) is large against the "
+                f"scatter ({c.scatter_N:.3g} N): a thrust that produces no motion, i.e. "
+                "friction; try the model with '+karnopp'."
+            )
+        else:
+            hint = (
+                f" The free line's intercept ({c.intercept_N:+.3g} N) is within the scatter "
+                f"({c.scatter_N:.3g} N): no sign of a friction threshold."
+            )
+    return hint
+
+
 def _paper_section(result: FitResult) -> Section:
     c = result.classic
     v = result.values
@@ -305,19 +323,7 @@ def _paper_section(result: FitResult) -> Section:
         ],
         "T_a per thrust level and direction (the paper's Fig. 8 as a table).",
     )
-    hint = ""
-    if np.isfinite(c.intercept_N) and np.isfinite(c.scatter_N) and c.scatter_N > 0:
-        if abs(c.intercept_N) > 2 * c.scatter_N:
-            hint = (
-                f" The free line's intercept ({c.intercept_N:+.3g} N) is large against the "
-                f"scatter ({c.scatter_N:.3g} N): a thrust that produces no motion, i.e. "
-                "friction; try the model with '+karnopp'."
-            )
-        else:
-            hint = (
-                f" The free line's intercept ({c.intercept_N:+.3g} N) is within the scatter "
-                f"({c.scatter_N:.3g} N): no sign of a friction threshold."
-            )
+    hint = _friction_hint(c)
     blocks: list[Block] = [
         Paragraph(
             "Per trial, a first-order step a(t) = a_zc (1 - exp(-(t - t0)/T_a)) is fitted to "

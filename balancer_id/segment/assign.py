@@ -224,22 +224,14 @@ def build_trials(
             )
         else:
             level_new = level_now + change
-        if accel is None:
-            notes.append("no acceleration channel")
-        bridged = [
-            gp for gp in rec.gaps if win.start <= np.searchsorted(rec.time, gp.t_after) < win.stop
-        ]
-        if bridged:
-            missing = sum(gp.n_missing for gp in bridged)
-            notes.append(f"{len(bridged)} short gap(s) inside ({missing} samples missing)")
+        notes += [] if accel is not None else ["no acceleration channel"]
+        notes += _gap_notes(rec, win)
         sl = slice(win.start, win.stop)
         trial_force = None
         if force is not None and np.isfinite(st.size):
             if not chained[j] or not np.isfinite(ref_chain):
                 ref_chain = level(force[win.start : max(win.start + 1, st.onset - gb)])
-            orientation = sign * np.sign(st.size)
-            if chained[j] and mounting is not None:
-                orientation = mounting if force_sign is None else force_sign
+            orientation = _force_orientation(sign, st, chained[j], mounting, force_sign)
             trial_force = orientation * (force[sl] - ref_chain)
         direction = int(np.sign(level_new)) or sign
         trials.append(
@@ -252,9 +244,7 @@ def build_trials(
                 thrust_N=float(level_new),
                 direction="up" if direction > 0 else "down",
                 time=_read_only(rec.time[sl]),
-                accel=_read_only(accel[sl])
-                if accel is not None
-                else np.full(sl.stop - sl.start, np.nan),
+                accel=_trial_accel(accel, sl),
                 force=trial_force,
                 end_reason=win.end_reason,
                 source=source,
@@ -269,6 +259,34 @@ def build_trials(
         )
         level_now = level_new
     return trials
+
+
+def _force_orientation(
+    sign: int, st: Step, chained: bool, mounting: int | None, force_sign: int | None
+) -> float:
+    """The factor turning the force channel into the thrust: the step's direction, or in
+    a chain the sensor's mounting (or the sign given)."""
+    if chained and mounting is not None:
+        return mounting if force_sign is None else force_sign
+    return sign * np.sign(st.size)
+
+
+def _trial_accel(accel: np.ndarray | None, sl: slice) -> np.ndarray:
+    """The trial's acceleration (read only), or NaN without an acceleration channel."""
+    if accel is None:
+        return np.full(sl.stop - sl.start, np.nan)
+    return _read_only(accel[sl])
+
+
+def _gap_notes(rec: Recording, win: Window) -> list[str]:
+    """The short gaps a trial's window bridges, counted."""
+    bridged = [
+        gp for gp in rec.gaps if win.start <= np.searchsorted(rec.time, gp.t_after) < win.stop
+    ]
+    if not bridged:
+        return []
+    missing = sum(gp.n_missing for gp in bridged)
+    return [f"{len(bridged)} short gap(s) inside ({missing} samples missing)"]
 
 
 def _given_level(

@@ -128,7 +128,7 @@ def fit_for_diagnosis(
     """
     from balancer_id.diagnostics.candidates import candidates
     from balancer_id.identify.api import fit, resolve_model
-    from balancer_id.simulation.kernel import compile_models
+    from balancer_id.simulation.kernel_compile import compile_models
 
     trials = load_trials(list(logs), options, trajectory(trajectory_text), trajectory_text)
     start = resolve_model(model, effects_files)
