@@ -15,7 +15,7 @@ import json
 import os
 import stat
 from collections.abc import Iterable
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 from typing import Any
 
@@ -99,7 +99,7 @@ def result_key(command: str, files: Iterable[str | Path], options: dict[str, Any
             if not stat.S_ISREG(os.stat(f).st_mode):
                 return None
             with open(f, "rb") as fh:
-                for chunk in iter(lambda fh=fh: fh.read(_CHUNK), b""):
+                for chunk in iter(partial(fh.read, _CHUNK), b""):
                     h.update(chunk)
         except OSError:
             return None

@@ -92,3 +92,30 @@ class OutputWriteError(BalancerIdError):
     """
 
     exit_code = 3
+
+
+def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:
+    """The ``error`` object of ``--json`` output: kind, message, exit code, where.
+
+    Parameters
+    ----------
+    line : str
+        The one-line message.
+    code : int
+        The exit code.
+    exc : BaseException or None
+        The error (its ``file`` or ``path``, ``line`` and ``column`` when it has them).
+
+    Returns
+    -------
+    dict
+    """
+    file = getattr(exc, "file", None) or getattr(exc, "path", None)  # LogReadError: path
+    return {
+        "kind": type(exc).__name__ if exc is not None else "Error",
+        "message": line,
+        "exit_code": code,
+        "file": None if file is None else str(file),
+        "line": getattr(exc, "line", None),
+        "column": getattr(exc, "column", None),
+    }

@@ -16,11 +16,12 @@ from __future__ import annotations
 import contextlib
 import errno
 import importlib.util
+import json
 import os
 import stat
 import sys
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import IO
@@ -358,3 +359,93 @@ def import_path(name: str, path: str | Path) -> ModuleType:
         sys.modules.pop(name, None)
         raise
     return module
+
+
+def check_outputs(
+    outputs: Mapping[str, str | Path | None], inputs: Iterable[Path | str], overwrite: bool
+) -> None:
+    """Refuse, before any work, outputs that are inputs, exist (without --overwrite) or are
+    read-only.
+
+    Parameters
+    ----------
+    outputs : mapping of str to str, Path or None
+        Option name -> the file it names (None: not given).
+    inputs : iterable of Path or str
+        Every file the command reads.
+    overwrite : bool
+        ``--overwrite``.
+    """
+    inputs = list(inputs)
+    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    for i, (option, path) in enumerate(given):
+        for other, other_path in given[:i]:
+            if same_file(path, other_path):
+                raise UsageError(
+                    f"{other} and {option} name the same file '{path}'; one would replace "
+                    "the other: give two names"
+                )
+        check_output(path, inputs=inputs, overwrite=overwrite, option=option)
+
+
+def inputs_of(
+    logs: Iterable[str | Path],
+    effects_file: Iterable[str | Path] | None,
+    trajectory_text: str | None = None,
+) -> list[Path | str]:
+    """Every file a command reads (an output may be none of them).
+
+    Parameters
+    ----------
+    logs : iterable of str or Path
+        The logs.
+    effects_file : iterable of str or Path, or None
+        ``--effects-file`` paths.
+    trajectory_text : str, optional
+        ``--trajectory`` (a file unless it is a ``trapezoid:`` spec).
+
+    Returns
+    -------
+    list of Path or str
+    """
+    files: list[Path | str] = [*logs, *(effects_file or ())]
+    if trajectory_text and not trajectory_text.strip().startswith("trapezoid:"):
+        files.append(trajectory_text)
+    return files
+
+
+def emit_json(obj: object) -> None:
+    """Print one JSON object on stdout.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-ready data.
+
+    Raises
+    ------
+    OutputWriteError
+        When stdout is closed or cannot take the text (a full disk): exit 3, one line.
+    """
+    text = json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n"
+    if sys.stdout is None:
+        raise OutputWriteError("cannot print the JSON: stdout is closed; redirect it to a file")
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except (OSError, ValueError) as exc:
+        _stdout_to_null()  # the interpreter's last flush must not fail again
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise OutputWriteError(f"cannot print the JSON on stdout: {why}") from None
+
+
+def _stdout_to_null() -> None:
+    """Point stdout's file descriptor at the null device (and drop what is buffered)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["make_figure_text_safe", "shown"]
+__all__ = ["make_figure_text_safe", "one_line", "printable", "shown"]
 
 
 def shown(text: object) -> str:
@@ -77,3 +77,44 @@ def make_figure_text_safe(fig: Any) -> Any:
         if safe != text:
             artist.set_text(safe)
     return fig
+
+
+def printable(obj: Any) -> Any:
+    """``obj`` with control characters in every string made visible (``\\x1b``), so a run
+    or file name holding terminal escape sequences cannot drive the user's terminal.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-like data.
+
+    Returns
+    -------
+    object
+        The same structure, strings escaped.
+    """
+    if isinstance(obj, str):
+        if obj.isprintable():
+            return obj
+        return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
+    if isinstance(obj, dict):
+        return {k: printable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [printable(v) for v in obj]
+    return obj
+
+
+def one_line(text: object) -> str:
+    """``text`` on one line, with control characters (terminal escapes) made visible.
+
+    Parameters
+    ----------
+    text : object
+        A message.
+
+    Returns
+    -------
+    str
+    """
+    flat = " ".join(str(text).split())
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +27,74 @@ if TYPE_CHECKING:
 
 #: Values of ``vertical``.
 VERTICAL_AXES = ("auto", "x", "y", "z")
+
+
+@dataclass(frozen=True)
+class OptionSpelling:
+    """How one reading option is spelled on the command line.
+
+    Every command that reads logs declares these options from :data:`READ_OPTION_SPELLINGS`
+    (:func:`balancer_id.cli.options.reads_logs`) and hands their values to
+    :meth:`ReadOptions.from_text`, so a new reading option is a row there, a field of
+    :class:`ReadOptions` and its spelling in :meth:`ReadOptions.from_text`: this module.
+
+    Attributes
+    ----------
+    name : str
+        The keyword of :meth:`ReadOptions.from_text` (and of the command's parameter).
+    flag : str
+        The option (``--thrust``).
+    kind : object
+        The value's type as the command line gives it (``str | None``).
+    default : object
+        The value when the option is not given.
+    metavar : str
+        What the value is, in words (TEXT, NUMBER...).
+    help : str
+        One line of help.
+    """
+
+    name: str
+    flag: str
+    kind: Any
+    default: Any
+    metavar: str
+    help: str
+
+
+#: The reading options of every command that reads logs, in the order ``--help`` lists them.
+READ_OPTION_SPELLINGS: tuple[OptionSpelling, ...] = (
+    OptionSpelling("thrust", "--thrust", str | None, None, "TEXT",
+                   "Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."),
+    OptionSpelling("force_sign", "--force-sign", int | None, None, "INTEGER",
+                   "+1 or -1: fix the sign of the force channel."),
+    OptionSpelling("vertical", "--vertical", str, "auto", "TEXT",
+                   "auto|x|y|z|-z|...: up axis of logs without gravity."),
+    OptionSpelling("columns", "--columns", str | None, None, "TEXT",
+                   "Column map of a generic CSV: time=t,force=F,ax=..."),
+    OptionSpelling("g", "--g", float, G_DEFAULT, "NUMBER", "Gravity in m/s^2."),
+    OptionSpelling("accel_unit", "--accel-unit", str, "auto", "TEXT",
+                   "auto|m/s^2|g: unit of the acceleration columns."),
+    OptionSpelling("window", "--window", list[str] | None, None, "TEXT...",
+                   "START:END in s: a stretch where only the measured force acts (repeatable); "
+                   "each is a trial, nothing is detected (a lab rig)."),
+    OptionSpelling("force_delay", "--force-delay", float, 0.0, "SECONDS",
+                   "The force channel's lag behind the acceleration (s; diagnose measures it)."),
+)
+
+
+def _checked_delay(value: object) -> float:
+    """``--force-delay`` as seconds, refused beyond a second either way."""
+    try:
+        delay = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise UsageError(f"--force-delay {value!r}: give seconds, e.g. 0.04") from None
+    if not (math.isfinite(delay) and abs(delay) < 1.0):
+        raise UsageError(
+            f"--force-delay {value}: give the force channel's lag in seconds, "
+            "between -1 and 1 (e.g. 0.04)"
+        )
+    return delay
 
 
 @dataclass(frozen=True)
@@ -76,7 +145,6 @@ class ReadOptions:
     force_delay: float = 0.0
 
     def __post_init__(self) -> None:
-        from balancer_id.read.generic import MAP_KEYS
         from balancer_id.read.units import check_accel_unit
 
         if self.force_sign not in (None, 1, -1):
@@ -92,18 +160,13 @@ class ReadOptions:
             raise UsageError(f"--g {self.g}: gravity must be a positive number of m/s^2, e.g. 9.81")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "accel_unit", check_accel_unit(self.accel_unit))
-        try:
-            delay = float(self.force_delay)
-        except (TypeError, ValueError):
-            raise UsageError(
-                f"--force-delay {self.force_delay!r}: give seconds, e.g. 0.04"
-            ) from None
-        if not (math.isfinite(delay) and abs(delay) < 1.0):
-            raise UsageError(
-                f"--force-delay {self.force_delay}: give the force channel's lag in seconds, "
-                "between -1 and 1 (e.g. 0.04)"
-            )
-        object.__setattr__(self, "force_delay", delay)
+        object.__setattr__(self, "force_delay", _checked_delay(self.force_delay))
+        self._check_lists()
+
+    def _check_lists(self) -> None:
+        """Check and normalize the windows, thrusts and column map."""
+        from balancer_id.read.generic import MAP_KEYS
+
         if self.windows:
             from balancer_id.segment.given_windows import check_windows
 
@@ -609,7 +672,7 @@ def refuse_same_file_twice(paths: Sequence[str | Path]) -> None:
             size = Path(path).stat().st_size
             digest = hashlib.sha256()
             with open(path, "rb") as fh:
-                for block in iter(lambda fh=fh: fh.read(1 << 20), b""):
+                for block in iter(partial(fh.read, 1 << 20), b""):
                     digest.update(block)
         except OSError:
             continue  # the reader says what is wrong with it

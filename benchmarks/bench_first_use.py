@@ -52,6 +52,7 @@ import os, sys, time
 import numpy as np
 from balancer_id.model.spec import resolve_model
 from balancer_id.simulation import kernel as K
+from balancer_id.simulation import kernel_cache as KCache
 
 def compile_one(spec):
     m = resolve_model(spec)
@@ -66,7 +67,7 @@ policy = os.environ["BALANCER_ID_KERNELS"]
 os.environ["BALANCER_ID_KERNELS"] = "own"
 compile_one("viscous+bias")  # numba's own first-use work (overloads, typing context)
 os.environ["BALANCER_ID_KERNELS"] = policy
-K._CHOSEN.clear()
+KCache._CHOSEN.clear()
 print(*compile_one(sys.argv[1]))
 """
 

@@ -115,7 +115,7 @@ def _kernels_compiled_once():
     """
     from balancer_id.diagnostics.candidates import candidates
     from balancer_id.model import parse_model
-    from balancer_id.simulation.kernel import compile_models
+    from balancer_id.simulation.kernel_compile import compile_models
 
     models = []
     for spec in ("variable_viscosity", "viscous"):

@@ -120,7 +120,7 @@ def test_what_an_effect_needs_is_declared_on_it():
 
 
 def _request_variants():
-    from balancer_id.cli.request import FitRequest
+    from balancer_id.workflows.request import FitRequest
 
     base = FitRequest(logs=("a.csv",))
     changed = {
@@ -157,7 +157,7 @@ def _request_variants():
 
 
 def test_the_cache_key_changes_with_every_option(tmp_path, monkeypatch):
-    from balancer_id.cli.request import FitRequest
+    from balancer_id.workflows.request import FitRequest
 
     monkeypatch.chdir(tmp_path)
     for name in ("a.csv", "b.csv", "hose.py"):
@@ -172,7 +172,7 @@ def test_the_cache_key_changes_with_every_option(tmp_path, monkeypatch):
 
 
 def test_the_cache_key_changes_with_the_trajectory_files_content(tmp_path, monkeypatch):
-    from balancer_id.cli.request import FitRequest
+    from balancer_id.workflows.request import FitRequest
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.csv").write_text("x")
@@ -362,3 +362,46 @@ def test_python_dash_m_runs_the_command():
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f"balancer-id {balancer_id.__version__}"
+
+
+def test_every_command_that_reads_logs_takes_every_reading_option_declared_once():
+    import typer.main
+
+    from balancer_id.cli import app
+    from balancer_id.trials import READ_OPTION_SPELLINGS
+
+    group = typer.main.get_command(app)
+    reading = {s.flag for s in READ_OPTION_SPELLINGS}
+    readers = 0
+    for name, command in group.commands.items():  # type: ignore[attr-defined]
+        flags = {opt for p in command.params for opt in p.opts}
+        takes_logs = any(p.name in ("logs", "log", "paths") for p in command.params)
+        expected = reading - {"--thrust"} if name == "batch" else reading
+        if takes_logs:
+            readers += 1
+            assert expected <= flags, (name, expected - flags)
+    assert readers == 8
+
+
+def test_a_fit_job_refuses_option_combinations_before_reading_a_log(tmp_path):
+    from balancer_id.workflows.fit_logs import FitJob
+
+    missing = str(tmp_path / "not-there.csv")  # never read: the combination fails first
+    with pytest.raises(UsageError, match="--track follows one session's fit"):
+        FitJob((missing,), group_by="run", track=("D0",)).run()
+    with pytest.raises(UsageError, match="--starts 1001: give at most 1000"):
+        FitJob((missing,), starts=1001).run()
+    with pytest.raises(UsageError, match="--per-log fits all logs at once"):
+        FitJob((missing,), per_log=("m_a",), series=tmp_path / "s.csv").run()
+
+
+def test_simulate_log_checks_its_values_as_the_command_does(tmp_path):
+    from balancer_id.simulation.synth import SensorSettings
+    from balancer_id.workflows.simulate_log import simulate_log
+
+    out = tmp_path / "sim.csv"
+    with pytest.raises(UsageError, match="--rate 1e\\+06: give a finite value"):
+        simulate_log(out, sensor=SensorSettings(rate_hz=1e6))
+    with pytest.raises(UsageError, match="--seed -1"):
+        simulate_log(out, seed=-1)
+    assert not out.exists()

@@ -90,7 +90,7 @@ def test_the_cache_folder_must_be_private_real_and_ours(tmp_path, monkeypatch):
 
 def test_helper_processes_never_import_from_the_working_folder(tmp_path):
     from balancer_id.batch.executors import _one_thread_env, run_in_processes
-    from balancer_id.simulation.kernel import helper_command
+    from balancer_id.simulation.kernel_compile import helper_command
 
     marker = tmp_path / "ran"
     for name in ("json.py", "multiprocessing.py"):

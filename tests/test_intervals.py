@@ -75,3 +75,39 @@ def test_a_profile_far_narrower_than_wald_is_called_out_on_a_misfit():
     assert (high - low) * 3 < wald_high - wald_low
     note = next(str(w) for w in result.warnings if str(w).startswith("m_a:"))
     assert "far from quadratic" in note and "no uncertainty" in note
+
+
+@pytest.mark.parametrize(
+    ("cost", "threshold", "inside", "outside", "crossing"),
+    [
+        (lambda x: (x - 2.0) ** 2, 4.0, 2.0, 8.0, 4.0),  # a quadratic profile: x = 2 + 2
+        (lambda x: (x - 2.0) ** 4, 16.0, 2.0, 9.0, 4.0),  # flat, then steep: regula falsi stalls
+        (lambda x: (x + 1.0) ** 2, 9.0, -1.0, -10.0, -4.0),  # the lower end, walking down
+    ],
+)
+def test_a_profile_end_is_found_where_the_cost_crosses_within_its_tolerance(
+    cost, threshold, inside, outside, crossing
+):
+    from balancer_id.identify.intervals import MAX_REFITS_PER_END, _crossing
+
+    calls = []
+
+    def counted(x: float) -> float:
+        calls.append(x)
+        return cost(x)
+
+    found = _crossing(counted, threshold, (inside, cost(inside)), (outside, cost(outside)), inside)
+    # 0.5 % of the end's distance from the value, the documented tolerance
+    assert found == pytest.approx(crossing, abs=5e-3 * abs(outside - inside))
+    assert len(calls) <= MAX_REFITS_PER_END // 2
+    assert all(min(inside, outside) < x < max(inside, outside) for x in calls)  # never an end
+
+
+def test_a_cost_that_cannot_be_computed_is_bisected():
+    from balancer_id.identify.intervals import _crossing
+
+    def cost(x: float) -> float:
+        return float("inf") if x > 5.0 else (x - 2.0) ** 2
+
+    found = _crossing(cost, 4.0, (2.0, 0.0), (8.0, float("inf")), 2.0)
+    assert found == pytest.approx(4.0, abs=0.1)

@@ -12,6 +12,8 @@ import pytest
 from balancer_id.model import parse_model
 from balancer_id.simulation import Thrust, simulate
 from balancer_id.simulation import kernel as K
+from balancer_id.simulation import kernel_cache as KCache
+from balancer_id.simulation import kernel_compile as KC
 
 T = np.arange(0.0, 2.0, 0.005)
 PARAMS = {"m_a": 15.1, "T_a": 0.33}
@@ -23,7 +25,7 @@ def _own_kernels():
     shared one)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("BALANCER_ID_KERNELS", "own")
-        mp.setattr(K, "_CHOSEN", {})
+        mp.setattr(KCache, "_CHOSEN", {})
         yield
 
 
@@ -83,7 +85,7 @@ def _accel() -> np.ndarray:
 def _forget() -> None:
     """What a new process would see: nothing memoized, nothing imported."""
     K._KERNELS.clear()
-    K._CHOSEN.clear()
+    KCache._CHOSEN.clear()
     for name in [n for n in sys.modules if n.startswith("bid_kernel_")]:
         del sys.modules[name]
 
@@ -100,14 +102,14 @@ def test_a_new_cache_folder_is_private_and_a_first_compile_is_announced(
             found_cached.append(K._is_cached_path(kernel.path)) or load(model, kernel, quiet)
         ),
     )
-    monkeypatch.setattr(K, "COMPILE_JOBS", 2)
+    monkeypatch.setattr(KC, "COMPILE_JOBS", 2)
     models = [parse_model("base"), parse_model("viscous")]
-    K.compile_models(models)  # two missing kernels: one compiled here, one by a helper process
+    KC.compile_models(models)  # two missing kernels: one compiled here, one by a helper process
     err = capfd.readouterr().err
     assert "compiling the simulation kernel of 'base' (1/2; once)" in err
     assert "compiling the simulation kernel of 'viscous' (2/2; once)" in err
     assert found_cached == [False, True]  # 'viscous' was in the cache when loaded here
-    K.compile_models(models)  # already there: nothing to say
+    KC.compile_models(models)  # already there: nothing to say
     assert capfd.readouterr().err == ""
     _forget()
     want = _accel()

@@ -84,3 +84,49 @@ def test_a_prior_on_a_parameter_not_fitted_is_refused(near_bound):
     _, result = near_bound
     with pytest.raises(UsageError, match="A: not a fitted parameter"):
         fit(result.match.data.trials, model="viscous", priors=["A=normal:0.4,0.1"])
+
+
+def test_jeffreys_prior_vanishes_where_the_data_cannot_tell_parameters_apart():
+    from balancer_id.identify.posterior import _log_jeffreys
+
+    rng = np.random.default_rng(0)
+    s = rng.normal(size=(200, 3))
+    assert _log_jeffreys(s) == pytest.approx(0.5 * np.linalg.slogdet(s.T @ s)[1])
+    # a parameter the response does not depend on (no viscosity at any level reached),
+    # or two that move it alike: the prior is (nearly) nothing there
+    dead = s.copy()
+    dead[:, 2] = 0.0
+    assert _log_jeffreys(dead) == -np.inf
+    alike = s.copy()
+    alike[:, 2] = 2.0 * s[:, 1]
+    assert _log_jeffreys(alike) < _log_jeffreys(s) - 10
+    # a change of a parameter's unit moves the log prior by a constant only
+    scaled = s * [1.0, 1.0, 1000.0]
+    assert _log_jeffreys(scaled) == pytest.approx(_log_jeffreys(s) + np.log(1000.0))
+
+
+@pytest.mark.slow
+def test_short_log_posterior_leaves_the_corner_with_no_viscosity():
+    # two levels, 1.5 s each: the fit ends far up the D0-A ridge (D0 ~ 1e4, no viscosity at
+    # the heavier level); a flat prior's posterior sat there too (m_a 15.97-16.93, the
+    # truth 15.1 outside); Jeffreys' prior is small where the data tell nothing apart
+    rng = np.random.default_rng(437874)
+    truth = {"m_a": 15.1, "T_a": 0.33, "D0": 6.0, "A": 0.4}
+    t = np.arange(0.0, 2.5, 0.005)
+    from balancer_id.identify.data import TrialData
+    from balancer_id.model import parse_model
+    from balancer_id.simulation.engine import TrialInput, simulate_many
+    from balancer_id.simulation.inputs import Thrust
+
+    inputs = [TrialInput(t, Thrust.step(1.0, f)) for f in (2.45, -4.9)]
+    sims = simulate_many(parse_model(), truth, inputs)
+    trials = [
+        TrialData(k, f, "up" if f > 0 else "down", 1.0, inp, s.accel + rng.normal(0, 0.05, t.size))
+        for k, (f, inp, s) in enumerate(zip((2.45, -4.9), inputs, sims, strict=True))
+    ]
+    result = fit(trials, posterior=True, seed=437874)
+    cred = result.posterior.credible()
+    assert result.match.parameters["D0"].value > 100  # the ridge
+    for name in ("m_a", "T_a", "A"):
+        assert cred[name][0] <= truth[name] <= cred[name][1], name
+    assert cred["D0"][1] < 1000  # the corner of no viscosity is left

@@ -8,6 +8,8 @@ import pytest
 
 from balancer_id.model import parse_model
 from balancer_id.simulation import kernel as K
+from balancer_id.simulation import kernel_cache as KCache
+from balancer_id.simulation import kernel_compile as KC
 from balancer_id.simulation.engine import PackedTrials, TrialInput, initial_sensitivities
 from balancer_id.simulation.inputs import Thrust
 
@@ -25,7 +27,7 @@ MODELS = (
 def fresh_choice(monkeypatch):
     """No kernel memoized or chosen in this process; what the choice was, restored after."""
     monkeypatch.setattr(K, "_KERNELS", {})
-    monkeypatch.setattr(K, "_CHOSEN", {})
+    monkeypatch.setattr(KCache, "_CHOSEN", {})
 
 
 def _trials() -> PackedTrials:
@@ -48,7 +50,7 @@ def _values(model) -> np.ndarray:
 def _responses(model, policy: str, monkeypatch):
     monkeypatch.setenv("BALANCER_ID_KERNELS", policy)
     K._KERNELS.clear()
-    K._CHOSEN.clear()
+    KCache._CHOSEN.clear()
     packed = _trials()
     p = _values(model)
     cols = np.arange(p.size + 3)
@@ -118,7 +120,7 @@ def test_models_share_a_kernel_file_when_their_structural_effects_are_the_same(
     assert len(plain) == 1 and len(friction) == 1 and plain != friction
     assert path("viscous+speed_limit") not in plain | friction
     monkeypatch.setenv("BALANCER_ID_KERNELS", "own")
-    K._CHOSEN.clear()
+    KCache._CHOSEN.clear()
     assert path("viscous") != path("variable_viscosity") != next(iter(plain))
 
 
@@ -127,10 +129,10 @@ def test_the_shared_kernel_is_named_once_when_several_models_need_it(
 ):
     monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("BALANCER_ID_KERNELS", "shared")
-    monkeypatch.setattr(K, "_compile_shared", lambda models, sens: seen.extend(models))
+    monkeypatch.setattr(KC, "_compile_shared", lambda models, sens: seen.extend(models))
     seen: list = []
     specs = ("viscous", "viscous+bias", "variable_viscosity", "viscous+karnopp")
-    K.compile_models([parse_model(s) for s in specs])
+    KC.compile_models([parse_model(s) for s in specs])
     err = capfd.readouterr().err
     assert len(seen) == 2
     assert err.count("compiling the simulation kernel") == 2

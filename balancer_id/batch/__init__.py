@@ -101,6 +101,141 @@ __all__ = [
 ]
 
 
+def _tasks(logs: list[Path], out: Path, *, replace: bool) -> list[_Task]:
+    """One task per log, its output named in ``out`` (refused when it may not be written)."""
+    tasks = [
+        _Task(str(log), str(log.resolve()), out / name)
+        for log, name in zip(logs, _output_names(logs), strict=True)
+    ]
+    check_own_outputs([t.output for t in tasks], out, replace=replace)
+    return tasks
+
+
+def _tick(tick: Callable[[int, int], None] | None, rows: Sequence[BatchRow | None]) -> None:
+    """Tell the progress bar how many logs are settled."""
+    if tick is not None:
+        tick(sum(r is not None for r in rows), len(rows))
+
+
+def _fleet_shared(final: list[BatchRow], out: Path, per_log: Sequence[str],
+                  **fit_options: Any) -> dict[str, Any] | None:
+    """The counted logs fitted together (``per_log``): ``shared_fit.json``."""
+    from balancer_id.batch.shared import fit_fleet_shared
+
+    return fit_fleet_shared(final, out, per_log, **fit_options)
+
+
+def _start(
+    model: str | None,
+    fixed: Mapping[str, float] | None,
+    extra: tuple[str, ...],
+    pooled: bool,
+    diagnose: bool,
+    with_trajectory: bool,
+) -> tuple[Any, Any]:
+    """The pool's process context (None without a pool) and the checked model.
+
+    A pool's fork server loads the kernels of a model of built-in effects (and with
+    ``diagnose`` its candidates') once, while this process goes on, and every worker is
+    forked with them loaded; user effects are compiled here first, so that an effect
+    that cannot be compiled stops the batch before any log, and the workers load it.
+    The server starts first: its imports are the longest part of a batch's start.
+    """
+    preloaded = pooled and not extra
+    context = (
+        _mp_context(
+            [model or DEFAULT_SPEC] if preloaded else [],
+            diagnose=diagnose,
+            trajectory=with_trajectory,
+        )
+        if pooled
+        else None
+    )
+    mdl = _prepare_model(model, fixed, extra, with_trajectory, warm=not preloaded)
+    if pooled and diagnose and not preloaded:  # compiled once here, not in every worker
+        _compile_candidates(mdl, with_trajectory)
+    return context, mdl
+
+
+def _refuse_earlier(out: Path, replace: bool) -> None:
+    """Refuse a folder holding an earlier batch's results, unless resumed or replaced."""
+    if (out / SUMMARY_NAME).exists() and not replace:
+        raise OutputExistsError(
+            f"--out {out} holds the results of an earlier batch; add --resume to keep "
+            "them and fit only what is missing or changed, or --overwrite to replace them"
+        )
+
+
+def _check_workers(jobs: int | None, scheduler: str | None) -> None:
+    """Refuse fewer than one worker, an empty scheduler address, Dask missing."""
+    if jobs is not None and jobs < 1:
+        raise UsageError(f"--jobs {jobs}: give at least 1 worker process")
+    if scheduler is not None:
+        if not scheduler.strip():
+            raise UsageError("--scheduler: give a Dask scheduler address or 'local'")
+        _dask()  # fail fast when Dask is missing
+
+
+def _to_fit(
+    tasks: list[_Task],
+    rows: list[BatchRow | None],
+    record: Callable[[int, Payload], None],
+    keys: list[str | None],
+    fit_keys: list[str | None] | None,
+    *,
+    resume: bool,
+    say: Callable[[str], None],
+) -> list[tuple[int, str]]:
+    """The logs to fit: not kept by ``resume`` (kept rows go into ``rows``), regular files
+    (others are recorded as failed). ``fit_keys``: the keys of the same fits without a
+    diagnosis, when one is asked for (a result without it is fitted again)."""
+    items = []
+    undiagnosed = 0
+    for k, task in enumerate(tasks):
+        kept = _resumed_row(task, keys[k]) if resume else None
+        if kept is None and fit_keys is not None and _resumed_row(task, fit_keys[k]):
+            undiagnosed += 1
+        if kept is not None:
+            rows[k] = kept
+        elif not _is_regular(Path(task.path)):
+            record(k, _failure(_irregular(task.display), 3))
+        else:
+            items.append((k, task.path))
+    if resume:
+        say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
+        if undiagnosed:
+            say(
+                f"{undiagnosed} log(s) were identified without --diagnose: identified "
+                "and diagnosed again"
+            )
+    return items
+
+
+def _dispatch(
+    worker: Callable[[str], Payload],
+    items: list[tuple[int, str]],
+    record: Callable[[int, Payload], None],
+    scheduler: str | None,
+    n_workers: int,
+    pooled: bool,
+    context: Any,
+    say: Callable[[str], None],
+) -> None:
+    """Fit ``items`` on Dask, in a pool of ``n_workers`` processes (``pooled``), or here."""
+    if not items:
+        return
+    if scheduler is not None:
+        _run_dask(worker, items, record, scheduler, n_workers, say)
+    elif pooled and len(items) > 1:
+        n = min(n_workers, len(items))
+        say(f"identifying {len(items)} logs with {n} worker processes")
+        run_in_processes(worker, items, record, n, context=context, notify=say)
+    else:
+        say(f"identifying {len(items)} log(s) in this process")
+        for index, path in items:
+            record(index, worker(path))
+
+
 def run_batch(
     paths: Sequence[str | Path],
     out_dir: str | Path,
@@ -192,12 +327,7 @@ def run_batch(
     """
     started = time.perf_counter()
     say = progress or (lambda message: None)
-    if jobs is not None and jobs < 1:
-        raise UsageError(f"--jobs {jobs}: give at least 1 worker process")
-    if scheduler is not None:
-        if not scheduler.strip():
-            raise UsageError("--scheduler: give a Dask scheduler address or 'local'")
-        _dask()  # fail fast when Dask is missing
+    _check_workers(jobs, scheduler)
     if isinstance(paths, str | Path):
         paths = [paths]
     out = Path(out_dir)
@@ -206,104 +336,37 @@ def run_batch(
     n_workers = min(jobs or available_cpus(), len(logs))
     pooled = scheduler is None and n_workers > 1
     extra = tuple(str(Path(f).resolve()) for f in effects_files)
-    # A pool's fork server loads the kernels of a model of built-in effects (and with
-    # ``diagnose`` its candidates') once, while this process goes on, and every worker is
-    # forked with them loaded; user effects are compiled here first, so that an effect
-    # that cannot be compiled stops the batch before any log, and the workers load it.
-    # The server starts first: its imports are the longest part of a batch's start.
-    preloaded = pooled and not extra
-    context = (
-        _mp_context(
-            [model or DEFAULT_SPEC] if preloaded else [],
-            diagnose=diagnose,
-            trajectory=trajectory is not None,
-        )
-        if pooled
-        else None
-    )
-    mdl = _prepare_model(model, fixed, extra, trajectory is not None, warm=not preloaded)
-    if pooled and diagnose and not preloaded:  # compiled once here, not in every worker
-        _compile_candidates(mdl, trajectory is not None)
+    context, mdl = _start(model, fixed, extra, pooled, diagnose, trajectory is not None)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UsageError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     with _folder_lock(out), _sigterm_as_interrupt():
-        if (out / SUMMARY_NAME).exists() and not (resume or overwrite):
-            raise OutputExistsError(
-                f"--out {out} holds the results of an earlier batch; add --resume to keep "
-                "them and fit only what is missing or changed, or --overwrite to replace them"
-            )
-        tasks = [
-            _Task(str(log), str(log.resolve()), out / name)
-            for log, name in zip(logs, _output_names(logs), strict=True)
-        ]
-        check_own_outputs([t.output for t in tasks], out, replace=resume or overwrite)
-        worker = partial(
-            _identify,
-            model=mdl.spec,
-            fixed=dict(fixed or {}),
-            options=options,
-            effects_files=extra,
-            trajectory=trajectory,
-            diagnose=diagnose,
-        )
+        _refuse_earlier(out, resume or overwrite)
+        tasks = _tasks(logs, out, replace=resume or overwrite)
+        worker = partial(_identify, model=mdl.spec, fixed=dict(fixed or {}), options=options,
+                         effects_files=extra, trajectory=trajectory, diagnose=diagnose)
         rows: list[BatchRow | None] = [None] * len(tasks)
-        keys = [
-            request_key(task.path, mdl.spec, fixed, options, extra, trajectory, diagnose)
-            for task in tasks
-        ]
+        request = partial(request_key, spec=mdl.spec, fixed=fixed, options=options,
+                          effects_files=extra, trajectory=trajectory)
+        keys = [request(task.path, diagnose=diagnose) for task in tasks]
         # the same fit without its diagnosis: a diagnosed result also serves a resume
         # that does not ask for one (never the other way round)
-        fit_keys = [
-            request_key(task.path, mdl.spec, fixed, options, extra, trajectory, False)
-            for task in tasks
-        ] if diagnose else keys
+        fit_keys = [request(task.path, diagnose=False) for task in tasks] if diagnose else keys
 
         def record(index: int, payload: Payload) -> None:
             row = _write_log_result(
                 tasks[index], payload, mdl.spec, keys[index], fit_request=fit_keys[index]
             )
             rows[index] = row
-            done = sum(r is not None for r in rows)
-            say(f"[{done}/{len(tasks)}] {_describe(row)}")
-            if tick is not None:
-                tick(done, len(tasks))
+            say(f"[{sum(r is not None for r in rows)}/{len(tasks)}] {_describe(row)}")
+            _tick(tick, rows)
 
-        items = []
-        undiagnosed = 0
-        for k, task in enumerate(tasks):
-            kept = _resumed_row(task, keys[k]) if resume else None
-            if resume and kept is None and diagnose and _resumed_row(task, fit_keys[k]):
-                undiagnosed += 1
-            if kept is not None:
-                rows[k] = kept
-            elif not _is_regular(Path(task.path)):
-                record(k, _failure(_irregular(task.display), 3))
-            else:
-                items.append((k, task.path))
-        if tick is not None:
-            tick(sum(r is not None for r in rows), len(tasks))
-        if resume:
-            say(f"resuming: {len(tasks) - len(items)} of {len(tasks)} log(s) already done")
-            if undiagnosed:
-                say(
-                    f"{undiagnosed} log(s) were identified without --diagnose: identified "
-                    "and diagnosed again"
-                )
+        items = _to_fit(tasks, rows, record, keys, fit_keys if resume and diagnose else None,
+                        resume=resume, say=say)
+        _tick(tick, rows)
         try:
-            if not items:
-                pass
-            elif scheduler is not None:
-                _run_dask(worker, items, record, scheduler, n_workers, say)
-            elif pooled and len(items) > 1:
-                n = min(n_workers, len(items))
-                say(f"identifying {len(items)} logs with {n} worker processes")
-                run_in_processes(worker, items, record, n, context=context, notify=say)
-            else:
-                say(f"identifying {len(items)} log(s) in this process")
-                for index, path in items:
-                    record(index, worker(path))
+            _dispatch(worker, items, record, scheduler, n_workers, pooled, context, say)
         except BaseException:
             # keep what was done: a consistent summary of every log, finished or not
             write_summary(out / SUMMARY_NAME, _fill_missing(rows, tasks, mdl.spec))
@@ -312,10 +375,8 @@ def run_batch(
         summary = write_summary(out / SUMMARY_NAME, final)
         shared = None
         if per_log:
-            from balancer_id.batch.shared import fit_fleet_shared
-
             say(f"fitting the counted logs together ({', '.join(per_log)} per log)")
-            shared = fit_fleet_shared(
+            shared = _fleet_shared(
                 final, out, per_log, model=model, fixed=fixed, options=options,
                 effects_files=effects_files, trajectory=trajectory,
             )

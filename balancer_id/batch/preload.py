@@ -51,7 +51,7 @@ def preload(specs: list[str], *, diagnose: bool = False, trajectory: bool = Fals
     from importlib import import_module
 
     from balancer_id.batch.worker import _model, warm_kernel
-    from balancer_id.simulation.kernel import compile_models
+    from balancer_id.simulation.kernel_compile import compile_models
 
     for name in _MODULES:
         import_module(name)

@@ -78,7 +78,7 @@ def _compile_candidates(model: Model, with_trajectory: bool) -> None:
     the workers then load them instead of each compiling them again.
     """
     from balancer_id.diagnostics.candidates import candidates
-    from balancer_id.simulation.kernel import compile_models
+    from balancer_id.simulation.kernel_compile import compile_models
 
     compile_models([c.model for c in candidates(model, with_trajectory=with_trajectory)])
 
@@ -148,7 +148,9 @@ def _identify(
             data: dict[str, Any] = dict(result.to_dict())
             if diagnose:
                 from balancer_id.diagnostics.diagnosis import diagnose as diagnose_fit
+                from balancer_id.identify.result import FitResult
 
+                assert isinstance(result, FitResult), "a fit without per_log is one fit"
                 found = diagnose_fit(result, threads=1)  # the workers share the cores
                 data["diagnosis"] = {
                     "verdict": found.verdict,

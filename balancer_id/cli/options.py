@@ -1,35 +1,33 @@
 """Options shared by the commands, declared once, and the parsing of their values.
 
-The seven options that say how logs are read (``--thrust``, ``--force-sign``,
-``--vertical``, ``--columns``, ``--g``, ``--accel-unit``, ``--window``) are declared by each
-command that reads logs, and turned into one checked :class:`~balancer_id.trials.ReadOptions`
-by :func:`read_options`. Every option names its value in words (``metavar``: TEXT, FILE,
-NUMBER...); a flag names none (see :class:`Command`).
+The options that say how logs are read (``--thrust``, ``--force-sign``, ``--vertical``,
+``--columns``, ``--g``, ``--accel-unit``, ``--window``, ``--force-delay``) are declared once,
+in :data:`balancer_id.trials.READ_OPTION_SPELLINGS`; :func:`reads_logs` gives them to a
+command, which receives one checked :class:`~balancer_id.trials.ReadOptions`. Every option
+names its value in words (``metavar``: TEXT, FILE, NUMBER...); a flag names none (see
+:class:`Command`).
 """
 
 from __future__ import annotations
 
 import functools
-import json
-import math
+import inspect
 import os
 import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
 import typer
 from typer.core import TyperCommand, TyperGroup
 
 from balancer_id.cli import progress
-from balancer_id.cli.progress import one_line
-
-if TYPE_CHECKING:
-    from balancer_id.trials import ReadOptions
+from balancer_id.errors import error_record
+from balancer_id.files import emit_json
+from balancer_id.text import one_line
 
 F = TypeVar("F", bound=Callable[..., Any])
-
 
 
 class Command(TyperCommand):
@@ -41,36 +39,15 @@ class Command(TyperCommand):
     """
 
     def get_params(self, ctx: Any) -> list[Any]:
-        """The command's parameters, each flag without a value label.
-
-        Parameters
-        ----------
-        ctx : click.Context
-            The command's context.
-
-        Returns
-        -------
-        list of click.Parameter
-        """
+        """The command's parameters (``ctx``: its click context), flags without a label."""
         return _flags_unlabelled(super().get_params(ctx))
 
 
 class Group(TyperGroup):
-    """The command group, its flags (``--version``, ``--install-completion``, ``--help``)
-    without a value label (see :class:`Command`)."""
+    """The command group, its flags (``--version``, ``--help``) without a value label."""
 
     def get_params(self, ctx: Any) -> list[Any]:
-        """The group's parameters, each flag without a value label.
-
-        Parameters
-        ----------
-        ctx : click.Context
-            The group's context.
-
-        Returns
-        -------
-        list of click.Parameter
-        """
+        """The group's parameters (``ctx``: its click context), flags without a label."""
         return _flags_unlabelled(super().get_params(ctx))
 
 
@@ -81,216 +58,96 @@ def _flags_unlabelled(params: list[Any]) -> list[Any]:
     return params
 
 
+def Opt(flag: str, metavar: str | None, help: str, *aliases: str) -> Any:
+    """An option's declaration, on one line of a command's signature.
+
+    Parameters
+    ----------
+    flag : str
+        The option (``--report``).
+    metavar : str or None
+        What its value is, in words (``FILE``); None for a flag.
+    help : str
+        One line of help.
+    *aliases : str
+        Other spellings (``-m``).
+
+    Returns
+    -------
+    typer.models.OptionInfo
+    """
+    return typer.Option(flag, *aliases, metavar=metavar, help=help)
+
+
 ModelOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--model", "-m", metavar="TEXT", help="Effects joined by '+' (default variable_viscosity)."
-    ),
+    str | None, Opt("--model", "TEXT", "Effects joined by '+' (default variable_viscosity).", "-m")
 ]
 EffectsFileOpt = Annotated[
-    list[Path] | None,
-    typer.Option(
-        "--effects-file", metavar="FILE...", help="A .py file of user effects (repeatable)."
-    ),
+    list[Path] | None, Opt("--effects-file", "FILE...", "A .py file of user effects (repeatable).")
 ]
-ThrustOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--thrust", metavar="TEXT", help="Thrust of each trial in N, e.g. 2.45,-4.9 (one log)."
-    ),
-]
-ForceSignOpt = Annotated[
-    int | None,
-    typer.Option(
-        "--force-sign", metavar="INTEGER", help="+1 or -1: fix the sign of the force channel."
-    ),
-]
-VerticalOpt = Annotated[
-    str,
-    typer.Option(
-        "--vertical", metavar="TEXT", help="auto|x|y|z|-z|...: up axis of logs without gravity."
-    ),
-]
-ColumnsOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--columns", metavar="TEXT", help="Column map of a generic CSV: time=t,force=F,ax=..."
-    ),
-]
-GOpt = Annotated[float, typer.Option("--g", metavar="NUMBER", help="Gravity in m/s^2.")]
-AccelUnitOpt = Annotated[
-    str,
-    typer.Option(
-        "--accel-unit", metavar="TEXT", help="auto|m/s^2|g: unit of the acceleration columns."
-    ),
-]
-ForceDelayOpt = Annotated[
-    float,
-    typer.Option(
-        "--force-delay",
-        metavar="SECONDS",
-        help="The force channel's lag behind the acceleration (s; diagnose measures it).",
-    ),
-]
-WindowOpt = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--window",
-        metavar="TEXT...",
-        help="START:END in s: a stretch where only the measured force acts (repeatable); "
-        "each is a trial, nothing is detected (a lab rig).",
-    ),
-]
-QuietOpt = Annotated[
-    bool,
-    typer.Option(
-        "--quiet", "-q", help="No progress on stderr (no spinner, no per-log lines); warnings "
-        "and errors stay."
-    ),
-]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
+QuietOpt = Annotated[bool, Opt("--quiet", None, "No progress on stderr (no spinner, no per-log "
+                                                "lines); warnings and errors stay.", "-q")]
+JsonOpt = Annotated[bool, Opt("--json", None, "Print one JSON object on stdout.")]
 FixOpt = Annotated[
-    list[str] | None,
-    typer.Option("--fix", metavar="TEXT...", help="Hold a parameter: NAME=VALUE (repeatable)."),
+    list[str] | None, Opt("--fix", "TEXT...", "Hold a parameter: NAME=VALUE (repeatable).")
 ]
 OverwriteOpt = Annotated[
-    bool,
-    typer.Option("--overwrite", help="Replace output files that exist (never an input)."),
+    bool, Opt("--overwrite", None, "Replace output files that exist (never an input).")
 ]
-TrajectoryOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--trajectory",
-        metavar="TEXT",
-        help="Robot reference: 'trapezoid:distance=..,speed=..,accel=..[,start=..]' or a "
-        "CSV of time,position.",
-    ),
+TrajectoryOpt = Annotated[str | None, Opt("--trajectory", "TEXT", "Robot reference: "
+                                          "'trapezoid:distance=..,speed=..,accel=..[,start=..]' "
+                                          "or a CSV of time,position.")]
+SeriesOpt = Annotated[
+    Path | None, Opt("--series", "FILE", "Write time, measured, simulated, residual to FILE.csv.")
 ]
 LogsArg = Annotated[list[Path], typer.Argument(metavar="LOGS", help="One or more logs.")]
 
 
-def read_options(
-    thrust: str | None,
-    force_sign: int | None,
-    vertical: str,
-    columns: str | None,
-    g: float,
-    accel_unit: str,
-    window: list[str] | None,
-    force_delay: float = 0.0,
-) -> ReadOptions:
-    """The reading options of a command (its ``--thrust`` ... ``--window``), checked.
+def reads_logs(func: F | None = None, *, thrust: bool = True) -> Any:
+    """Give a command the reading options, declared once; it gets them as one object.
 
-    Each command that reads logs declares the seven options itself (:data:`ThrustOpt` ...
-    :data:`WindowOpt`, as its last parameters; ``batch`` has no ``--thrust``) and passes
-    their values here, in this order.
+    The command declares a keyword-only parameter ``options: ReadOptions``; its ``--help``
+    lists instead every option of :data:`~balancer_id.trials.READ_OPTION_SPELLINGS` (after
+    its own), and it is called with their values made into one checked
+    :class:`~balancer_id.trials.ReadOptions` (a bad value fails first, exit 2).
 
     Parameters
     ----------
-    thrust : str or None
-        ``--thrust``: thrusts in N separated by commas.
-    force_sign : int or None
-        ``--force-sign``.
-    vertical : str
-        ``--vertical``.
-    columns : str or None
-        ``--columns``: ``ROLE=COLUMN`` pairs.
-    g : float
-        ``--g``.
-    accel_unit : str
-        ``--accel-unit``.
-    window : list of str or None
-        ``--window`` (repeatable).
-    force_delay : float
-        ``--force-delay``.
+    func : callable, optional
+        The command (``@reads_logs``), or None (``@reads_logs(thrust=False)``).
+    thrust : bool
+        Whether the command takes ``--thrust`` (``batch`` reads many logs: it does not).
 
     Returns
     -------
-    ReadOptions
-
-    Raises
-    ------
-    UsageError
-        A malformed value or one out of its range (the message names the option).
+    callable
+        The command with the reading options in its signature (or the decorator).
     """
-    from balancer_id.trials import ReadOptions
+    if func is None:
+        return functools.partial(reads_logs, thrust=thrust)
+    from balancer_id.trials import READ_OPTION_SPELLINGS, ReadOptions
 
-    return ReadOptions.from_text(
-        thrust=thrust,
-        force_sign=force_sign,
-        vertical=vertical,
-        columns=columns,
-        g=g,
-        accel_unit=accel_unit,
-        window=window,
-        force_delay=force_delay,
-    )
+    spellings = [s for s in READ_OPTION_SPELLINGS if thrust or s.name != "thrust"]
+    own = inspect.signature(func, eval_str=True)
+    params = [p for p in own.parameters.values() if p.name != "options"]
+    params += [
+        inspect.Parameter(
+            s.name,
+            inspect.Parameter.KEYWORD_ONLY,
+            default=s.default,
+            annotation=Annotated[s.kind, typer.Option(s.flag, metavar=s.metavar, help=s.help)],
+        )
+        for s in spellings
+    ]
 
+    @functools.wraps(func)
+    def command(*args: Any, **kwargs: Any) -> Any:
+        values = {s.name: kwargs.pop(s.name) for s in spellings if s.name in kwargs}
+        return func(*args, options=ReadOptions.from_text(**values), **kwargs)
 
-def error_record(line: str, code: int, exc: BaseException | None) -> dict[str, object]:
-    """The ``error`` object of ``--json`` output: kind, message, exit code, where.
-
-    Parameters
-    ----------
-    line : str
-        The one-line message.
-    code : int
-        The exit code.
-    exc : BaseException or None
-        The error (its ``file`` or ``path``, ``line`` and ``column`` when it has them).
-
-    Returns
-    -------
-    dict
-    """
-    file = getattr(exc, "file", None) or getattr(exc, "path", None)  # LogReadError: path
-    return {
-        "kind": type(exc).__name__ if exc is not None else "Error",
-        "message": line,
-        "exit_code": code,
-        "file": None if file is None else str(file),
-        "line": getattr(exc, "line", None),
-        "column": getattr(exc, "column", None),
-    }
-
-
-def emit_json(obj: object) -> None:
-    """Print one JSON object on stdout.
-
-    Parameters
-    ----------
-    obj : object
-        JSON-ready data.
-
-    Raises
-    ------
-    OutputWriteError
-        When stdout is closed or cannot take the text (a full disk): exit 3, one line.
-    """
-    from balancer_id.errors import OutputWriteError
-
-    text = json.dumps(obj, indent=2, allow_nan=False, default=str) + "\n"
-    if sys.stdout is None:
-        raise OutputWriteError("cannot print the JSON: stdout is closed; redirect it to a file")
-    try:
-        sys.stdout.write(text)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        raise
-    except (OSError, ValueError) as exc:
-        _stdout_to_null()  # the interpreter's last flush must not fail again
-        why = getattr(exc, "strerror", None) or str(exc)
-        raise OutputWriteError(f"cannot print the JSON on stdout: {why}") from None
-
-
-def _stdout_to_null() -> None:
-    """Point stdout's file descriptor at the null device (and drop what is buffered)."""
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
-    except (OSError, ValueError, AttributeError):
-        pass
+    command.__signature__ = own.replace(parameters=params)  # type: ignore[attr-defined]
+    command.__annotations__ = {p.name: p.annotation for p in params}
+    return command
 
 
 def fail(
@@ -427,190 +284,3 @@ def _raised_by_user_code(exc: BaseException) -> bool:
         if not name.startswith("<"):
             return True
     return False
-
-
-def check_outputs(
-    outputs: dict[str, Path | None], inputs: list[Path | str], overwrite: bool
-) -> None:
-    """Refuse, before any work, outputs that are inputs, exist (without --overwrite) or are
-    read-only.
-
-    Parameters
-    ----------
-    outputs : dict of str to Path or None
-        Option name -> the file it names (None: not given).
-    inputs : list of Path or str
-        Every file the command reads.
-    overwrite : bool
-        ``--overwrite``.
-    """
-    from balancer_id.errors import UsageError
-    from balancer_id.files import check_output, same_file
-
-    given = [(option, Path(path)) for option, path in outputs.items() if path is not None]
-    for i, (option, path) in enumerate(given):
-        for other, other_path in given[:i]:
-            if same_file(path, other_path):
-                raise UsageError(
-                    f"{other} and {option} name the same file '{path}'; one would replace "
-                    "the other: give two names"
-                )
-        check_output(path, inputs=inputs, overwrite=overwrite, option=option)
-
-
-def inputs_of(
-    logs: list[Path], effects_file: list[Path] | None, trajectory_text: str | None = None
-) -> list[Path | str]:
-    """Every file a command reads (an output may be none of them).
-
-    Parameters
-    ----------
-    logs : list of Path
-        The logs.
-    effects_file : list of Path or None
-        ``--effects-file`` paths.
-    trajectory_text : str, optional
-        ``--trajectory`` (a file unless it is a ``trapezoid:`` spec).
-
-    Returns
-    -------
-    list of Path or str
-    """
-    files: list[Path | str] = [*logs, *(effects_file or ())]
-    if trajectory_text and not trajectory_text.strip().startswith("trapezoid:"):
-        files.append(trajectory_text)
-    return files
-
-
-def at_least(value: int | float, low: int | float, option: str) -> None:
-    """Refuse a number below ``low`` (or not finite).
-
-    Parameters
-    ----------
-    value : int or float
-        The option's value.
-    low : int or float
-        The smallest value allowed.
-    option : str
-        The option's name, for the message.
-
-    Raises
-    ------
-    UsageError
-        When ``value`` is below ``low`` or not finite.
-    """
-    from balancer_id.errors import UsageError
-
-    if not (isinstance(value, int) or math.isfinite(value)) or value < low:
-        raise UsageError(f"{option} {value}: give a number >= {low}")
-
-
-def printable(obj: Any) -> Any:
-    """``obj`` with control characters in every string made visible (``\\x1b``), so a run
-    or file name holding terminal escape sequences cannot drive the user's terminal.
-
-    Parameters
-    ----------
-    obj : object
-        JSON-like data.
-
-    Returns
-    -------
-    object
-        The same structure, strings escaped.
-    """
-    if isinstance(obj, str):
-        if obj.isprintable():
-            return obj
-        return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
-    if isinstance(obj, dict):
-        return {k: printable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [printable(v) for v in obj]
-    return obj
-
-
-def floats(text: str | None, what: str) -> list[float] | None:
-    """Numbers separated by commas, or None.
-
-    Parameters
-    ----------
-    text : str or None
-        The option's value.
-    what : str
-        The option's name, for the error message.
-
-    Returns
-    -------
-    list of float or None
-
-    Raises
-    ------
-    UsageError
-        When an item is not a number.
-    """
-    from balancer_id.errors import UsageError
-
-    if text is None:
-        return None
-    try:
-        return [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise UsageError(f"{what} '{text}': give numbers separated by commas") from None
-
-
-def assignments(items: list[str] | None, what: str) -> dict[str, float]:
-    """``NAME=VALUE`` items as a dict.
-
-    Parameters
-    ----------
-    items : list of str or None
-        The repeated option's values.
-    what : str
-        The option's name, for the error message.
-
-    Returns
-    -------
-    dict of str to float
-
-    Raises
-    ------
-    UsageError
-        When an item is not ``NAME=NUMBER``.
-    """
-    from balancer_id.errors import UsageError
-
-    out: dict[str, float] = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        try:
-            if not sep:
-                raise ValueError
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise UsageError(f"{what} '{item}': expected NAME=VALUE, e.g. m_a=15.1") from None
-    return out
-
-
-def trajectory(text: str | None) -> Any:
-    """The ``--trajectory`` reference move, or None.
-
-    Parameters
-    ----------
-    text : str or None
-        ``trapezoid:distance=..,speed=..,accel=..[,start=..]``.
-
-    Returns
-    -------
-    Trapezoid, TabulatedMove or None
-
-    Raises
-    ------
-    UsageError
-        When the text is malformed.
-    """
-    if text is None:  # before any import: a batch's start waits for this
-        return None
-    from balancer_id.trials import reference_move
-
-    return reference_move(text)

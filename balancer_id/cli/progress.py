@@ -11,25 +11,10 @@ import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from balancer_id.text import one_line
+
 #: Set by ``--quiet`` (``-q``), given before the command or after it.
 QUIET = False
-
-
-def one_line(text: object) -> str:
-    """``text`` on one line, with control characters (terminal escapes) made visible.
-
-    Parameters
-    ----------
-    text : object
-        A message.
-
-    Returns
-    -------
-    str
-    """
-    flat = " ".join(str(text).split())
-    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in flat)
-
 
 
 def enabled() -> bool:

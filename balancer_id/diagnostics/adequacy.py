@@ -146,7 +146,7 @@ def level_test(ctx: DiagnosisContext, colour: dict[str, object]) -> dict[str, ob
         and ``limit``.
     """
     acf_rest = np.asarray(colour.get("rest_acf") or [], float)
-    n_rest = int(colour.get("n_rest") or 0)
+    n_rest = int(colour.get("n_rest") or 0)  # type: ignore[call-overload]
     n_eff = n_rest / (1.0 + 2.0 * float(np.sum(acf_rest**2))) if n_rest else 0.0
     limit = LEVEL_MIN
     if n_eff > 0:
@@ -250,7 +250,8 @@ def consistency_test(
         )
     if paper_off:
         text += (
-            f"; the paper's method's m_a {paper_m_a[0]:.3g} kg is {abs(paper_z):.1f} "  # type: ignore[index]
+            f"; the paper's method's m_a {paper_m_a[0]:.3g} kg is "  # type: ignore[index]
+            f"{abs(paper_z or 0.0):.1f} "
             "standard errors from the fit's"
         )
     return {

@@ -37,7 +37,9 @@ def _fitted(
                 "a FitResult carries its model, options and trials; give fit options to fit()"
             )
         return source
-    return fit(source, model=model, **fit_options)
+    result = fit(source, model=model, **fit_options)
+    assert isinstance(result, FitResult), "a fit without per_log is one fit"
+    return result
 
 
 def diagnose(

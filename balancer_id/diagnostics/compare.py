@@ -23,7 +23,7 @@ class ModelComparison(Displayable):
     match: MatchResult
     worst: list[dict[str, object]]
     #: Whiteness and cross-correlation with the thrust of the residual (validation).
-    residual_tests: dict[str, object] | None = None
+    residual_tests: Mapping[str, object] | None = None
     #: With every value known (nothing fitted): does the model hold on these trials?
     validation: Validation | None = None
 

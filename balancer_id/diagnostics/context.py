@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -157,7 +158,7 @@ class DiagnosisContext:
             spectrum averaged over trials.
         """
         fs = 1.0 / self.dt
-        psds = []
+        psds: list[Any] = []
         for tv in self.trials:
             if tv.residual.size >= 128:
                 f, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))

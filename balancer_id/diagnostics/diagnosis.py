@@ -30,6 +30,7 @@ from balancer_id.diagnostics.explanations import Verdict
 from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.sensor_lowpass import rest_cutoff
 from balancer_id.diagnostics.residual_tests import (
+    ResidualTests,
     input_correlation,
     regime_table,
     spectrum_peaks,
@@ -73,84 +74,6 @@ _rivals, _tell_apart = rivals, tell_apart
 #: Threads running the diagnosis's fits at once (candidate refits, the arena's splits and
 #: drifts; the kernels release the GIL); None: one per core.
 REFIT_THREADS: int | None = None
-
-
-@dataclass
-class ResidualTests:
-    """The residual tests of a fit (CONTRACT.md ``diagnose`` ``residual_tests``).
-
-    Attributes
-    ----------
-    noise_floor : float
-        Acceleration noise (m/s^2).
-    whiteness : dict
-        Autocorrelation, its band and the Ljung-Box test
-        (:func:`~balancer_id.diagnostics.residual_tests.whiteness`).
-    input_cross_correlation : dict
-        The residual against the thrust step, its peak and significance.
-    spectrum : dict
-        ``peaks`` of the residual's spectrum.
-    regimes : list of dict
-        The residual by regime, direction and thrust level.
-    state_correlation : dict of str to float
-        Correlation of the residual with each simulated state.
-    worst_windows : list of dict
-        Where the residual is largest.
-    paper_line : dict
-        ``m_a``, ``intercept_N`` and ``free_slope`` of the paper's method.
-    parameter_drift : list of dict
-        Per-trial refits: each parameter's slope against thrust and up/down difference.
-    parameter_groups : dict or None
-        A parameter that changed between runs (payload, setting), with its per-run
-        estimates and the split test; None when none did.
-    input_cross_correlation_curve : dict
-        :attr:`input_cross_correlation` with its curve (``lag_s``, ``mean_residual``).
-    """
-
-    noise_floor: float
-    whiteness: dict[str, object]
-    input_cross_correlation: dict[str, object]
-    spectrum: dict[str, object]
-    regimes: list[dict[str, object]]
-    state_correlation: dict[str, float]
-    worst_windows: list[dict[str, object]]
-    paper_line: dict[str, float]
-    parameter_drift: list[dict[str, object]]
-    parameter_groups: dict[str, object] | None = None
-    #: The cross-correlation with its ``lag_s`` and ``mean_residual`` curve (for the
-    #: report's plot; the JSON keeps the peak and the band only).
-    input_cross_correlation_curve: dict[str, object] = field(default_factory=dict, repr=False)
-
-    def __getitem__(self, key: str) -> object:
-        """The test named ``key``, as in :meth:`to_dict`.
-
-        Parameters
-        ----------
-        key : str
-            A key of the CONTRACT.md ``residual_tests`` object.
-
-        Returns
-        -------
-        object
-        """
-        if key not in self.__dataclass_fields__:
-            raise KeyError(key)
-        return getattr(self, key)
-
-    def to_dict(self) -> dict[str, object]:
-        """The CONTRACT.md ``residual_tests`` object."""
-        return {
-            "noise_floor": self.noise_floor,
-            "whiteness": self.whiteness,
-            "input_cross_correlation": self.input_cross_correlation,
-            "spectrum": self.spectrum,
-            "regimes": self.regimes,
-            "state_correlation": self.state_correlation,
-            "worst_windows": self.worst_windows,
-            "paper_line": self.paper_line,
-            "parameter_drift": self.parameter_drift,
-            **({"parameter_groups": self.parameter_groups} if self.parameter_groups else {}),
-        }
 
 
 @dataclass(repr=False)
@@ -269,11 +192,11 @@ class Diagnosis(Displayable):
             d = self.discovery
             lines.append("[[Discovered term]] (sparse regression of the force discrepancy)")
             lines.append(f"    {d.formula} (N); BIC falls by {d.delta_bic:.0f}")
-            for t in d.terms:
-                se = f" +/- {t.stderr:.2g}" if t.stderr is not None else ""
+            for found in d.terms:
+                se = f" +/- {found.stderr:.2g}" if found.stderr is not None else ""
                 lines.append(
-                    f"    {t.expression}: {t.coefficient:.4g}{se} {t.term.unit},"
-                    f" kept in {t.inclusion:.0%} of the bootstrap resamples"
+                    f"    {found.expression}: {found.coefficient:.4g}{se} {found.term.unit},"
+                    f" kept in {found.inclusion:.0%} of the bootstrap resamples"
                 )
             lines.append(f"    {d.command}")
         return lines
@@ -468,7 +391,9 @@ def arena_input(
         independence=independence(match),
         effect_fits=[(s.effect, s.refit) for s in suggestions if s.refit is not None],
         rest_cutoff_hz=rest_cutoff(trials, 1.0 / ctx.dt) if ctx.dt > 0 else None,
-        ar=arena.ar_coefficients(colour["rest_acf"], int(colour["n_rest"])),  # type: ignore[arg-type]
+        ar=arena.ar_coefficients(
+            colour["rest_acf"], int(colour["n_rest"])  # type: ignore[arg-type, call-overload]
+        ),
         threads=threads,
         tests_failed=any(not t["passed"] for t in checks),
         fit=fit,
@@ -523,8 +448,8 @@ def parameter_drift(fit: FitResult) -> list[dict[str, object]]:
         vals = [v for v in vals if v[3] is not None and np.isfinite(v[3]) and v[3] > 0]
         if len(vals) < 3:
             continue
-        h, d, x, s = zip(*vals, strict=True)
-        h, x, s = np.array(h), np.array(x), np.array(s)
+        h_, d, x_, s_ = zip(*vals, strict=True)
+        h, x, s = np.array(h_, float), np.array(x_, float), np.array(s_, float)
         w = 1 / s**2
         row: dict[str, object] = {"parameter": name, "values": [float(v) for v in x]}
         if np.ptp(h) > 0:

@@ -272,11 +272,14 @@ def run_estimates(
         acc[run].append((float(v), float(s), abs(float(h))))
     out = []
     for run in order:
-        v, s, h = (np.array(c) for c in zip(*acc[run], strict=True))
-        w = 1.0 / s**2
+        vals, errs, levels = (np.array(c, dtype=float) for c in zip(*acc[run], strict=True))
+        w = 1.0 / errs**2
         out.append(
             RunEstimate(
-                run, float(np.average(v, weights=w)), float(w.sum() ** -0.5), float(h.mean())
+                run,
+                float(np.average(vals, weights=w)),
+                float(w.sum() ** -0.5),
+                float(levels.mean()),
             )
         )
     return out

@@ -251,6 +251,7 @@ def improve(
         if chosen is None:
             break
         s, cv = chosen
+        assert s.refit is not None  # a chosen suggestion was refitted
         current = fit_match(
             s.refit,
             fit.trial_set,

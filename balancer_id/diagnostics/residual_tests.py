@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from typing import Any
+
 import numpy as np
 
 from balancer_id.diagnostics.context import REGIMES, DiagnosisContext
@@ -189,7 +192,8 @@ def state_correlations(ctx: DiagnosisContext) -> dict[str, float]:
         ``time`` (signed by the thrust), over the samples after the onsets; a state
         that does not vary is left out.
     """
-    res, states = [], {"velocity": [], "position": [], "drive force": [], "time": []}
+    res: list[Any] = []
+    states: dict[str, list[Any]] = {"velocity": [], "position": [], "drive force": [], "time": []}
     for tv in ctx.trials:
         m = tv.t >= 0
         res.append(tv.residual[m])
@@ -241,3 +245,81 @@ def worst_windows(ctx: DiagnosisContext, width_s: float = 0.5, count: int = 3) -
         )
     found.sort(key=lambda r: -r["rmse"])
     return found[:count]
+
+
+@dataclass
+class ResidualTests:
+    """The residual tests of a fit (CONTRACT.md ``diagnose`` ``residual_tests``).
+
+    Attributes
+    ----------
+    noise_floor : float
+        Acceleration noise (m/s^2).
+    whiteness : dict
+        Autocorrelation, its band and the Ljung-Box test
+        (:func:`~balancer_id.diagnostics.residual_tests.whiteness`).
+    input_cross_correlation : dict
+        The residual against the thrust step, its peak and significance.
+    spectrum : dict
+        ``peaks`` of the residual's spectrum.
+    regimes : list of dict
+        The residual by regime, direction and thrust level.
+    state_correlation : dict of str to float
+        Correlation of the residual with each simulated state.
+    worst_windows : list of dict
+        Where the residual is largest.
+    paper_line : dict
+        ``m_a``, ``intercept_N`` and ``free_slope`` of the paper's method.
+    parameter_drift : list of dict
+        Per-trial refits: each parameter's slope against thrust and up/down difference.
+    parameter_groups : dict or None
+        A parameter that changed between runs (payload, setting), with its per-run
+        estimates and the split test; None when none did.
+    input_cross_correlation_curve : dict
+        :attr:`input_cross_correlation` with its curve (``lag_s``, ``mean_residual``).
+    """
+
+    noise_floor: float
+    whiteness: dict[str, object]
+    input_cross_correlation: dict[str, object]
+    spectrum: dict[str, object]
+    regimes: list[dict[str, object]]
+    state_correlation: dict[str, float]
+    worst_windows: list[dict[str, object]]
+    paper_line: dict[str, float]
+    parameter_drift: list[dict[str, object]]
+    parameter_groups: dict[str, object] | None = None
+    #: The cross-correlation with its ``lag_s`` and ``mean_residual`` curve (for the
+    #: report's plot; the JSON keeps the peak and the band only).
+    input_cross_correlation_curve: dict[str, object] = field(default_factory=dict, repr=False)
+
+    def __getitem__(self, key: str) -> object:
+        """The test named ``key``, as in :meth:`to_dict`.
+
+        Parameters
+        ----------
+        key : str
+            A key of the CONTRACT.md ``residual_tests`` object.
+
+        Returns
+        -------
+        object
+        """
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def to_dict(self) -> dict[str, object]:
+        """The CONTRACT.md ``residual_tests`` object."""
+        return {
+            "noise_floor": self.noise_floor,
+            "whiteness": self.whiteness,
+            "input_cross_correlation": self.input_cross_correlation,
+            "spectrum": self.spectrum,
+            "regimes": self.regimes,
+            "state_correlation": self.state_correlation,
+            "worst_windows": self.worst_windows,
+            "paper_line": self.paper_line,
+            "parameter_drift": self.parameter_drift,
+            **({"parameter_groups": self.parameter_groups} if self.parameter_groups else {}),
+        }

@@ -76,7 +76,7 @@ def signature_of(effect: type, ctx: DiagnosisContext) -> Signature:
         warnings.simplefilter("ignore", RuntimeWarning)
         sig = check(ctx)
     if not isinstance(sig, Signature):
-        raise TypeError(f"{effect.name}.signature must return a Signature")
+        raise TypeError(f"{getattr(effect, 'name', effect)}.signature must return a Signature")
     if not np.isfinite(sig.strength):
         return Signature(0.0, f"{sig.evidence} (too little data for this check)", sig.start)
     sig.start = {k: float(v) for k, v in sig.start.items() if np.isfinite(v)}

@@ -12,7 +12,8 @@ from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.arena import BIC_THRESHOLD, MIN_EXCESS_DROP
 from balancer_id.diagnostics.candidates import Candidate, Refit, candidates, quick_refit
 from balancer_id.diagnostics.signatures import Signature, signature_of
-from balancer_id.simulation.kernel import compile_models, get_kernel
+from balancer_id.simulation.kernel import get_kernel
+from balancer_id.simulation.kernel_compile import compile_models
 from balancer_id.status import tell
 
 if TYPE_CHECKING:

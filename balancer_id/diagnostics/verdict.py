@@ -20,7 +20,7 @@ from balancer_id.notes import Note
 
 if TYPE_CHECKING:
     from balancer_id.diagnostics.context import DiagnosisContext
-    from balancer_id.diagnostics.diagnosis import ResidualTests
+    from balancer_id.diagnostics.residual_tests import ResidualTests
     from balancer_id.identify.result import FitResult
 
 #: A runner-up of another kind within this share of the best's BIC fall is "close".

@@ -25,7 +25,7 @@ import numpy as np
 from balancer_id.identify.data import FitData, TrialData
 
 if TYPE_CHECKING:
-    from balancer_id.identify.display import ShownFit
+    from balancer_id.identify.shown import ShownFit
 
 __all__ = ["ResponseBand", "Stretch", "band_summary", "covariance_of", "response_band"]
 

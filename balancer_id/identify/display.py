@@ -14,10 +14,11 @@ from __future__ import annotations
 import html
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from balancer_id.identify.shown import ShownFit
 from balancer_id.metric_fields import metric_cells, metric_line
 from balancer_id.numbers import format_with_uncertainty
 
@@ -26,27 +27,6 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from balancer_id.identify.band import ResponseBand
-
-
-class ShownFit(Protocol):
-    """What the display reads of a fit: a
-    :class:`~balancer_id.identify.matching.MatchResult` (named structurally, so that
-    ``matching``, which builds on :class:`Displayable`, is not imported back here)."""
-
-    correlations: dict[str, dict[str, float]]
-    data: Any
-    metrics: dict[str, float]
-    model: Any
-    nfev: int
-    parameters: dict[str, Any]
-    success: bool
-    y: np.ndarray
-    y_model: np.ndarray
-
-    @property
-    def warnings(self) -> Sequence[Any]:
-        """Notes or sentences (read only: any sequence of them will do)."""
-        ...
 
 
 __all__ = ["Displayable", "format_with_uncertainty", "match_frame", "match_plot"]

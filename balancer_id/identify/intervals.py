@@ -17,9 +17,11 @@ bound: the data cannot exclude it, and the interval says so.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.matching import MatchResult, match_trials
@@ -143,9 +145,13 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     sigma2 = s_min / max(n - k, 1) * max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     threshold = s_min + sigma2 * chi2_quantile_1dof(level)
     held = {p.name: p.value for p in match.parameters.values() if not p.vary}
-    start = match.values()
+    # continuation: each refit starts from the optimum of the nearest value refitted so
+    # far (the profile's path is smooth), not from the overall optimum, which lies ever
+    # further away as the profile walks out: the same optima in a fraction of the steps
+    optima: list[tuple[float, dict[str, float]]] = [(est.value, match.values())]
 
     def cost(value: float) -> float:
+        start = min(optima, key=lambda seen: abs(seen[0] - value))[1]
         try:
             with np.errstate(all="ignore"):  # far out, the simulation may overflow
                 refit = match_trials(
@@ -157,6 +163,7 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
                 )
         except BalancerIdError:
             return math.inf
+        optima.append((value, refit.values()))
         return float(np.sum(refit.residual**2))
 
     span = spec.max - spec.min
@@ -174,30 +181,68 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     def end(side: int) -> tuple[float, bool]:
         bound = lo_end if side < 0 else hi_end
         inside, step = est.value, step0
+        c_in = s_min
         for _ in range(MAX_REFITS_PER_END):
             trial = est.value + side * step
             if (trial - bound) * side >= 0:  # at or past the bound
-                if cost(bound) <= threshold:
+                c_bound = cost(bound)
+                if c_bound <= threshold:
                     return bound, True
-                outside = bound
+                outside, c_out = bound, c_bound
                 break
-            if cost(trial) > threshold:
-                outside = trial
+            c_trial = cost(trial)
+            if c_trial > threshold:
+                outside, c_out = trial, c_trial
                 break
-            inside, step = trial, 2.0 * step
+            inside, c_in, step = trial, c_trial, 2.0 * step
         else:
             return inside, False
-        for _ in range(MAX_REFITS_PER_END // 2):
-            mid = 0.5 * (inside + outside)
-            if cost(mid) <= threshold:
-                inside = mid
-            else:
-                outside = mid
-        return 0.5 * (inside + outside), False
+        return _crossing(cost, threshold, (inside, c_in), (outside, c_out), est.value), False
 
     low, low_b = end(-1)
     high, high_b = end(+1)
     return ProfileInterval(name, float(low), float(high), level, low_b, high_b)
+
+
+def _crossing(
+    cost: Callable[[float], float],
+    threshold: float,
+    inside: tuple[float, float],
+    outside: tuple[float, float],
+    value: float,
+) -> float:
+    """Where the profile's cost crosses ``threshold`` between two bracketing points.
+
+    Brent's method (:func:`scipy.optimize.brentq`: the cost near an end is smooth and
+    nearly quadratic, so its interpolation lands close after a step or two, and it falls
+    back on bisection where the cost curves), after bisections while the outside end's
+    cost is not finite. Stops when the bracket is narrower than 0.5 % of the end's distance
+    from the fitted ``value`` (or 0.5 per mille of the value), or after
+    ``MAX_REFITS_PER_END // 2`` refits, as the bisection it replaces.
+    """
+    (x_in, c_in), (x_out, c_out) = inside, outside
+    tolerance = max(5e-3 * abs(x_out - value), 5e-4 * abs(value), 1e-12)
+    budget = MAX_REFITS_PER_END // 2
+    while not np.isfinite(c_out) and budget > 0 and abs(x_out - x_in) > tolerance:
+        mid = 0.5 * (x_in + x_out)
+        c_mid = cost(mid)
+        budget -= 1
+        if c_mid <= threshold:
+            x_in, c_in = mid, c_mid
+        else:
+            x_out, c_out = mid, c_mid
+    if budget == 0 or not np.isfinite(c_out) or abs(x_out - x_in) <= tolerance:
+        return 0.5 * (x_in + x_out)
+    known = {x_in: c_in - threshold, x_out: c_out - threshold}
+
+    def excess(x: float) -> float:
+        if x not in known:  # brentq asks again for the ends it was given
+            known[x] = cost(x) - threshold
+        return min(known[x], 1e300)
+
+    found, _ = brentq(excess, x_in, x_out, xtol=tolerance, rtol=1e-12, maxiter=budget,
+                      full_output=True, disp=False)  # fmt: skip
+    return float(found)
 
 
 def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[str]:

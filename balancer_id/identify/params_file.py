@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 from balancer_id.errors import UsageError
@@ -68,7 +69,7 @@ def read_params_file(path: str | Path) -> dict[str, float]:
 def held_for_model(
     path: str | Path,
     model: str | Model | None,
-    effects_files: tuple[Path, ...] | list[Path] = (),
+    effects_files: Sequence[str | Path] = (),
 ) -> dict[str, float]:
     """The values of ``path`` (:func:`read_params_file`) that are parameters of ``model``.
 
@@ -78,7 +79,7 @@ def held_for_model(
         The JSON of an earlier fit.
     model : str, Model or None
         The model of this fit, or its spec (None: the default).
-    effects_files : sequence of Path
+    effects_files : sequence of str or Path
         User effect files the spec may name.
 
     Returns
@@ -100,3 +101,29 @@ def held_for_model(
             f"parameter of the model"
         )
     return held
+
+
+def params_model(path: str | Path, model: str | None) -> str | None:
+    """The model of ``--params FILE`` (its ``model`` key) unless ``model`` names one.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON of an earlier fit.
+    model : str or None
+        The model the user named (it wins).
+
+    Returns
+    -------
+    str or None
+        None when neither says (the default model); a file that cannot be read is left
+        to :func:`read_params_file` to explain.
+    """
+    if model is not None:
+        return model
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    spec = data.get("model") if isinstance(data, dict) else None
+    return spec if isinstance(spec, str) else None

@@ -6,9 +6,15 @@ standard errors do, ``matching._covariance``):
 
     log L(theta) = -S(theta) / (2 sigma^2 tau),   sigma^2 = S_min / (n - k)
 
-times a uniform prior inside each parameter's bounds (a positive one's within a factor
-100 of its fitted value, :func:`support`) and, where the user gives one, a
-normal prior ``NAME=normal:MU,SD``. emcee's ensemble sampler draws from it, started
+times a prior: Jeffreys' reference prior ``sqrt(det(S^T S))`` (``S`` the simulated
+response's sensitivities at ``theta``) over the parameters the user gives no prior for,
+inside each parameter's bounds (a positive one's within a factor 100 of its fitted value,
+:func:`support`), and, where the user gives one, a normal prior ``NAME=normal:MU,SD``.
+A flat prior over those bounds put most of its volume where the data cannot tell the
+parameters apart (on a short log, ``D0`` large with ``A`` large: no viscosity at any
+level reached), and the posterior sat there, its intervals missing the truth; Jeffreys'
+prior vanishes where the information does, and is unchanged by a change of units or
+coordinates. emcee's ensemble sampler draws from it, started
 around the optimum, moved by differential evolution (a positive parameter as its logarithm);
 the chain runs until it is 50
 autocorrelation times long (or its budget is spent), the first two autocorrelation times
@@ -318,6 +324,8 @@ def _log_posterior_fn(match: MatchResult, names: list[str], priors: Sequence[Pri
     packed = match.data.packed
     by_name = {p.name: p for p in priors}
     prior_at = [(j, by_name[nm]) for j, nm in enumerate(names) if nm in by_name]
+    # the reference prior's parameters: those without a prior of the user's
+    ref_cols = [idx[j] for j, nm in enumerate(names) if nm not in by_name]
 
     def log_p(theta: np.ndarray) -> float:
         if not (np.all(theta > lo) and np.all(theta < hi)):
@@ -325,13 +333,43 @@ def _log_posterior_fn(match: MatchResult, names: list[str], priors: Sequence[Pri
         p = base.copy()
         p[idx] = theta
         with np.errstate(all="ignore"):
-            r = packed.run(model, p)[:, 0] - y
+            if ref_cols:
+                out, sens = packed.run_sens(model, p, ref_cols)
+                r = out[:, 0] - y
+                ref = _log_jeffreys(sens)
+            else:
+                r = packed.run(model, p)[:, 0] - y
+                ref = 0.0
             s = float(np.einsum("i,i", r, r))
-        if not math.isfinite(s):
+        if not (math.isfinite(s) and math.isfinite(ref)):
             return -np.inf
-        return -s * scale + sum(pr.log_density(float(theta[j])) for j, pr in prior_at)
+        return -s * scale + ref + sum(pr.log_density(float(theta[j])) for j, pr in prior_at)
 
     return log_p, lo, hi
+
+
+#: Smallest eigenvalue of the information's correlation matrix counted by Jeffreys' prior.
+JEFFREYS_FLOOR = 1e-14
+
+
+def _log_jeffreys(sens: np.ndarray) -> float:
+    """Log of Jeffreys' prior, ``0.5 log det(S^T S)`` (``S`` the simulated response's
+    sensitivities; the noise variance is a constant factor): -inf where the data cannot
+    tell the parameters apart."""
+    if not np.all(np.isfinite(sens)):
+        return -math.inf
+    info = sens.T @ sens
+    d = np.sqrt(np.diag(info))
+    if not np.all(np.isfinite(info)) or np.any(d <= 0):
+        return -math.inf
+    # of the correlation matrix (well scaled), its eigenvalues floored: a nearly singular
+    # information is a very small prior, not an undefined one that would strand a walker
+    try:
+        eig = np.linalg.eigvalsh(info / np.outer(d, d))
+    except np.linalg.LinAlgError:
+        return -math.inf
+    logdet = float(np.sum(np.log(np.maximum(eig, JEFFREYS_FLOOR))))
+    return 0.5 * logdet + float(np.sum(np.log(d)))
 
 
 def _start_ensemble(
@@ -435,18 +473,21 @@ def sample_posterior(
     sampler = emcee.EnsembleSampler(walkers, k, log_pu, moves=moves)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     began = time.monotonic()
-    state = sampler.run_mcmc(start, min_steps, progress=False, skip_initial_state_check=True)
-    steps = min_steps
-    tau = _autocorr(sampler)
-    while (
-        steps < max_steps
-        and steps < CHAIN_TAUS * float(np.nanmax(tau))
-        and time.monotonic() - began < max_seconds
-    ):
-        more = int(min(max_steps - steps, max(200, CHAIN_TAUS * np.nanmax(tau) - steps)))
-        state = sampler.run_mcmc(state, more, progress=False)
-        steps += more
+    # a walker started where the prior vanishes has -inf, and inf - inf is no number: such
+    # a proposal is rejected (as it should be), without numpy's warning
+    with np.errstate(invalid="ignore"):
+        state = sampler.run_mcmc(start, min_steps, progress=False, skip_initial_state_check=True)
+        steps = min_steps
         tau = _autocorr(sampler)
+        while (
+            steps < max_steps
+            and steps < CHAIN_TAUS * float(np.nanmax(tau))
+            and time.monotonic() - began < max_seconds
+        ):
+            more = int(min(max_steps - steps, max(200, CHAIN_TAUS * np.nanmax(tau) - steps)))
+            state = sampler.run_mcmc(state, more, progress=False)
+            steps += more
+            tau = _autocorr(sampler)
     longest = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else steps / 10
     burn = min(int(2 * longest), steps // 2)
     thin = max(1, int(0.5 * float(np.nanmin(tau)))) if np.all(np.isfinite(tau)) else 1
@@ -483,13 +524,20 @@ def sample_posterior(
 LOG_AWAY = 3.0
 
 
+#: ... or when its reported 95 % interval lies above 0 and spans more than this factor
+#: (a short log's D0 and A: their uncertainty is a factor, not a difference).
+SPANS_DECADE = 10.0
+
+
 def _logged(match: MatchResult, names: Sequence[str], lo: np.ndarray) -> np.ndarray:
     """Which parameters are sampled as their logarithm (see :data:`LOG_AWAY`)."""
     out = []
     for n, a in zip(names, lo, strict=True):
         p = match.parameters[n]
         se = p.stderr if p.stderr is not None and math.isfinite(p.stderr) else math.inf
-        out.append(bool(a > 0 or (a >= 0 and p.value > LOG_AWAY * se)))
+        ci = p.ci95
+        decades = ci is not None and a >= 0 and ci[0] > 0 and ci[1] > SPANS_DECADE * ci[0]
+        out.append(bool(a > 0 or (a >= 0 and p.value > LOG_AWAY * se) or decades))
     return np.array(out, bool)
 
 

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -12,10 +13,19 @@ from balancer_id.identify.figure import NotebookFigure
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from balancer_id.identify.tracking import Tracking
+
+class Tracked(Protocol):
+    """What the plot reads of a :class:`~balancer_id.identify.tracking.Tracking` (named
+    structurally: ``tracking`` draws itself with this module, which does not import it
+    back)."""
+
+    @property
+    def tracks(self) -> Mapping[str, Any]:
+        """Parameter name -> its track (``time_s``, ``value``, ``lo``, ``hi``...)."""
+        ...
 
 
-def plot_tracking(tracking: Tracking, path: str | Path | None = None) -> Figure | Path:
+def plot_tracking(tracking: Tracked, path: str | Path | None = None) -> Figure | Path:
     """Each tracked parameter against time: the smoothed curve, its 95 % band, the
     per-block estimates (± 1.96 standard errors, scaled as the walk found them) and the
     joint fit's constant value.

@@ -295,3 +295,24 @@ def default_registry(effects_files: Iterable[str | Path] = ()) -> Registry:
     for path in effects_files:
         registry.load_file(path)
     return registry
+
+
+def describe_effects(effects_files: Iterable[str | Path] = ()) -> list[dict[str, object]]:
+    """Every effect available (``balancer-id effects``): the base model first, built in,
+    then the plug-ins' and the files', each with its parameters and its origin.
+
+    Parameters
+    ----------
+    effects_files : iterable of str or Path
+        User effects files to load, in order.
+
+    Returns
+    -------
+    list of dict
+        :meth:`Effect.describe` of each, with ``origin``.
+    """
+    from balancer_id.model.effects.base_model import Base
+
+    registry = default_registry(effects_files)
+    items = [{**Base.describe(), "origin": "built-in (always present)"}]
+    return items + [{**cls.describe(), "origin": registry.origin(cls.name)} for cls in registry]

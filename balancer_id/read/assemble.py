@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -115,21 +116,7 @@ def build_recordings(
             warnings.append(_guess_note(plan, header))
         for col, (factor, offset) in plan.scales.items():  # the column map's scales
             table.columns[col] = table.columns[col] * factor + offset
-        base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
-        if plan.clock is not None and base.started_at is None:
-            clock = to_seconds(table.columns[plan.clock])
-            rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
-            if clock.started_at is not None and rows.any():
-                first = int(np.argmax(rows))
-                base = TimeBase(
-                    base.seconds - base.seconds[first],
-                    base.unit,
-                    base.source,
-                    clock.started_at + float(clock.seconds[first]),
-                    clock=header[plan.clock],
-                    stated=base.stated,
-                    spacing=base.spacing,
-                )
+        base = _time_base(plan, table, header)
         time = base.seconds
         said = base.note(header[plan.time])
         if said and said not in stated:
@@ -164,14 +151,37 @@ def build_recordings(
             )
             warnings.extend(rec_warnings)
             if rec is not None:
-                rec.started_at = (
-                    base.started_at if base.started_at is not None else plan.clock_start
-                )
-                if base.started_at is not None and rec.n_samples:
-                    rec.started_at = base.started_at + float(rec.time[0])
-                    rec.time = rec.time - rec.time[0]
-                recordings.append(rec)
+                recordings.append(_started(rec, base, plan))
     return recordings, warnings
+
+
+def _time_base(plan: RunPlan, table: Table, header: list[str]) -> TimeBase:
+    """The run's time in seconds; with a clock column beside a relative time, its start."""
+    base = to_seconds(table.columns[plan.time], plan.time_unit, plan.time_unit_from)
+    if plan.clock is not None and base.started_at is None:
+        clock = to_seconds(table.columns[plan.clock])
+        rows = np.isfinite(table.columns[plan.clock]) & np.isfinite(base.seconds)
+        if clock.started_at is not None and rows.any():
+            first = int(np.argmax(rows))
+            base = TimeBase(
+                base.seconds - base.seconds[first],
+                base.unit,
+                base.source,
+                clock.started_at + float(clock.seconds[first]),
+                clock=header[plan.clock],
+                stated=base.stated,
+                spacing=base.spacing,
+            )
+    return base
+
+
+def _started(rec: Recording, base: TimeBase, plan: RunPlan) -> Recording:
+    """The recording's start (a clock time counted from its first sample, or the plan's)."""
+    rec.started_at = base.started_at if base.started_at is not None else plan.clock_start
+    if base.started_at is not None and rec.n_samples:
+        rec.started_at = base.started_at + float(rec.time[0])
+        rec.time = rec.time - rec.time[0]
+    return rec
 
 
 def _guess_note(plan: RunPlan, header: list[str]) -> Note:
@@ -358,74 +368,122 @@ def _build_one(
     force = table.columns[plan.force][rows] if chosen.force and plan.force is not None else None
     if chosen.force_rows is not None and plan.force is not None:
         force, rows, note = _force_onto_accel(
-            path,
-            plan,
-            table.columns[plan.force],
-            chosen.force_rows,
-            idx,
-            table,
-            header,
-            force_time,
-            time_all,
+            path, plan, table.columns[plan.force], chosen.force_rows, idx, table, header,
+            force_time, time_all,
         )
         warnings.append(f"{name}: {note}")
         if rows.size < 2:
             warnings.append(f"{name}: only {rows.size} sample(s) with force; run skipped")
             return None, warnings
         time = time_all[rows]
-    accel = None
-    includes_gravity = True
+    accel, includes_gravity = None, True
     if chosen.accel and plan.accel:
-        raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
-        try:
-            accel, includes_gravity, said, decided = resolve_accel(
-                raw,
-                header_unit=plan.accel_unit,
-                includes_gravity=plan.includes_gravity,
-                accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
-                g=g,
-                gravity_given=plan.gravity_given,
-            )
-            if inferences is not None:
-                inferences.extend(replace(d, run=name) for d in decided)
-        except UnitMismatch as exc:
-            hint = exc.hint
-            if exc.spec:
-                hint = "give the scale in the column map: --columns " + _counts_map(
-                    plan, header, exc.spec, exc.counts_per_g is not None
-                )
-            raise LogReadError(
-                path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
-            ) from None
-        if isinstance(said, Note):
-            warnings.append(Note(said.code, f"{name}: {said.text}", subject=name))
-        elif said:
-            warnings.append(f"{name}: {said}")
+        accel, includes_gravity = _resolved_accel(
+            path, plan, table, header, rows, name, accel_unit=accel_unit, g=g,
+            inferences=inferences, warnings=warnings,
+        )
     extra = {
         label: table.columns[col][rows] for label, col in plan.extra.items() if col in table.columns
     }
     gaps = find_gaps(time)
-    if gaps:
-        longest = max(gap.t_after - gap.t_before for gap in gaps)
-        missing = sum(gp.n_missing for gp in gaps)
-        if missing > 10 * time.size:  # not dropped samples: a clock jump or a damaged time
-            warnings.append(
-                f"{name}: the time jumps by up to {longest:.3g} s ({len(gaps)} jump(s)), far "
-                "longer than the run's samples span: the clock restarted or the time column "
-                "is damaged (kept as gaps, not interpolated)"
-            )
-        else:
-            warnings.append(
-                Note(
-                    "read.gap",
-                    f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) "
-                    f"missing, longest {longest:.3g} s (kept as gaps, not interpolated)",
-                    subject=name,
-                )
-            )
+    warnings += _gap_notes(name, time, gaps)
     rate = sample_rate(time)
     if accel is not None and not RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
         warnings.append(_rate_note(name, rate, header[plan.time], time_unit))
+    saturated = _limit_notes(name, force, accel, g, plan, warnings)
+    warnings += _repeat_notes(name, accel, force, time, rate)
+    rec = Recording(
+        name=name,
+        time=time,
+        force=force,
+        accel=accel,
+        accel_includes_gravity=includes_gravity,
+        accel_axes=plan.accel_axes if accel is not None else ("x", "y", "z"),
+        sample_rate_hz=rate,
+        gaps=gaps,
+        saturated=saturated,
+        extra=extra,
+    )
+    return rec, warnings
+
+
+def _resolved_accel(
+    path: Path,
+    plan: RunPlan,
+    table: Table,
+    header: list[str],
+    rows: np.ndarray | slice,
+    name: str,
+    *,
+    accel_unit: str,
+    g: float,
+    inferences: list[Inference] | None,
+    warnings: list[str | Note],
+) -> tuple[np.ndarray, bool]:
+    """The run's acceleration in m/s^2 and whether it holds gravity (its notes added to
+    ``warnings``, its decisions to ``inferences``)."""
+    raw = np.column_stack([table.columns[c][rows] for c in plan.accel])
+    try:
+        accel, includes_gravity, said, decided = resolve_accel(
+            raw,
+            header_unit=plan.accel_unit,
+            includes_gravity=plan.includes_gravity,
+            accel_unit=plan.accel_unit if plan.accel_unit_given else accel_unit,
+            g=g,
+            gravity_given=plan.gravity_given,
+        )
+        if inferences is not None:
+            inferences.extend(replace(d, run=name) for d in decided)
+    except UnitMismatch as exc:
+        hint = exc.hint
+        if exc.spec:
+            hint = "give the scale in the column map: --columns " + _counts_map(
+                plan, header, exc.spec, exc.counts_per_g is not None
+            )
+        raise LogReadError(
+            path, f"{name}: {exc.message}", column=header[plan.accel[0]], hint=hint
+        ) from None
+    if isinstance(said, Note):
+        warnings.append(Note(said.code, f"{name}: {said.text}", subject=name))
+    elif said:
+        warnings.append(f"{name}: {said}")
+    return accel, includes_gravity
+
+
+def _gap_notes(name: str, time: np.ndarray, gaps: list[Any]) -> list[str | Note]:
+    """What the gaps of the time column say: dropped samples, or a clock that jumped."""
+    out: list[str | Note] = []
+    if not gaps:
+        return out
+    longest = max(gap.t_after - gap.t_before for gap in gaps)
+    missing = sum(gp.n_missing for gp in gaps)
+    if missing > 10 * time.size:  # not dropped samples: a clock jump or a damaged time
+        out.append(
+            f"{name}: the time jumps by up to {longest:.3g} s ({len(gaps)} jump(s)), far "
+            "longer than the run's samples span: the clock restarted or the time column "
+            "is damaged (kept as gaps, not interpolated)"
+        )
+    else:
+        out.append(
+            Note(
+                "read.gap",
+                f"{name}: {len(gaps)} gap(s) in the time column, {missing} sample(s) "
+                f"missing, longest {longest:.3g} s (kept as gaps, not interpolated)",
+                subject=name,
+            )
+        )
+    return out
+
+
+def _limit_notes(
+    name: str,
+    force: np.ndarray | None,
+    accel: np.ndarray | None,
+    g: float,
+    plan: RunPlan,
+    warnings: list[str | Note],
+) -> dict[str, int]:
+    """Samples at the sensors' limits, counted (the notes added to ``warnings``)."""
     saturated = count_saturated(force, accel, g)
     if "force" in saturated:
         warnings.append(
@@ -459,30 +517,27 @@ def _build_one(
                     subject=name,
                 )
             )
+    return saturated
+
+
+def _repeat_notes(
+    name: str,
+    accel: np.ndarray | None,
+    force: np.ndarray | None,
+    time: np.ndarray,
+    rate: float,
+) -> list[str | Note]:
+    """Every value repeated in runs of equal samples: the sensor ran slower than the export."""
     repeats = repeat_factor(accel if accel is not None else force if force is not None else time)
-    if repeats > 1:
-        warnings.append(
-            Note(
-                "read.rate",
-                f"{name}: every value is repeated {repeats} times in a row: the sensor ran at "
-                f"1/{repeats} of the export's {rate:.4g} Hz ({rate / repeats:.4g} Hz); the "
-                "repeats carry no new information",
-                subject=name,
-            )
-        )
-    rec = Recording(
-        name=name,
-        time=time,
-        force=force,
-        accel=accel,
-        accel_includes_gravity=includes_gravity,
-        accel_axes=plan.accel_axes if accel is not None else ("x", "y", "z"),
-        sample_rate_hz=rate,
-        gaps=gaps,
-        saturated=saturated,
-        extra=extra,
-    )
-    return rec, warnings
+    if repeats <= 1:
+        return []
+    return [Note(
+        "read.rate",
+        f"{name}: every value is repeated {repeats} times in a row: the sensor ran at "
+        f"1/{repeats} of the export's {rate:.4g} Hz ({rate / repeats:.4g} Hz); the "
+        "repeats carry no new information",
+        subject=name,
+    )]
 
 
 def _rate_note(name: str, rate: float, column: str, unit: str) -> Note:

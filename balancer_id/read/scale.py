@@ -57,7 +57,7 @@ def _mostly_beyond(table: Table, col: int) -> np.ndarray | None:
         return None
     finite = np.isfinite(raw)
     beyond = finite & ~np.isfinite(table.columns[col])
-    if np.count_nonzero(beyond) <= BEYOND_SHARE * max(1, np.count_nonzero(finite)):
+    if np.count_nonzero(beyond) <= BEYOND_SHARE * max(1, int(np.count_nonzero(finite))):
         return None
     return raw
 

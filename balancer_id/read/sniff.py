@@ -442,35 +442,16 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
         head.startswith(tuple(bom for bom, enc in _BOMS if enc.startswith("utf-16")))
         or (b"\n" not in head and b"\r" in head)
     ):  # UTF-16 or CR-only line ends: decoded whole, in memory (bounded by the limit)
-        fd = open_regular(path, limit)
-        try:
-            head, complete = _read_up_to(path, fd, limit + 1, limit)
-        except OSError as exc:
-            raise _os_error(path, exc) from None
-        finally:
-            os.close(fd)
+        head, complete = _read_whole(path, limit)
     if not complete:  # decode whole lines only: a character may be cut at the end
         cut = head.rfind(b"\n")
         head = head[: cut + 1] if cut >= 0 else head
-    if head.startswith(b"PK\x03\x04"):
-        raise LogReadError(
-            path,
-            "is a zip archive, not a CSV file (phyphox's export as a zip, or an Excel .xlsx)",
-            line=1,
-            hint="unzip it and give the CSV inside (phyphox: 'Raw Data.csv'), "
-            "or save the sheet as CSV",
-        )
+    _refuse_zip(path, head)
     data, encoding = _decode(path, head)
     notes: tuple[str, ...] = ()
     if _rows_quoted_whole(data):
         if not complete:
-            fd = open_regular(path, limit)
-            try:
-                head, complete = _read_up_to(path, fd, limit + 1, limit)
-            except OSError as exc:
-                raise _os_error(path, exc) from None
-            finally:
-                os.close(fd)
+            head, complete = _read_whole(path, limit)
             data, encoding = _decode(path, head)
         data = _unquote_rows(data)
         tail = data[-_TAIL_BYTES:]
@@ -486,41 +467,13 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
             f"{len(skipped)} line(s) before the header skipped as metadata "
             f"({'; '.join(repr(x[:40]) for x in skipped[:3])})",
         )
-    while True:
-        end = data.find(b"\n", start)
-        line_end = len(data) if end < 0 else end
-        if line_end - start > HEAD_MAX_BYTES // 2 or (end < 0 and not complete):
-            raise LogReadError(
-                path,
-                "the first line is longer than any log header",
-                line=_line_of(data, start),
-                hint="check that this is a CSV export with one header line",
-            )
-        header_line = data[start:line_end].decode("utf-8").strip("\r\n")
-        if header_line.strip() or end < 0:
-            break
-        start = end + 1
+    header_line, start, end = _header_line(path, data, start, complete)
     data_start = len(data) if end < 0 else end + 1
     if not header_line.strip():
         raise LogReadError(path, "file is empty", line=1, hint="export the data again")
     header_lineno = _line_of(data, start)
-    widest = max(header_line.count(d) for d in (*_DELIMITERS, " ")) + 1
-    if widest > MAX_COLUMNS:
-        raise LogReadError(
-            path,
-            f"the header has {widest} columns, more than the {MAX_COLUMNS} a log may have",
-            line=header_lineno,
-            hint="export only the time, force and acceleration columns",
-        )
-    sample: list[str] = []
-    pos = data_start
-    while len(sample) < _SAMPLE_LINES and pos < len(data):
-        nxt = data.find(b"\n", pos)
-        nxt = len(data) if nxt < 0 else nxt
-        text = data[pos:nxt].decode("utf-8").strip("\r")
-        if text.strip():
-            sample.append(text)
-        pos = nxt + 1
+    _refuse_wide(path, header_line, header_lineno)
+    sample = _sample_lines(data, data_start)
     if not sample:
         raise LogReadError(
             path,
@@ -553,6 +506,74 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
         cut_last=cut_last,
         notes=notes,
     )
+
+
+def _refuse_zip(path: Path, head: bytes) -> None:
+    """A zip archive (phyphox's zip export, an .xlsx) is not a CSV file."""
+    if head.startswith(b"PK\x03\x04"):
+        raise LogReadError(
+            path,
+            "is a zip archive, not a CSV file (phyphox's export as a zip, or an Excel .xlsx)",
+            line=1,
+            hint="unzip it and give the CSV inside (phyphox: 'Raw Data.csv'), "
+            "or save the sheet as CSV",
+        )
+
+
+def _refuse_wide(path: Path, header_line: str, header_lineno: int) -> None:
+    """A header of more than :data:`MAX_COLUMNS` columns is no log's."""
+    widest = max(header_line.count(d) for d in (*_DELIMITERS, " ")) + 1
+    if widest > MAX_COLUMNS:
+        raise LogReadError(
+            path,
+            f"the header has {widest} columns, more than the {MAX_COLUMNS} a log may have",
+            line=header_lineno,
+            hint="export only the time, force and acceleration columns",
+        )
+
+
+def _read_whole(path: Path, limit: int) -> tuple[bytes, bool]:
+    """The whole file, up to ``limit`` bytes (and whether it was all read)."""
+    fd = open_regular(path, limit)
+    try:
+        return _read_up_to(path, fd, limit + 1, limit)
+    except OSError as exc:
+        raise _os_error(path, exc) from None
+    finally:
+        os.close(fd)
+
+
+def _header_line(path: Path, data: bytes, start: int, complete: bool) -> tuple[str, int, int]:
+    """The first line from ``start`` that is not blank: its text, its start and its end
+    (-1: the data end on it)."""
+    while True:
+        end = data.find(b"\n", start)
+        line_end = len(data) if end < 0 else end
+        if line_end - start > HEAD_MAX_BYTES // 2 or (end < 0 and not complete):
+            raise LogReadError(
+                path,
+                "the first line is longer than any log header",
+                line=_line_of(data, start),
+                hint="check that this is a CSV export with one header line",
+            )
+        header_line = data[start:line_end].decode("utf-8").strip("\r\n")
+        if header_line.strip() or end < 0:
+            return header_line, start, end
+        start = end + 1
+
+
+def _sample_lines(data: bytes, data_start: int) -> list[str]:
+    """The first :data:`_SAMPLE_LINES` data lines that are not blank."""
+    sample: list[str] = []
+    pos = data_start
+    while len(sample) < _SAMPLE_LINES and pos < len(data):
+        nxt = data.find(b"\n", pos)
+        nxt = len(data) if nxt < 0 else nxt
+        text = data[pos:nxt].decode("utf-8").strip("\r")
+        if text.strip():
+            sample.append(text)
+        pos = nxt + 1
+    return sample
 
 
 _CELL_NUMBER = re.compile(r"^[+-]?(?:\d+[.,]?\d*|[.,]\d+)(?:[eE][+-]?\d+)?$")

@@ -29,6 +29,7 @@ Plausibility (the resting magnitude against the unit and ``g``), never fitted si
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -355,9 +356,45 @@ def resolve_accel(
     ):
         includes_gravity, gravity_note = _check_gravity_claim(sub, level, includes_gravity)
         from_header = gravity_note is None
-    unit_override = "--accel-unit g"
-    if explicit_g and includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
-        if accel_unit == "g":
+    case = _Accel(accel, rest, header_unit, includes_gravity, accel_unit, g, gravity_given,
+                  from_header)
+    if explicit_g:
+        return _resolve_as_g(case, gravity_note)
+    return _resolve_as_ms2(case, gravity_note)
+
+
+@dataclass(frozen=True)
+class _Accel:
+    """An acceleration block being resolved, and what is known of it."""
+
+    accel: np.ndarray
+    rest: Any
+    header_unit: str
+    includes_gravity: bool | None
+    accel_unit: str
+    g: float
+    gravity_given: bool
+    from_header: bool
+
+    @property
+    def level(self) -> float:
+        return float(self.rest.level)
+
+    def gravity(self, includes: bool, unit: str) -> Inference:
+        """The gravity decision, as an inference."""
+        return _gravity_inference(includes, self.rest, unit, self.from_header, self.gravity_given)
+
+
+_Resolved = tuple[np.ndarray, bool, str | Note | None, list[Inference]]
+
+
+def _resolve_as_g(case: _Accel, gravity_note: str | Note | None) -> _Resolved:
+    """The unit is g (given, or the header's): converted, unless the values are m/s^2."""
+    accel, rest, level, g = case.accel, case.rest, case.level, case.g
+    includes_gravity = case.includes_gravity
+    said: list[Inference] = []
+    if includes_gravity is not False and _near(level, g) and g > 2 * _G_HIGH:
+        if case.accel_unit == "g":
             raise UnitMismatch(
                 f"the acceleration rests at {level:.2f}, which is {level * g:.0f} m/s^2 in g: "
                 "the values are in m/s^2, not g",
@@ -375,30 +412,34 @@ def resolve_accel(
                 "acceleration unit", "m/s^2", rest.said() + "; the header says g", "--accel-unit g"
             )
         )
-        said.append(_gravity_inference(True, rest, "m/s^2", from_header, gravity_given))
+        said.append(case.gravity(True, "m/s^2"))
         return accel, includes_gravity, note, said
-    if explicit_g:
-        where = "given with --accel-unit" if accel_unit == "g" else "the header says g"
-        accel = accel * g
-        level *= g
-        if includes_gravity is None:
-            includes_gravity = level > g / 2
-        if includes_gravity:
-            _check_g(level, g)
-        said.append(
-            Inference(
-                "acceleration unit",
-                "g",
-                f"{where}; {rest.said('g')}",
-                "" if accel_unit == "g" else "--accel-unit m/s^2",
-            )
+    where = "given with --accel-unit" if case.accel_unit == "g" else "the header says g"
+    accel = accel * g
+    level *= g
+    if includes_gravity is None:
+        includes_gravity = level > g / 2
+    if includes_gravity:
+        _check_g(level, g)
+    said.append(
+        Inference(
+            "acceleration unit",
+            "g",
+            f"{where}; {rest.said('g')}",
+            "" if case.accel_unit == "g" else "--accel-unit m/s^2",
         )
-        said.append(_gravity_inference(includes_gravity, rest, "g", from_header, gravity_given))
-        return accel, includes_gravity, gravity_note, said
+    )
+    said.append(case.gravity(includes_gravity, "g"))
+    return accel, includes_gravity, gravity_note, said
+
+
+def _resolve_as_ms2(case: _Accel, gravity_note: str | Note | None) -> _Resolved:
+    """No g stated: m/s^2 unless the values rest at g's magnitude (then converted)."""
+    accel, rest, level = case.accel, case.rest, case.level
     if (
-        accel_unit == "m/s^2"
+        case.accel_unit == "m/s^2"
         and accel.shape[1] > 1
-        and includes_gravity is not False
+        and case.includes_gravity is not False
         and _G_LOW < level < _G_HIGH
         and rest.steady
     ):
@@ -408,55 +449,68 @@ def resolve_accel(
             "the values look like g",
             "pass --accel-unit g or auto",
         )
-    looks_like_g = _G_LOW < level < _G_HIGH and rest.steady
     if (
         accel.shape[1] == 1
-        and accel_unit == "auto"
-        and not header_unit
-        and includes_gravity is not False
+        and case.accel_unit == "auto"
+        and not case.header_unit
+        and case.includes_gravity is not False
         and rest.steady
         and 0.8 < level < 1.2
     ):  # one axis resting steadily at ~1: gravity in g (a kinematic acceleration rests at 0)
-        said.append(
+        said = [
             Inference(
                 "acceleration unit",
                 "g",
                 f"no unit stated; one axis {rest.said()}: gravity in g, since a "
                 "kinematic acceleration rests at 0",
                 "--accel-unit m/s^2",
-            )
-        )
-        said.append(_gravity_inference(True, rest, "g", from_header, gravity_given))
+            ),
+            case.gravity(True, "g"),
+        ]
         warning = (
             f"the one acceleration axis rests steadily at {level:.2f}: gravity in g; "
             "converted to m/s^2 (pass --accel-unit m/s^2 if wrong)"
         )
-        return accel * g, True, warning, said
-    if accel_unit == "m/s^2" or accel.shape[1] == 1:
-        if includes_gravity is None:
-            includes_gravity = level > g / 2
-        if includes_gravity:
-            _check_g(level, g)
-        where = (
-            "given with --accel-unit"
-            if accel_unit == "m/s^2"
-            else (
-                "the header says m/s^2"
-                if header_unit == "m/s^2"
-                else "no unit stated; one axis is never taken for g from its values"
-            )
+        return accel * case.g, True, warning, said
+    if case.accel_unit == "m/s^2" or accel.shape[1] == 1:
+        return _declared_ms2(case)
+    return _auto_ms2(case, gravity_note)
+
+
+def _declared_ms2(case: _Accel) -> _Resolved:
+    """m/s^2 given, or one axis (never taken for g from its values)."""
+    includes_gravity = case.includes_gravity
+    if includes_gravity is None:
+        includes_gravity = case.level > case.g / 2
+    if includes_gravity:
+        _check_g(case.level, case.g)
+    where = (
+        "given with --accel-unit"
+        if case.accel_unit == "m/s^2"
+        else (
+            "the header says m/s^2"
+            if case.header_unit == "m/s^2"
+            else "no unit stated; one axis is never taken for g from its values"
         )
-        said.append(
-            Inference(
-                "acceleration unit",
-                "m/s^2",
-                f"{where}; {rest.said()}",
-                "" if accel_unit == "m/s^2" else "--accel-unit g",
-                weak=not header_unit and accel_unit == "auto" and not includes_gravity,
-            )
-        )
-        said.append(_gravity_inference(includes_gravity, rest, "m/s^2", from_header, gravity_given))
-        return accel, includes_gravity, None, said
+    )
+    said = [
+        Inference(
+            "acceleration unit",
+            "m/s^2",
+            f"{where}; {case.rest.said()}",
+            "" if case.accel_unit == "m/s^2" else "--accel-unit g",
+            weak=not case.header_unit and case.accel_unit == "auto" and not includes_gravity,
+        ),
+        case.gravity(includes_gravity, "m/s^2"),
+    ]
+    return case.accel, includes_gravity, None, said
+
+
+def _auto_ms2(case: _Accel, gravity_note: str | Note | None) -> _Resolved:
+    """Several axes, no unit given: g when they rest steadily at g's magnitude."""
+    rest, level, g, header_unit = case.rest, case.level, case.g, case.header_unit
+    looks_like_g = _G_LOW < level < _G_HIGH and rest.steady
+    includes_gravity = case.includes_gravity
     if includes_gravity is None:
         includes_gravity = level >= _WITH_G_MIN or looks_like_g  # 4 m/s^2 at rest is g
     if includes_gravity and not looks_like_g:
@@ -467,18 +521,18 @@ def resolve_accel(
             f"acceleration magnitude at rest is {level:.2f}, which looks like g rather than "
             "m/s^2; converted to m/s^2 (pass accel_unit='m/s^2' or --accel-unit m/s^2 if wrong)"
         )
-        said.append(
+        said = [
             Inference(
                 "acceleration unit",
                 "g",
                 rest.said() + ("; the header says m/s^2" if header_unit == "m/s^2" else ""),
                 "--accel-unit m/s^2",
-            )
-        )
-        said.append(_gravity_inference(True, rest, "g", from_header, gravity_given))
-        return accel * g, True, warning, said
+            ),
+            case.gravity(True, "g"),
+        ]
+        return case.accel * g, True, warning, said
     weak = not includes_gravity and not header_unit
-    said.append(
+    said = [
         Inference(
             "acceleration unit",
             "m/s^2",
@@ -488,13 +542,12 @@ def resolve_accel(
                 else f"no unit stated; {rest.said()}"
                 + ("" if includes_gravity else ": no gravity to scale against, taken as m/s^2")
             ),
-            unit_override,
+            "--accel-unit g",
             weak=weak,
-        )
-    )
-    said.append(_gravity_inference(includes_gravity, rest, "m/s^2", from_header, gravity_given))
-    return accel, includes_gravity, gravity_note, said
-
+        ),
+        case.gravity(includes_gravity, "m/s^2"),
+    ]
+    return case.accel, includes_gravity, gravity_note, said
 
 def _gravity_inference(
     with_g: bool, rest: Rest, unit: str, from_header: bool, given: bool

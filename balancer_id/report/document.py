@@ -74,7 +74,7 @@ def write_fit_report(
     *,
     extra_sections: list[Section] | None = None,
     lead_sections: list[Section] | None = None,
-    warnings: list[str] | None = None,
+    warnings: Sequence[object] | None = None,
 ) -> Path:
     """Write the report of a fit as FILE.html or FILE.pdf (chosen by the suffix).
 
@@ -88,7 +88,7 @@ def write_fit_report(
         Sections of other commands (compare, diagnose, improve), placed after the fit's.
     lead_sections : list of Section, optional
         Sections placed first (the finding of a diagnosis).
-    warnings : list of str, optional
+    warnings : sequence of str or Note, optional
         The fit's warnings as a diagnosis reads them; None: the fit's own.
 
     Returns

@@ -9,7 +9,8 @@ from __future__ import annotations
 import inspect
 import re
 import textwrap
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,14 +47,16 @@ TRIALS_PER_FIGURE = 6
 STRONG_CORRELATION = 0.9
 
 
-def fit_sections(result: FitResult, warnings: list[str] | None = None) -> list[Section]:
+def fit_sections(
+    result: FitResult, warnings: Sequence[object] | None = None
+) -> list[Section]:
     """The sections of a fit report, for composing a bigger report.
 
     Parameters
     ----------
     result : FitResult
         A fit.
-    warnings : list of str, optional
+    warnings : sequence of str or Note, optional
         The warnings to show (a diagnosis reads them in the light of its verdict:
         :meth:`~balancer_id.diagnostics.diagnosis.Diagnosis.fit_warnings`); None shows
         the fit's own.
@@ -251,6 +254,24 @@ def _model_section(result: FitResult) -> Section:
     return Section(f"Model: {model.spec}", blocks=blocks)
 
 
+def _friction_hint(c: Any) -> str:
+    """What the free line's intercept says of friction (against the scatter about it)."""
+    hint = ""
+    if np.isfinite(c.intercept_N) and np.isfinite(c.scatter_N) and c.scatter_N > 0:
+        if abs(c.intercept_N) > 2 * c.scatter_N:
+            hint = (
+                f" The free line's intercept ({c.intercept_N:+.3g} N) is large against the "
+                f"scatter ({c.scatter_N:.3g} N): a thrust that produces no motion, i.e. "
+                "friction; try the model with '+karnopp'."
+            )
+        else:
+            hint = (
+                f" The free line's intercept ({c.intercept_N:+.3g} N) is within the scatter "
+                f"({c.scatter_N:.3g} N): no sign of a friction threshold."
+            )
+    return hint
+
+
 def _paper_section(result: FitResult) -> Section:
     c = result.classic
     v = result.values
@@ -302,19 +323,7 @@ def _paper_section(result: FitResult) -> Section:
         ],
         "T_a per thrust level and direction (the paper's Fig. 8 as a table).",
     )
-    hint = ""
-    if np.isfinite(c.intercept_N) and np.isfinite(c.scatter_N) and c.scatter_N > 0:
-        if abs(c.intercept_N) > 2 * c.scatter_N:
-            hint = (
-                f" The free line's intercept ({c.intercept_N:+.3g} N) is large against the "
-                f"scatter ({c.scatter_N:.3g} N): a thrust that produces no motion, i.e. "
-                "friction; try the model with '+karnopp'."
-            )
-        else:
-            hint = (
-                f" The free line's intercept ({c.intercept_N:+.3g} N) is within the scatter "
-                f"({c.scatter_N:.3g} N): no sign of a friction threshold."
-            )
+    hint = _friction_hint(c)
     blocks: list[Block] = [
         Paragraph(
             "Per trial, a first-order step a(t) = a_zc (1 - exp(-(t - t0)/T_a)) is fitted to "

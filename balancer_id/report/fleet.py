@@ -52,7 +52,7 @@ _MISSING = Verdict.EFFECT_MISSING
 
 
 def robust_outliers(
-    values: Sequence[float], stderrs: Sequence[float | None] | None = None
+    values: Sequence[float] | np.ndarray, stderrs: Sequence[float | None] | None = None
 ) -> np.ndarray:
     """Which values lie more than :data:`OUTLIER_Z` scaled MADs from the median.
 
@@ -192,44 +192,14 @@ def fleet_sections(
     identified = [k for k, r in enumerate(rows) if r.ok]
     apart = {k: why for k in identified if (why := not_counted(rows[k], docs[k])) is not None}
     ok = [k for k in identified if k not in apart]  # counted: trusted, nothing missing
-    names: list[str] = []
-    for k in identified:
-        names += [n for n in rows[k].parameters if n not in names]
-    values = {
-        n: np.array(
-            [
-                float(rows[k].parameters.get(n, {}).get("value") or np.nan)
-                if rows[k].parameters.get(n, {}).get("value") is not None
-                else np.nan
-                for k in ok
-            ]
-        )
-        for n in names
-    }
-    stderrs = {
-        n: [rows[k].parameters.get(n, {}).get("stderr") for k in ok] for n in names
-    }
+    names, values, stderrs = _fleet_values(rows, identified, ok)
     flagged = {n: robust_outliers(v, stderrs[n]) for n, v in values.items()}
     units = {n: _unit(docs, ok, n) for n in names}
     times = [_when(docs[k]) for k in ok]
     sources = {s for _, s in times if s}
     diagnosed = [k for k in identified if isinstance(docs[k].get("diagnosis"), dict)]
 
-    failed = len(rows) - len(identified)
-    lead = (
-        f"{len(rows)} log(s): {len(identified)} identified, {failed} failed; "
-        f"{len(ok)} counted in the statistics below"
-        + (f", {len(apart)} listed apart (not trusted or an effect missing). " if apart else ". ")
-        + (
-            f"{len(diagnosed)} diagnosed; "
-            f"{sum(docs[k]['diagnosis'].get('verdict') == _MISSING for k in diagnosed)} "
-            "with an effect missing. "
-            if diagnosed
-            else "Not diagnosed (run batch with --diagnose to list missing effects). "
-        )
-        + f"Outliers: more than {OUTLIER_Z} scaled median absolute deviations from the "
-        f"fleet's median (modified z-score), flagged from {MIN_LOGS_FOR_OUTLIERS} logs on."
-    )
+    lead = _lead(len(rows), len(identified), len(ok), len(apart), docs, diagnosed)
     sections = [Section("Fleet", blocks=[Paragraph(lead), _summary_table(names, values, flagged)])]
     sections.append(
         Section("Logs", blocks=[_log_table(rows, ok, names, values, flagged, apart)])
@@ -248,6 +218,57 @@ def fleet_sections(
     if shared is not None:
         sections.insert(1, Section("Shared over the fleet", blocks=shared_blocks(shared)))
     return sections
+
+
+def _fleet_values(
+    rows: Sequence[BatchRow], identified: list[int], ok: list[int]
+) -> tuple[list[str], dict[str, np.ndarray], dict[str, list[Any]]]:
+    """Every parameter named by an identified log; its values and standard errors over the
+    counted logs (NaN where a log has none)."""
+    names: list[str] = []
+    for k in identified:
+        names += [n for n in rows[k].parameters if n not in names]
+    values = {
+        n: np.array(
+            [
+                float(rows[k].parameters.get(n, {}).get("value") or np.nan)
+                if rows[k].parameters.get(n, {}).get("value") is not None
+                else np.nan
+                for k in ok
+            ]
+        )
+        for n in names
+    }
+    stderrs = {
+        n: [rows[k].parameters.get(n, {}).get("stderr") for k in ok] for n in names
+    }
+    return names, values, stderrs
+
+
+def _lead(
+    n_rows: int,
+    n_identified: int,
+    n_ok: int,
+    n_apart: int,
+    docs: list[dict[str, Any]],
+    diagnosed: list[int],
+) -> str:
+    """The fleet section's first paragraph: what was identified, counted and diagnosed."""
+    failed = n_rows - n_identified
+    return (
+        f"{n_rows} log(s): {n_identified} identified, {failed} failed; "
+        f"{n_ok} counted in the statistics below"
+        + (f", {n_apart} listed apart (not trusted or an effect missing). " if n_apart else ". ")
+        + (
+            f"{len(diagnosed)} diagnosed; "
+            f"{sum(docs[k]['diagnosis'].get('verdict') == _MISSING for k in diagnosed)} "
+            "with an effect missing. "
+            if diagnosed
+            else "Not diagnosed (run batch with --diagnose to list missing effects). "
+        )
+        + f"Outliers: more than {OUTLIER_Z} scaled median absolute deviations from the "
+        f"fleet's median (modified z-score), flagged from {MIN_LOGS_FOR_OUTLIERS} logs on."
+    )
 
 
 def _ci(p: dict[str, Any]) -> str:
@@ -283,73 +304,7 @@ def shared_blocks(shared: dict[str, Any]) -> list[Any]:
                 f"log's own, the rest shared. Verdict: {shared.get('verdict', '-')}."
             )
         )
-        body: list[list[str | Cell]] = []
-        for name, p in (shared.get("shared") or {}).items():
-            alone = [
-                float(row["alone"][name]["ci95"][1] - row["alone"][name]["ci95"][0])
-                for row in logs
-                if (row.get("alone") or {}).get(name, {}).get("ci95")
-            ]
-            width = (
-                f"{format_number(float(np.median(alone)))}" if alone else "-"
-            )
-            ci = p.get("ci95")
-            body.append(
-                [
-                    name,
-                    format_number(float(p["value"])),
-                    _ci(p),
-                    format_number(float(ci[1] - ci[0])) if ci else "-",
-                    width,
-                    str(p.get("unit", "")),
-                ]
-            )
-        blocks.append(
-            Table(
-                ["parameter", "shared value", "95 % interval", "width", "width alone "
-                 "(median log)", "unit"],
-                body,
-                caption="Shared parameters, pinned by every counted log at once; beside them "
-                "the median width of the same interval from each log fitted alone.",
-            )
-        )
-        own_body: list[list[str | Cell]] = []
-        for row in logs:
-            cells: list[str | Cell] = [str(row.get("file", ""))]
-            for name in own_names:
-                p = (row.get("own") or {}).get(name, {})
-                a = (row.get("alone") or {}).get(name, {})
-                cells.append(
-                    f"{format_number(float(p['value']))} ({_ci(p)}); alone {_ci(a)}"
-                    if p else "-"
-                )
-            own_body.append(cells)
-        blocks.append(
-            Table(
-                ["log", *[f"{n} own (95 %); alone" for n in own_names]],
-                own_body,
-                caption="Each log's own values in the shared fit, and the log fitted alone.",
-            )
-        )
-        comparison = shared.get("comparison") or {}
-        blocks.append(
-            Table(
-                ["sharing", "BIC", "parameters", "held-out RMSE (m/s²)"],
-                [
-                    [
-                        name,
-                        format_number(float(s.get("bic"))) if s.get("bic") is not None else "-",
-                        str(s.get("n_free", "-")),
-                        format_number(float(s["held_out_rmse"]))
-                        if s.get("held_out_rmse") is not None
-                        else "-",
-                    ]
-                    for name, s in comparison.items()
-                ],
-                caption="All shared, partly shared and all separate compared: BIC on the "
-                "effective samples, and the error predicting held-out halves of logs.",
-            )
-        )
+        blocks += _shared_tables(shared, logs, own_names)
     if left:
         blocks.append(
             Paragraph(
@@ -358,6 +313,81 @@ def shared_blocks(shared: dict[str, Any]) -> list[Any]:
                 + "."
             )
         )
+    return blocks
+
+
+def _shared_tables(
+    shared: dict[str, Any], logs: list[dict[str, Any]], own_names: list[str]
+) -> list[Any]:
+    """The shared values beside the logs alone, each log's own values, the sharings."""
+    blocks: list[Any] = []
+    body: list[list[str | Cell]] = []
+    for name, p in (shared.get("shared") or {}).items():
+        alone = [
+            float(row["alone"][name]["ci95"][1] - row["alone"][name]["ci95"][0])
+            for row in logs
+            if (row.get("alone") or {}).get(name, {}).get("ci95")
+        ]
+        width = (
+            f"{format_number(float(np.median(alone)))}" if alone else "-"
+        )
+        ci = p.get("ci95")
+        body.append(
+            [
+                name,
+                format_number(float(p["value"])),
+                _ci(p),
+                format_number(float(ci[1] - ci[0])) if ci else "-",
+                width,
+                str(p.get("unit", "")),
+            ]
+        )
+    blocks.append(
+        Table(
+            ["parameter", "shared value", "95 % interval", "width", "width alone "
+             "(median log)", "unit"],
+            body,
+            caption="Shared parameters, pinned by every counted log at once; beside them "
+            "the median width of the same interval from each log fitted alone.",
+        )
+    )
+    own_body: list[list[str | Cell]] = []
+    for row in logs:
+        cells: list[str | Cell] = [str(row.get("file", ""))]
+        for name in own_names:
+            p = (row.get("own") or {}).get(name, {})
+            a = (row.get("alone") or {}).get(name, {})
+            cells.append(
+                f"{format_number(float(p['value']))} ({_ci(p)}); alone {_ci(a)}"
+                if p else "-"
+            )
+        own_body.append(cells)
+    blocks.append(
+        Table(
+            ["log", *[f"{n} own (95 %); alone" for n in own_names]],
+            own_body,
+            caption="Each log's own values in the shared fit, and the log fitted alone.",
+        )
+    )
+    comparison = shared.get("comparison") or {}
+    blocks.append(
+        Table(
+            ["sharing", "BIC", "parameters", "held-out RMSE (m/s²)"],
+            [
+                [
+                    name,
+                    format_number(float(s.get("bic"))) if s.get("bic") is not None else "-",
+                    str(s.get("n_free", "-")),
+                    format_number(float(s["held_out_rmse"]))
+                    if s.get("held_out_rmse") is not None
+                    else "-",
+                ]
+                for name, s in comparison.items()
+            ],
+            caption="All shared, partly shared and all separate compared: BIC on the "
+            "effective samples, and the error predicting held-out halves of logs.",
+        )
+    )
     return blocks
 
 
@@ -487,42 +517,11 @@ def _plots(
         label = f"{name} ({units[name]})" if units.get(name) else name
         ax.set_xlabel(label)
         ax.set_ylabel("logs")
-        ax = axes[i][1]
-        when = finite & np.array(have_time, dtype=bool)
-        if when.any():
-            dates = [times[j][0] for j in np.flatnonzero(when)]
-            ax.plot(dates, v[when], "o", ms=3, color="#4477aa")
-            bad = when & out
-            if bad.any():
-                ax.plot(
-                    [times[j][0] for j in np.flatnonzero(bad)],
-                    v[bad],
-                    "o",
-                    ms=5,
-                    mfc="none",
-                    color="#cc3311",
-                )
-            fit_on = when & ~out  # the trend over the non-outliers only
-            trend = robust_trend(stamps[fit_on], v[fit_on])
-            if trend is not None:
-                slope, icept, low, high = trend
-                t_line = np.array([np.nanmin(stamps[fit_on]), np.nanmax(stamps[fit_on])])
-                ax.plot(
-                    [datetime.fromtimestamp(t) for t in t_line],
-                    slope * t_line + icept,
-                    "-",
-                    color="#228833",
-                    lw=1,
-                )
-                day = 86400.0
-                claims.append(
-                    f"{name} changes by {slope * day:.3g} {units.get(name, '')} per day "
-                    f"(95 % {low * day:.3g} .. {high * day:.3g}; Theil-Sen over "
-                    f"{int(fit_on.sum())} logs, outliers left out)"
-                )
-            _date_axis(ax)
-            ax.set_xlabel("recorded")
-        ax.set_ylabel(label)
+        claim = _trend_axis(axes[i][1], name, v, out, finite & np.array(have_time, dtype=bool),
+                            times, stamps, units)
+        if claim is not None:
+            claims.append(claim)
+        axes[i][1].set_ylabel(label)
     blocks.append(
         Plot(
             fig,
@@ -540,6 +539,55 @@ def _plots(
         )
     )
     return blocks
+
+
+def _trend_axis(
+    ax: Any,
+    name: str,
+    v: np.ndarray,
+    out: np.ndarray,
+    when: np.ndarray,
+    times: list[tuple[datetime | None, str | None]],
+    stamps: np.ndarray,
+    units: dict[str, str],
+) -> str | None:
+    """One parameter against time (outliers circled, the Theil-Sen line over the others);
+    the trend in words when it is significant."""
+    claim = None
+    if when.any():
+        dates = [times[j][0] for j in np.flatnonzero(when)]
+        ax.plot(dates, v[when], "o", ms=3, color="#4477aa")
+        bad = when & out
+        if bad.any():
+            ax.plot(
+                [times[j][0] for j in np.flatnonzero(bad)],
+                v[bad],
+                "o",
+                ms=5,
+                mfc="none",
+                color="#cc3311",
+            )
+        fit_on = when & ~out  # the trend over the non-outliers only
+        trend = robust_trend(stamps[fit_on], v[fit_on])
+        if trend is not None:
+            slope, icept, low, high = trend
+            t_line = np.array([np.nanmin(stamps[fit_on]), np.nanmax(stamps[fit_on])])
+            ax.plot(
+                [datetime.fromtimestamp(t) for t in t_line],
+                slope * t_line + icept,
+                "-",
+                color="#228833",
+                lw=1,
+            )
+            day = 86400.0
+            claim = (
+                f"{name} changes by {slope * day:.3g} {units.get(name, '')} per day "
+                f"(95 % {low * day:.3g} .. {high * day:.3g}; Theil-Sen over "
+                f"{int(fit_on.sum())} logs, outliers left out)"
+            )
+        _date_axis(ax)
+        ax.set_xlabel("recorded")
+    return claim
 
 
 def _date_axis(ax: Any) -> None:

@@ -411,7 +411,15 @@ def plot_paper_method(
             )
         return _finish(fig, path)
 
-    # Fig. 7: f_in = m_a a_zc
+    _paper_fig7(ax7, classic, ok, reference)
+    _paper_fig8(ax8, classic, ok, reference)
+    return _finish(fig, path)
+
+
+def _paper_fig7(
+    ax7: Any, classic: ClassicResult, ok: list[Any], reference: Mapping[str, float]
+) -> None:
+    """The paper's Fig. 7: each trial's thrust against its steady acceleration, the lines."""
     a_all = np.array([p.a_zc for p in ok])
     span = max(float(np.max(np.abs(a_all))) * 1.15, 1e-3)
     lo = -span if np.any(a_all < 0) else 0.0
@@ -466,7 +474,11 @@ def plot_paper_method(
     ax7.set_title("equivalent mass (paper Fig. 7)", fontsize=10, loc="left")
     ax7.legend(fontsize=7, loc="upper left")
 
-    # Fig. 8: T_a against thrust, per direction
+
+def _paper_fig8(
+    ax8: Any, classic: ClassicResult, ok: list[Any], reference: Mapping[str, float]
+) -> None:
+    """The paper's Fig. 8: each trial's T_a against the thrust, per direction, the median."""
     table = classic.T_a_table()
     for direction, (color, marker) in DIRECTION_STYLE.items():
         sel = [p for p in ok if p.direction == direction]
@@ -510,7 +522,6 @@ def plot_paper_method(
     ax8.set_ylabel("time constant T_a (s)", fontsize=9)
     ax8.set_title("time constant (paper Fig. 8)", fontsize=10, loc="left")
     ax8.legend(fontsize=7, loc="lower right")
-    return _finish(fig, path)
 
 
 # --------------------------------------------------------------------------------------
@@ -668,6 +679,23 @@ def plot_error_ladder(
         if s.get("discovered"):  # a discovered force: hatched
             b.set_hatch("//")
             b.set_edgecolor("#D55E00")
+    _annotate_bars(ax, bars, rmse)
+    ax.set_ylabel("RMSE (m/s²)", fontsize=9)
+    ax.set_xticks(
+        x,
+        labels,
+        rotation=20 if len(steps) > 4 else 0,
+        ha="right" if len(steps) > 4 else "center",
+        fontsize=8,
+    )
+    ax.set_ylim(0, np.nanmax(np.append(rmse, 1e-12)) * 1.2)
+    _criteria_lines(ax, x, bic, aic)
+    ax.set_title("error ladder: effects added one by one", fontsize=10, loc="left")
+    return _finish(fig, path)
+
+
+def _annotate_bars(ax: Any, bars: Any, rmse: np.ndarray) -> None:
+    """Each bar's RMSE written above it."""
     for b, r in zip(bars, rmse, strict=True):
         if np.isfinite(r):
             ax.annotate(
@@ -679,15 +707,10 @@ def plot_error_ladder(
                 xytext=(0, 2),
                 textcoords="offset points",
             )
-    ax.set_ylabel("RMSE (m/s²)", fontsize=9)
-    ax.set_xticks(
-        x,
-        labels,
-        rotation=20 if len(steps) > 4 else 0,
-        ha="right" if len(steps) > 4 else "center",
-        fontsize=8,
-    )
-    ax.set_ylim(0, np.nanmax(np.append(rmse, 1e-12)) * 1.2)
+
+
+def _criteria_lines(ax: Any, x: np.ndarray, bic: np.ndarray, aic: np.ndarray) -> None:
+    """BIC and AIC of each step on a second axis, the lowest BIC starred."""
     ax2 = ax.twinx()
     ax2.tick_params(labelsize=8)
     ax2.spines["top"].set_visible(False)
@@ -717,8 +740,6 @@ def plot_error_ladder(
         )
     ax2.set_ylabel("information criterion (lower is better)", fontsize=9)
     ax2.legend(fontsize=7, loc="upper right")
-    ax.set_title("error ladder: effects added one by one", fontsize=10, loc="left")
-    return _finish(fig, path)
 
 
 def _num(x: Any) -> float:

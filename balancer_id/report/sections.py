@@ -62,7 +62,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
     Section
         The "Diagnosis" section of a report.
     """
-    d = diagnosis.to_dict()
+    d: dict[str, Any] = diagnosis.to_dict()
     m = d["metrics"]
     tests = d["residual_tests"]
     style = "good" if d["verdict"] == Verdict.ADEQUATE else "bad"
@@ -80,6 +80,40 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
         ),
         Paragraph(d["summary"]),
     ]
+    blocks += _residual_test_blocks(tests)
+    if not d["suggestions"]:  # a table of headers only says nothing
+        blocks.append(
+            Paragraph(
+                "Candidate effects: none suggested ("
+                + (
+                    "the model is adequate)."
+                    if d.get("verdict") == "adequate"
+                    else "no effect tried improved the fit enough)."
+                )
+            )
+        )
+    else:
+        blocks.append(_candidates_table(d))
+    for f in d.get("failed_candidates", []):
+        blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
+    from balancer_id.report.residual_plots import plot_residual_analysis
+
+    blocks.append(
+        Plot(
+            plot_residual_analysis(diagnosis),
+            "Residual analysis, as MATLAB's resid: the residual's autocorrelation and its "
+            "cross-correlation with the thrust, each with its 95 % band (bars or a curve "
+            "outside the band: structure the model lacks), and the residual against the "
+            "simulated position, velocity and drive force (the red line is its binned mean; "
+            "a trend names the state the missing effect depends on).",
+        )
+    )
+    return Section("Diagnosis", blocks=blocks)
+
+
+def _residual_test_blocks(tests: dict[str, Any]) -> list[Any]:
+    """Whiteness, the residual against the thrust and the residual by regime."""
+    blocks: list[Any] = []
     w = tests["whiteness"]
     if w.get("ljung_box_p") is not None:
         blocks.append(
@@ -117,34 +151,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
             caption="Residual by regime, direction and thrust level",
         )
     )
-    if not d["suggestions"]:  # a table of headers only says nothing
-        blocks.append(
-            Paragraph(
-                "Candidate effects: none suggested ("
-                + (
-                    "the model is adequate)."
-                    if d.get("verdict") == "adequate"
-                    else "no effect tried improved the fit enough)."
-                )
-            )
-        )
-    else:
-        blocks.append(_candidates_table(d))
-    for f in d.get("failed_candidates", []):
-        blocks.append(Paragraph(f"⚠ candidate failed: {f}"))
-    from balancer_id.report.residual_plots import plot_residual_analysis
-
-    blocks.append(
-        Plot(
-            plot_residual_analysis(diagnosis),
-            "Residual analysis, as MATLAB's resid: the residual's autocorrelation and its "
-            "cross-correlation with the thrust, each with its 95 % band (bars or a curve "
-            "outside the band: structure the model lacks), and the residual against the "
-            "simulated position, velocity and drive force (the red line is its binned mean; "
-            "a trend names the state the missing effect depends on).",
-        )
-    )
-    return Section("Diagnosis", blocks=blocks)
+    return blocks
 
 
 def _candidates_table(d: dict[str, Any]) -> Table:
@@ -239,7 +246,7 @@ def improve_section(result: ImproveResult) -> Section:
     """
     from balancer_id.report.plots import plot_error_ladder
 
-    d = result.to_dict()
+    d: dict[str, Any] = result.to_dict()
     rows = [
         [
             str(k),

@@ -169,8 +169,34 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
     if result.get("trusted") is False:  # lead with it: the user must not act on the values
         for why in result.get("untrusted_because", []):
             _stderr(console).print(f"[bold red]NOT TRUSTED:[/bold red] {why}")
-    table = Table(title=f"model {result['model']}: simulation matching over all trials")
     post = result.get("posterior") or {}
+    console.print(_parameter_table(result, post))
+    if post:  # issue 34.2: how well the chain mixed
+        console.print(
+            f"posterior: {post['n_walkers']} walkers x {post['n_steps']} steps, "
+            f"acceptance {post['acceptance']:.2f}, "
+            f"autocorrelation {max((q['tau_steps'] or 0) for q in post['parameters'].values()):.0f}"
+            f" steps: {'converged' if post['converged'] else 'NOT converged (rough intervals)'}"
+        )
+    c = result["classic"]
+    console.print(
+        f"paper's method: m_a = {_fmt(c['m_a'])} kg (± {_fmt(c.get('m_a_stderr'), 2)}), "
+        f"T_a = {_fmt(c['T_a'])} s, free-line intercept = {_fmt(c.get('intercept_N'), 3)} N"
+    )
+    console.print(f"errors: {metric_line(result['metrics'])}")
+    trials = Table(title="per trial")
+    for col in ("#", "thrust (N)", "direction", "RMSE (m/s²)"):
+        trials.add_column(col)
+    for t in result["trials"]:
+        trials.add_row(str(t["index"]), f"{t['thrust_N']:+.3f}", t["direction"], _fmt(t["rmse"]))
+    console.print(trials)
+    _print_fit_extras(console, result)
+    _print_fit_notes(console, result)
+
+
+def _parameter_table(result: dict[str, Any], post: dict[str, Any]) -> Table:
+    """The fit's parameters: value, standard error, interval (and credible interval)."""
+    table = Table(title=f"model {result['model']}: simulation matching over all trials")
     credible = {n: q.get("credible95") for n, q in post.get("parameters", {}).items()}
     cols = ["parameter", "value", "std. error", "95% interval"]
     cols += ["95% credible"] if post else []
@@ -196,26 +222,11 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
             cr = credible.get(name)
             cells.append(f"{cr[0]:.4g} .. {cr[1]:.4g}" if cr else "-")
         table.add_row(*cells, p.get("unit", ""), note)
-    console.print(table)
-    if post:  # issue 34.2: how well the chain mixed
-        console.print(
-            f"posterior: {post['n_walkers']} walkers x {post['n_steps']} steps, "
-            f"acceptance {post['acceptance']:.2f}, "
-            f"autocorrelation {max((q['tau_steps'] or 0) for q in post['parameters'].values()):.0f}"
-            f" steps: {'converged' if post['converged'] else 'NOT converged (rough intervals)'}"
-        )
-    c = result["classic"]
-    console.print(
-        f"paper's method: m_a = {_fmt(c['m_a'])} kg (± {_fmt(c.get('m_a_stderr'), 2)}), "
-        f"T_a = {_fmt(c['T_a'])} s, free-line intercept = {_fmt(c.get('intercept_N'), 3)} N"
-    )
-    console.print(f"errors: {metric_line(result['metrics'])}")
-    trials = Table(title="per trial")
-    for col in ("#", "thrust (N)", "direction", "RMSE (m/s²)"):
-        trials.add_column(col)
-    for t in result["trials"]:
-        trials.add_row(str(t["index"]), f"{t['thrust_N']:+.3f}", t["direction"], _fmt(t["rmse"]))
-    console.print(trials)
+    return table
+
+
+def _print_fit_extras(console: Console, result: dict[str, Any]) -> None:
+    """The robot coupling, the tracked parameters and the per-trial fits, when present."""
     if "coupling" in result:
         cp = result["coupling"]
         console.print(
@@ -242,6 +253,10 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
                 _fmt(row["rmse"]),
             )
         console.print(per)
+
+
+def _print_fit_notes(console: Console, result: dict[str, Any]) -> None:
+    """The notes not already warnings (stdout), then the warnings (stderr)."""
     shown = set(result.get("warnings", []))
     for note in result.get("notes", []):
         text = note["text"] if isinstance(note, dict) else str(note)
@@ -309,11 +324,8 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
     for col in ("model", *(f.heading for f in fields), "worst window"):
         table.add_column(col)
     for m in models:
-        w = m["worst"][0] if m["worst"] else None
         table.add_row(
-            m["model"],
-            *(f.format(m["metrics"].get(f.key)) for f in fields),
-            f"trial {w['trial']} {w['t_start']:.2f}-{w['t_end']:.2f} s" if w else "-",
+            m["model"], *(f.format(m["metrics"].get(f.key)) for f in fields), _worst(m["worst"])
         )
     console.print(table)
     per = Table(title="RMSE per trial (m/s²)")
@@ -330,14 +342,25 @@ def print_compare(console: Console, result: dict[str, Any]) -> None:
     console.print(per)
     validation = result.get("validation")
     if validation:  # compare --params: does the identified model hold on these logs?
-        colour = "green" if validation["holds"] else "red"
-        console.print(
-            f"[bold {colour}]model {validation['model']} {validation['verdict']}[/bold "
-            f"{colour}] on these logs (fit {validation['fit_percent']:.1f} %, nothing refitted)"
-        )
-        for test in validation["tests"]:
-            mark = "ok  " if test["passed"] else "FAIL"
-            console.print(f"  {mark} {test['name']}: {test['text']}", highlight=False)
+        _print_validation(console, validation)
+
+
+def _worst(worst: list[dict[str, Any]]) -> str:
+    """A model's worst window, in words."""
+    w = worst[0] if worst else None
+    return f"trial {w['trial']} {w['t_start']:.2f}-{w['t_end']:.2f} s" if w else "-"
+
+
+def _print_validation(console: Console, validation: dict[str, Any]) -> None:
+    """A saved model's verdict on new logs, and each test."""
+    colour = "green" if validation["holds"] else "red"
+    console.print(
+        f"[bold {colour}]model {validation['model']} {validation['verdict']}[/bold "
+        f"{colour}] on these logs (fit {validation['fit_percent']:.1f} %, nothing refitted)"
+    )
+    for test in validation["tests"]:
+        mark = "ok  " if test["passed"] else "FAIL"
+        console.print(f"  {mark} {test['name']}: {test['text']}", highlight=False)
 
 
 def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
@@ -499,6 +522,21 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
         )
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
+
+
+def print_groups(console: Console, result: dict[str, Any]) -> None:
+    """Print one fit per group (``fit --group-by``), each under its group's label.
+
+    Parameters
+    ----------
+    console : rich.console.Console
+        Where to print.
+    result : dict
+        The ``fit --group-by`` JSON object (:meth:`GroupFits.to_dict`).
+    """
+    for item in result["groups"]:
+        console.print(f"[bold]group {item['group']}[/bold]")
+        print_fit(console, item)
 
 
 def print_per_log(console: Console, result: dict[str, Any]) -> None:

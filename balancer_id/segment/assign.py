@@ -227,12 +227,7 @@ def build_trials(
             level_new = level_now + change
         if accel is None:
             notes.append("no acceleration channel")
-        bridged = [
-            gp for gp in rec.gaps if win.start <= np.searchsorted(rec.time, gp.t_after) < win.stop
-        ]
-        if bridged:
-            missing = sum(gp.n_missing for gp in bridged)
-            notes.append(f"{len(bridged)} short gap(s) inside ({missing} samples missing)")
+        notes += _gap_notes(rec, win)
         if clipped is not None:
             clip_note(int(clipped[st.onset : win.stop].sum()), notes, typed)
         sl = slice(win.start, win.stop)
@@ -272,6 +267,17 @@ def build_trials(
         )
         level_now = level_new
     return trials
+
+
+def _gap_notes(rec: Recording, win: Window) -> list[str]:
+    """The short gaps a trial's window bridges, counted."""
+    bridged = [
+        gp for gp in rec.gaps if win.start <= np.searchsorted(rec.time, gp.t_after) < win.stop
+    ]
+    if not bridged:
+        return []
+    missing = sum(gp.n_missing for gp in bridged)
+    return [f"{len(bridged)} short gap(s) inside ({missing} samples missing)"]
 
 
 def _given_level(

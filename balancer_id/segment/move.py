@@ -499,6 +499,29 @@ def find_moves(
     return trials
 
 
+def _move_force(
+    rec: Recording,
+    time: np.ndarray,
+    accel: np.ndarray,
+    inside: np.ndarray,
+    t_start: float,
+    start: float,
+    force_sign: int | None,
+) -> np.ndarray | None:
+    """The force over the move's window, its rest level removed and signed with the motion
+    (or by ``force_sign``); None without a usable force channel."""
+    if rec.force is None or np.isfinite(rec.force).sum() <= 10:
+        return None
+    fr = fill_nan(np.asarray(rec.force, dtype=float))
+    f_rest = fr[(time >= t_start) & (time < start)]
+    fc = fr - (float(np.median(f_rest)) if f_rest.size else 0.0)
+    if force_sign is not None:
+        fs = float(force_sign)
+    else:
+        fs = 1.0 if float(np.dot(fc[inside], accel[inside])) >= 0 else -1.0
+    return fs * fc[inside]
+
+
 def _find_in_run(
     rec: Recording,
     reference: Reference,
@@ -547,16 +570,7 @@ def _find_in_run(
     t_end = min(max(settled, end_move) + SETTLE_AFTER_S, end_move + MAX_AFTER_S, float(time[-1]))
     t_start = max(start - REST_BEFORE_S, float(time[0]))
     inside = (time >= t_start) & (time <= t_end)
-    force = None
-    if rec.force is not None and np.isfinite(rec.force).sum() > 10:
-        fr = fill_nan(np.asarray(rec.force, dtype=float))
-        f_rest = fr[(time >= t_start) & (time < start)]
-        fc = fr - (float(np.median(f_rest)) if f_rest.size else 0.0)
-        if force_sign is not None:
-            fs = float(force_sign)
-        else:
-            fs = 1.0 if float(np.dot(fc[inside], accel[inside])) >= 0 else -1.0
-        force = fs * fc[inside]
+    force = _move_force(rec, time, accel, inside, t_start, start, force_sign)
     distance = float(ref.evaluate(np.array([end_move + 1.0]))[0][0])
     notes = [
         "move found in the log" if not given else "move start as given",

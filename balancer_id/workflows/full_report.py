@@ -86,6 +86,7 @@ def full_report(
     trials = as_trial_set(logs, options, trajectory)
     tell("fitting")
     result = fit(trials, model=model, fixed=fixed, effects_files=effects_files, per_trial=True)
+    assert isinstance(result, FitResult), "a fit without per_log is one fit"
     tell("diagnosing")
     diagnosis = diagnose(result)
     tell("improving: adding the suggested effects while they help")

@@ -24,7 +24,7 @@ from balancer_id.identify.design import Design, Proposal, design_trials
 from balancer_id.identify.result import FitResult
 from balancer_id.trials import ReadOptions, TrialSet
 
-__all__ = ["Plan", "plan"]
+__all__ = ["Plan", "plan", "plan_logs"]
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ class Plan:
             "information given the ones before it (levels up to 3x the largest recorded, "
             "moves up to 1.5x as far); the half-widths are predicted at the fitted values.",
         )
-        blocks = [table, *(Paragraph(line.strip()) for line in self.lines()[1:])]
+        blocks: list[Any] = [table, *(Paragraph(line.strip()) for line in self.lines()[1:])]
         return Section("Next trials", blocks=blocks)
 
     def write_report(self, path: str | Path) -> Path:
@@ -288,7 +288,7 @@ def plan(
     if isinstance(source, FitResult):
         result = source
     else:
-        result = run_fit(
+        fitted = run_fit(
             source,
             model=model,
             options=options,
@@ -296,11 +296,13 @@ def plan(
             effects_files=effects_files,
             posterior=posterior,
         )
-    model = result.match.model
+        assert isinstance(fitted, FitResult), "a fit without per_log is one fit"
+        result = fitted
+    fitted_model = result.match.model
     held = [  # held by the fit because one thrust level cannot determine them (A)
         n
         for n, p in result.match.parameters.items()
-        if not p.vary and n not in result.fixed and model.param(n).needs_thrust_levels
+        if not p.vary and n not in result.fixed and fitted_model.param(n).needs_thrust_levels
     ]
     design = design_trials(result.match, param, count, also=held)
     fastest = design.fastest
@@ -311,7 +313,8 @@ def plan(
     ]
     if not result.trusted:
         notes.append("the fit is not trusted (see its warnings): the predictions assume its values")
-    hint, rivals = None, ()
+    hint: str | None = None
+    rivals: tuple[str, ...] = ()
     if separate:
         from balancer_id.diagnostics.api import diagnose
 
@@ -321,3 +324,50 @@ def plan(
             hint = str(amb["record"])
             rivals = (str(amb.get("best")), str(amb.get("runner_up")))
     return Plan(result, design, hint, rivals, fastest, notes)
+
+
+def plan_logs(
+    logs: Sequence[str | Path],
+    options: ReadOptions | None = None,
+    *,
+    count: int = 3,
+    report: str | Path | None = None,
+    overwrite: bool = False,
+    **plan_options: Any,
+) -> Plan:
+    """``balancer-id plan``: check the outputs, read the logs, plan, write the report.
+
+    Parameters
+    ----------
+    logs : sequence of str or Path
+        The logs.
+    options : ReadOptions, optional
+        How they are read.
+    count : int
+        Trials to propose (>= 1).
+    report : str or Path, optional
+        The fit's report with the plan (HTML/PDF).
+    overwrite : bool
+        Replace ``report`` when it exists.
+    **plan_options
+        :func:`plan`'s options (``model``, ``param``, ``fixed``...).
+
+    Returns
+    -------
+    Plan
+    """
+    from balancer_id.arguments import at_least
+    from balancer_id.files import check_outputs, inputs_of
+    from balancer_id.trials import load_trials
+
+    at_least(count, 1, "--count")
+    ins = inputs_of(logs, plan_options.get("effects_files"), None)
+    check_outputs({"--report": report}, ins, overwrite)
+    if report is not None:
+        from balancer_id.report.document import check_report_path
+
+        check_report_path(report, logs)
+    result = plan(load_trials(list(logs), options), count=count, **plan_options)
+    if report is not None:
+        result.write_report(report)
+    return result

@@ -168,28 +168,7 @@ class Discovery:
             discovered values, with units from the terms.
         """
         q = json.dumps
-        params, args, body, doc = [], [], [], []
-        for t in self.terms:
-            c, e = t.coefficient, t.expression
-            span = float(f"{max(1e3 * abs(c), 1e-6):.3g}")
-            se = f" +- {t.stderr:.2g}" if t.stderr is not None and np.isfinite(t.stderr) else ""
-            fields = [q(t.term.name), _py(float(f"{c:.6g}")), _py(-span), _py(span)]
-            fields += [q(t.term.unit), q("coefficient of " + e)]
-            one = f"        Param({', '.join(fields)}),"
-            params.append(
-                one
-                if len(one) <= 100
-                else "        Param(\n"
-                + "".join(f"            {x},\n" for x in fields)
-                + "        ),"
-            )
-            args.append(t.term.name)
-            if not (self.stick and t.term.is_friction):
-                body.append(_product(t.term.name, e))
-            doc.append(
-                f"    {t.term.name} = {c:.4g}{se} {t.term.unit} (term {e}),\n"
-                f"    kept in {t.inclusion:.0%} of the bootstrap resamples of the trials."
-            )
+        params, args, body, doc = _term_parts(self.terms, self.stick)
         dry = [t for t in self.terms if self.stick and t.term.is_friction]
         sliding = " + ".join(_product(t.term.name, t.expression) for t in dry)
         formula = " + ".join(body) or "0.0"
@@ -204,11 +183,7 @@ class Discovery:
             else []
         )
         if dry:
-            magnitudes = [t.term.magnitude for t in dry]
-            for key, value in (kv for t in dry for kv in t.term.shapes):
-                magnitudes = [re.sub(rf"\b{key}\b", f"{value:.4g}", m) for m in magnitudes]
-            hook = friction_hook([t.term.name for t in dry], magnitudes, ", ".join(args))
-            hooks += [*([""] if hooks else []), *hook.rstrip("\n").split("\n")]
+            hooks += [*([""] if hooks else []), *_dry_friction_hook(dry, args)]
             doc.append(
                 "    The sign(v) terms are dry friction: a load at rest sticks while the other\n"
                 "    forces stay below their level at v = 0 (the friction hook)."
@@ -250,6 +225,46 @@ class Discovery:
             "",
         ]
         return "\n".join(lines)
+
+
+def _term_parts(
+    terms: list[DiscoveredTerm], stick: bool
+) -> tuple[list[str], list[str], list[str], list[str]]:
+    """Per term: its ``Param`` line, its argument, its product in the force (not a dry
+    friction term's when the load sticks) and its docstring lines."""
+    q = json.dumps
+    params, args, body, doc = [], [], [], []
+    for t in terms:
+        c, e = t.coefficient, t.expression
+        span = float(f"{max(1e3 * abs(c), 1e-6):.3g}")
+        se = f" +- {t.stderr:.2g}" if t.stderr is not None and np.isfinite(t.stderr) else ""
+        fields = [q(t.term.name), _py(float(f"{c:.6g}")), _py(-span), _py(span)]
+        fields += [q(t.term.unit), q("coefficient of " + e)]
+        one = f"        Param({', '.join(fields)}),"
+        params.append(
+            one
+            if len(one) <= 100
+            else "        Param(\n"
+            + "".join(f"            {x},\n" for x in fields)
+            + "        ),"
+        )
+        args.append(t.term.name)
+        if not (stick and t.term.is_friction):
+            body.append(_product(t.term.name, e))
+        doc.append(
+            f"    {t.term.name} = {c:.4g}{se} {t.term.unit} (term {e}),\n"
+            f"    kept in {t.inclusion:.0%} of the bootstrap resamples of the trials."
+        )
+    return params, args, body, doc
+
+
+def _dry_friction_hook(dry: list[DiscoveredTerm], args: list[str]) -> list[str]:
+    """The friction hook's lines for the dry (sign(v)) terms, their shapes filled in."""
+    magnitudes = [t.term.magnitude for t in dry]
+    for key, value in (kv for t in dry for kv in t.term.shapes):
+        magnitudes = [re.sub(rf"\b{key}\b", f"{value:.4g}", m) for m in magnitudes]
+    hook = friction_hook([t.term.name for t in dry], magnitudes, ", ".join(args))
+    return hook.rstrip("\n").split("\n")
 
 
 def _product(coef: str, expression: str) -> str:
