@@ -230,17 +230,7 @@ def consistency_test(
             worst = row
         if p < CONSISTENCY_ALPHA and spread > CONSISTENCY_MIN_SPREAD:
             failed.append(row)
-    paper_z = None
-    if paper_m_a is not None and fit_m_a is not None and fit_m_a[1]:
-        se = float(np.hypot(paper_m_a[1], fit_m_a[1] or 0.0))
-        if se > 0 and np.isfinite(se):
-            paper_z = (paper_m_a[0] - fit_m_a[0]) / se
-    paper_off = (
-        paper_z is not None
-        and abs(paper_z) > 5
-        and fit_m_a is not None
-        and abs(paper_m_a[0] - fit_m_a[0]) > 0.2 * abs(fit_m_a[0])  # type: ignore[index]
-    )
+    paper_z, paper_off = _paper_disagreement(paper_m_a, fit_m_a)
     text = "the parameters agree across runs"
     if failed:
         f = failed[0]
@@ -265,6 +255,26 @@ def consistency_test(
         "paper_z": paper_z,
         "text": text,
     }
+
+
+def _paper_disagreement(
+    paper_m_a: tuple[float, float] | None, fit_m_a: tuple[float, float | None] | None
+) -> tuple[float | None, bool]:
+    """The paper's m_a against the fit's, in standard errors; whether it is far off (more
+    than 5 standard errors and 20 %)."""
+    paper_z = None
+    if paper_m_a is not None and fit_m_a is not None and fit_m_a[1]:
+        se = float(np.hypot(paper_m_a[1], fit_m_a[1] or 0.0))
+        if se > 0 and np.isfinite(se):
+            paper_z = (paper_m_a[0] - fit_m_a[0]) / se
+    paper_off = (
+        paper_z is not None
+        and abs(paper_z) > 5
+        and fit_m_a is not None
+        and paper_m_a is not None
+        and abs(paper_m_a[0] - fit_m_a[0]) > 0.2 * abs(fit_m_a[0])
+    )
+    return paper_z, bool(paper_off)
 
 
 NOTE_OF = {

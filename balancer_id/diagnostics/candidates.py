@@ -159,16 +159,9 @@ def quick_refit(
     while k < len(starts):
         values = starts[k]
         k += 1
-        try:
-            match = match_trials(model, trials, start=values, fixed=fixed, max_nfev=400)
-        except BalancerIdError as exc:
-            return Refit(candidate, None, f"{candidate.effect.name}: {exc}")
-        except Exception as exc:  # a user's effect must not stop the diagnosis
-            return Refit(candidate, None, f"effect '{candidate.effect.name}' failed: {exc!r}")
-        if not all(abs(v) < float("inf") for v in match.values().values()) or not (
-            match.metrics["rmse"] == match.metrics["rmse"]
-        ):
-            return Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
+        match, failed = _refit_once(candidate, trials, values, fixed)
+        if match is None:
+            return failed
         if best is None or match.metrics["rmse"] < best.metrics["rmse"]:
             best = match
         if k == len(starts) == 2 and start and _far_from(best, fresh, "m_a"):
@@ -178,6 +171,26 @@ def quick_refit(
             # data's scale with the effect's own defaults
             starts.append(clipped(fresh))
     return Refit(candidate, best)
+
+
+def _refit_once(
+    candidate: Candidate,
+    trials: Sequence[TrialData],
+    values: dict[str, float],
+    fixed: dict[str, float],
+) -> tuple[MatchResult | None, Refit]:
+    """One refit from ``values``; a failure (an error, NaN) as a Refit naming the effect."""
+    try:
+        match = match_trials(candidate.model, trials, start=values, fixed=fixed, max_nfev=400)
+    except BalancerIdError as exc:
+        return None, Refit(candidate, None, f"{candidate.effect.name}: {exc}")
+    except Exception as exc:  # a user's effect must not stop the diagnosis
+        return None, Refit(candidate, None, f"effect '{candidate.effect.name}' failed: {exc!r}")
+    if not all(abs(v) < float("inf") for v in match.values().values()) or not (
+        match.metrics["rmse"] == match.metrics["rmse"]
+    ):
+        return None, Refit(candidate, None, f"effect '{candidate.effect.name}' produced NaN")
+    return match, Refit(candidate, match)
 
 
 def _far_from(match: MatchResult | None, start: dict[str, float], name: str) -> bool:

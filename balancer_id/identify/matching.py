@@ -624,6 +624,8 @@ def match_trials(
     starts = [base[free]]
     starts += basins.spread_starts(model, free_names, base[free], lo, hi, count, trials, seed)
     mirrored = not auto
+    rounds = 0  # rounds of random starts after the designed ones
+    polish: int | None = None  # the start that goes on from a best end cut at its budget
 
     stopped: list[np.ndarray] = []
 
@@ -647,20 +649,37 @@ def match_trials(
             mirror = basins.mirror_start(model, free_names, best.x, trials)
             if mirror is not None:
                 starts.append(basins.inside(mirror, lo, hi))
+        if k == len(starts) and auto and polish is None and best is not None and not best.success:
+            polish = len(starts)  # the best end ran out of its start's budget: go on from it
+            starts.append(best.x)
         if k == len(starts):
-            if not (auto and not spread and _suspect(problem, best, free_names)):
+            if not (auto and _suspect(problem, best, free_names)):
                 break
-            spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
-            starts += basins.spread_starts(
-                model, free_names, base[free], lo, hi, spread, trials, seed
-            )
+            if not spread:
+                spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
+                starts += basins.spread_starts(
+                    model, free_names, base[free], lo, hi, spread, trials, seed
+                )
+            elif rounds < basins.MORE_ROUNDS and basins.wants_spread(model, free_names):
+                # still suspect after the designed starts, on a cost with basins (limits,
+                # friction, lags): more starts drawn at random, a round at a time
+                rounds += 1
+                drawn = basins.spread_starts(
+                    model, free_names, base[free], lo, hi, spread + basins.MORE_STARTS, trials,
+                    seed,
+                )  # fmt: skip
+                starts += drawn[spread:]
+                spread += basins.MORE_STARTS
+            else:
+                break
         x0 = starts[k]
         k += 1
         if len(starts) > 1:
             tell(f"start {k}/{len(starts)}")
         used = problem.nfev
         # a default search's other starts look for a basin, not a last digit
-        budget = max_nfev if (k == 1 or not auto) else min(max_nfev, basins.SPREAD_NFEV)
+        whole = k == 1 or not auto or k - 1 == polish
+        budget = max_nfev if whole else min(max_nfev, basins.SPREAD_NFEV)
         if diff_step is None:
             x0, last = problem.gauss_newton(x0, lo, hi, used + budget)
             if last is not None:

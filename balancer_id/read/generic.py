@@ -112,13 +112,7 @@ def parse_spec(role: str, text: str) -> tuple[str, float, float]:
             }[kind]
             + ")"
         )
-    factor = 1.0
-    if match.group("div"):
-        divisor = float(match.group("div"))
-        factor = 1.0 / divisor if divisor else float("inf")
-    elif match.group("fac"):
-        factor = float(match.group("fac"))
-    offset = float(match.group("off").replace(" ", "")) if match.group("off") else 0.0
+    factor, offset = _scale_of(match)
     if not (np.isfinite(factor) and factor != 0.0 and np.isfinite(offset)):
         raise UsageError(f"--columns {role}=...:{text}: the scale must be finite and not zero")
     if kind == "time":
@@ -127,6 +121,18 @@ def parse_spec(role: str, text: str) -> tuple[str, float, float]:
     if kind == "force":
         return "N", factor * scale, offset * scale
     return ("g" if key in ("g", "mg") else "m/s^2"), factor * scale, offset * scale
+
+
+def _scale_of(match: re.Match[str]) -> tuple[float, float]:
+    """A spec's factor (``/4096`` or ``0.00315``) and offset (``+0.30``)."""
+    factor = 1.0
+    if match.group("div"):
+        divisor = float(match.group("div"))
+        factor = 1.0 / divisor if divisor else float("inf")
+    elif match.group("fac"):
+        factor = float(match.group("fac"))
+    offset = float(match.group("off").replace(" ", "")) if match.group("off") else 0.0
+    return factor, offset
 
 
 def _find(
@@ -181,20 +187,7 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     LogReadError
         A mapped name is not in the header.
     """
-    roles = {k.strip().lower(): v for k, v in mapping.items()}
-    unknown = sorted(set(roles) - set(MAP_KEYS))
-    if unknown:
-        raise UsageError(
-            f"unknown column role(s) {', '.join(unknown)} in the column map; "
-            f"use {', '.join(MAP_KEYS)}"
-        )
-    if "time" not in roles:
-        raise UsageError("the column map needs a time column: --columns time=NAME,...")
-    axes: list[str] = [k for k in ("ax", "ay", "az") if k in roles]
-    if "a" in roles and axes:
-        raise UsageError("the column map gives both a and ax/ay/az; give one or the other")
-    if "force" not in roles and "a" not in roles and not axes:
-        raise UsageError("the column map needs force=NAME or acceleration (ax=,ay=,az= or a=)")
+    roles, axes = _checked_roles(mapping)
     gravity = roles.pop("gravity", None)
     if gravity is not None and str(gravity).strip().lower() not in _GRAVITY_VALUES:
         raise UsageError("--columns gravity=...: give yes (gravity in the values) or no")
@@ -228,18 +221,48 @@ def plan_from_map(path: Path, columns: list[Column], mapping: dict[str, str]) ->
     if gravity is not None:
         plan.includes_gravity = _GRAVITY_VALUES[str(gravity).strip().lower()]
         plan.gravity_given = True
-    given = [specs[r] for r in accel_roles if r in specs]
-    if given:
-        if len(given) != len(accel_roles) or len({u for u, _, _ in given}) != 1:
-            raise UsageError(
-                "--columns: give the same unit to every acceleration axis "
-                "(e.g. ax=AccX:counts/4096g,ay=AccY:counts/4096g,az=AccZ:counts/4096g)"
-            )
-        plan.accel_unit, plan.accel_unit_given = given[0][0], True
-        for role, col in zip(accel_roles, accel_cols, strict=True):
-            if specs[role][1:] != (1.0, 0.0):
-                plan.scales[col.index] = specs[role][1:]
+    _accel_specs(plan, specs, accel_roles, accel_cols)
     return [plan]
+
+
+def _checked_roles(mapping: dict[str, str]) -> tuple[dict[str, str], list[str]]:
+    """The map's roles (lower case) and acceleration axes, refused when incomplete."""
+    roles = {k.strip().lower(): v for k, v in mapping.items()}
+    unknown = sorted(set(roles) - set(MAP_KEYS))
+    if unknown:
+        raise UsageError(
+            f"unknown column role(s) {', '.join(unknown)} in the column map; "
+            f"use {', '.join(MAP_KEYS)}"
+        )
+    if "time" not in roles:
+        raise UsageError("the column map needs a time column: --columns time=NAME,...")
+    axes: list[str] = [k for k in ("ax", "ay", "az") if k in roles]
+    if "a" in roles and axes:
+        raise UsageError("the column map gives both a and ax/ay/az; give one or the other")
+    if "force" not in roles and "a" not in roles and not axes:
+        raise UsageError("the column map needs force=NAME or acceleration (ax=,ay=,az= or a=)")
+    return roles, axes
+
+
+def _accel_specs(
+    plan: RunPlan,
+    specs: dict[str, tuple[str, float, float]],
+    accel_roles: list[str],
+    accel_cols: list[Column],
+) -> None:
+    """The acceleration's unit and scales from the map (one unit for every axis)."""
+    given = [specs[r] for r in accel_roles if r in specs]
+    if not given:
+        return
+    if len(given) != len(accel_roles) or len({u for u, _, _ in given}) != 1:
+        raise UsageError(
+            "--columns: give the same unit to every acceleration axis "
+            "(e.g. ax=AccX:counts/4096g,ay=AccY:counts/4096g,az=AccZ:counts/4096g)"
+        )
+    plan.accel_unit, plan.accel_unit_given = given[0][0], True
+    for role, col in zip(accel_roles, accel_cols, strict=True):
+        if specs[role][1:] != (1.0, 0.0):
+            plan.scales[col.index] = specs[role][1:]
 
 
 def _set_accel(plan: RunPlan, cols: list[Column]) -> None:

@@ -347,17 +347,35 @@ def classify(index: int, raw: str) -> Column:
         kind = "ignore" if total else "accel"
         axis = "" if total else gforce.group(2)
         return Column(index, raw, quantity, unit or "g", run, kind, axis, False)
+    kind = _kind_of(q, u, tokens, accel_unit)
+    if kind == "accel-like":
+        kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) or "abs" in words else "accel"
+        linear = bool(words & LINEAR_WORDS)
+    if kind in ("accel", "gyro"):
+        axis = _axis_of(tokens)
+    return Column(index, raw, quantity, unit, run, kind, axis, linear)
+
+
+def _kind_of(q: str, u: str, tokens: list[str], accel_unit: str) -> str:
+    """What a column's name and unit say it holds (``accel-like``: an acceleration or its
+    magnitude)."""
+    words = set(tokens)
     if _DATETIME.match(q):
-        kind = "datetime"
-    elif (q in TIME_WORDS and (u in _TIME_UNITS or u == "")) or _time_like(tokens, u):
-        kind = "time"
-    elif (words & FORCE_TOKENS or _has_word(q, FORCE_WORDS)) and u in _FORCE_UNITS:
-        kind = "force"
-    elif _has_word(q, GYRO_WORDS) or u in _GYRO_UNITS or "rotation" in words:
-        kind = "gyro"
-    elif words & GRAVITY_WORDS:
-        kind = "other"
-    elif (
+        return "datetime"
+    if (q in TIME_WORDS and (u in _TIME_UNITS or u == "")) or _time_like(tokens, u):
+        return "time"
+    if (words & FORCE_TOKENS or _has_word(q, FORCE_WORDS)) and u in _FORCE_UNITS:
+        return "force"
+    if _has_word(q, GYRO_WORDS) or u in _GYRO_UNITS or "rotation" in words:
+        return "gyro"
+    if words & GRAVITY_WORDS:
+        return "other"
+    return "accel-like" if _accel_name(q, u, tokens, accel_unit) else "other"
+
+
+def _accel_name(q: str, u: str, tokens: list[str], accel_unit: str) -> bool:
+    """Whether the name reads as an acceleration (a word, an axis letter, ``a_x``)."""
+    return bool(
         any(_is_accel_word(t) for t in tokens)
         or _has_word(q, ACCEL_WORDS)
         or (len(tokens) == 1 and _AXIS_TOKEN.match(tokens[0]) is not None)
@@ -367,12 +385,7 @@ def classify(index: int, raw: str) -> Column:
             and (accel_unit or not u)
             and (len(tokens) == 1 or _axis_of(tokens[1:]) != "")
         )
-    ):
-        kind = "ignore" if _has_word(q, MAGNITUDE_WORDS) or "abs" in words else "accel"
-        linear = bool(words & LINEAR_WORDS)
-    if kind in ("accel", "gyro"):
-        axis = _axis_of(tokens)
-    return Column(index, raw, quantity, unit, run, kind, axis, linear)
+    )
 
 
 def classify_header(names: list[str]) -> list[Column]:

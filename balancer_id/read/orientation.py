@@ -110,6 +110,18 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
     ]
     order = sorted(range(len(out)), key=lambda i: out[i].first)
     rank = {keep[i]: r for r, i in enumerate(order)}
+    sequence = _sequence(spans, rank)
+    return [
+        Orientation(out[i].up, out[i].first, out[i].last, out[i].n_rest, tuple(sequence))
+        for i in order
+    ]
+
+
+def _sequence(
+    spans: list[tuple[int, int, int]], rank: dict[int, int]
+) -> list[tuple[int, int, int]]:
+    """The kept orientations in time order (rank, first, last), neighbours of the same
+    orientation joined."""
     sequence: list[tuple[int, int, int]] = []
     for j, first, last in spans:
         if j not in rank:
@@ -118,10 +130,7 @@ def orientations(rec: Recording, g: float) -> list[Orientation]:
             sequence[-1] = (rank[j], sequence[-1][1], last)
         else:
             sequence.append((rank[j], first, last))
-    return [
-        Orientation(out[i].up, out[i].first, out[i].last, out[i].n_rest, tuple(sequence))
-        for i in order
-    ]
+    return sequence
 
 
 def _rest_directions(

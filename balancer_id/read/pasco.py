@@ -96,9 +96,7 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
             continue
         if col.kind in ("datetime", "ignore"):
             continue
-        time = (
-            last_time.get(col.run) or last_shared or first_time.get(col.run) or shared_first or only
-        )
+        time = _time_of(col, last_time, last_shared, first_time, shared_first, only)
         if time is None:
             if col.kind not in ("force", "accel"):
                 continue
@@ -115,16 +113,35 @@ def plan_runs(path: Path, columns: list[Column]) -> list[RunPlan]:
     for key, by_time in groups.items():
         name = _run_name(key, groups)
         run_plans = [plan_from_columns(name, by_index[t], cols) for t, cols in by_time.items()]
-        run_plans = join_rates([p for p in run_plans if p.has_signal])
-        for k, plan in enumerate(run_plans[1:], start=2):
-            if plan.force is not None and not plan.accel:
-                plan.name = f"{name} (force)"
-            elif plan.accel and plan.force is None:
-                plan.name = f"{name} (acceleration)"
-            else:
-                plan.name = f"{name} ({k})"
-        plans.extend(run_plans)
+        plans.extend(_named(join_rates([p for p in run_plans if p.has_signal]), name))
     return plans
+
+
+def _named(run_plans: list[RunPlan], name: str) -> list[RunPlan]:
+    """A run's plans after its first named by what they hold (force, acceleration, k)."""
+    for k, plan in enumerate(run_plans[1:], start=2):
+        if plan.force is not None and not plan.accel:
+            plan.name = f"{name} (force)"
+        elif plan.accel and plan.force is None:
+            plan.name = f"{name} (acceleration)"
+        else:
+            plan.name = f"{name} ({k})"
+    return run_plans
+
+
+def _time_of(
+    col: Column,
+    last_time: dict[str, Column],
+    last_shared: Column | None,
+    first_time: dict[str, Column],
+    shared_first: Column | None,
+    only: Column | None,
+) -> Column | None:
+    """The time column of ``col``: its run's last before it, a shared one before it, its
+    run's first, the first shared one, the only one."""
+    return (
+        last_time.get(col.run) or last_shared or first_time.get(col.run) or shared_first or only
+    )
 
 
 def _run_name(key: str, members: dict[str, dict[int, list[Column]]]) -> str:

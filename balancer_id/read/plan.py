@@ -136,6 +136,27 @@ def plan_from_columns(
     """
     plan = RunPlan(name=name, time=time.index)
     set_time_unit(plan, time)
+    axes, single = _sort_members(plan, members)
+    chosen = _choose_accel(plan, axes, single)
+    plan.accel = tuple(c.index for c in chosen)
+    if chosen:
+        units = {c.accel_unit for c in chosen}
+        plan.accel_unit = units.pop() if len(units) == 1 else ""
+        if all(c.unit.strip().lower() == "mg" for c in chosen):  # thousandths of g
+            plan.accel_unit = "g"
+            plan.scales.update({c.index: (1e-3, 0.0) for c in chosen})
+        if any(c.linear for c in chosen):
+            plan.includes_gravity = False
+        elif with_gravity_name is not None and len(chosen) == 3:
+            plan.includes_gravity = with_gravity_name
+    return plan
+
+
+def _sort_members(
+    plan: RunPlan, members: list[Column]
+) -> tuple[dict[str, Column], list[Column]]:
+    """The force (a second one: an extra channel), the acceleration axes and a single
+    acceleration column; gyroscopes and the rest as extra channels."""
     axes: dict[str, Column] = {}
     single: list[Column] = []
     for col in members:
@@ -154,6 +175,11 @@ def plan_from_columns(
                 plan.extra[_unique(plan.extra, col.label)] = col.index
         elif col.kind in ("gyro", "other"):
             plan.extra[_unique(plan.extra, col.label)] = col.index
+    return axes, single
+
+
+def _choose_accel(plan: RunPlan, axes: dict[str, Column], single: list[Column]) -> list[Column]:
+    """The acceleration: three axes, or one column; the others kept as extra channels."""
     chosen: list[Column]
     if len(axes) == 3:
         chosen = [axes[a] for a in _AXES]
@@ -178,18 +204,7 @@ def plan_from_columns(
                 + ", ".join(sorted(axes))
                 + "; kept as extra channels, not as the acceleration"
             )
-    plan.accel = tuple(c.index for c in chosen)
-    if chosen:
-        units = {c.accel_unit for c in chosen}
-        plan.accel_unit = units.pop() if len(units) == 1 else ""
-        if all(c.unit.strip().lower() == "mg" for c in chosen):  # thousandths of g
-            plan.accel_unit = "g"
-            plan.scales.update({c.index: (1e-3, 0.0) for c in chosen})
-        if any(c.linear for c in chosen):
-            plan.includes_gravity = False
-        elif with_gravity_name is not None and len(chosen) == 3:
-            plan.includes_gravity = with_gravity_name
-    return plan
+    return chosen
 
 
 def set_time_unit(plan: RunPlan, time: Column) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -100,28 +101,13 @@ def read_log(
     refuse_headerless(sniffed)
     header = classify_header(sniffed.header)
     fmt, plans = _plan(sniffed.path, header, columns)
-    if (
-        fmt == "phyphox"
-        and any(p.force is not None for p in plans)
-        and not _phyphox_numbers(sniffed)
-    ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
-        fmt = "generic"
-    elif fmt == "generic" and not columns and _phyphox_like(header, sniffed):
-        fmt = "phyphox"  # another phyphox experiment (Elevator: 'Acceleration (m/s²)')
+    fmt = _refined(fmt, plans, header, sniffed, columns)
     inferences = [layout_inference(fmt, header, columns)]
     inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
     _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
-    limits: dict[int, float] = {}
-    for plan in plans:
-        for col in (plan.time, plan.force_time, plan.clock):
-            if col is not None:
-                limits[col] = TIME_BOUND
-        for col in (plan.force, *plan.accel):
-            if col is not None:  # the bound holds after the column map's scale
-                factor, offset = plan.scales.get(col, (1.0, 0.0))
-                limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
+    limits = _bounds(plans)
     clocks = {c for plan in plans for c in (plan.time, plan.force_time) if c is not None}
     table = read_table(sniffed, wanted, optional, limits, clocks)
     refuse_no_scale(sniffed, plans, table)
@@ -136,27 +122,10 @@ def read_log(
             inferences=inferences,
         )
     if not recordings:
-        n_filled = _rows_with_a_value(table)
-        if 0 < n_filled < MIN_ROWS_OF_A_RUN:
-            raise LogReadError(
-                sniffed.path,
-                f"only {n_filled} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
-                "samples of a run",
-                line=sniffed.header_line + 1,
-                hint="record longer, or check that the export includes every sample",
-            )
-        raise LogReadError(
-            sniffed.path,
-            "no usable data rows: " + _blank_cause(plans, table, sniffed.header),
-            line=sniffed.header_line + 1,
-            hint="check that the export includes the measurements",
-        )
+        raise _no_rows_error(sniffed, plans, table)
     found = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
     found += [as_note(w, "read.other") for w in warnings]
-    for rec in recordings:  # a sensor turned during the run (issue 19.3)
-        parts = orientations(rec, g)
-        if len(parts) > 1:
-            found.append(Note("read.turned_sensor", turned_note_text(rec, parts), rec.name))
+    found += _turned_notes(recordings, g)
     return Log(
         path=sniffed.path,
         format=fmt,
@@ -164,6 +133,64 @@ def read_log(
         warnings=texts(n for n in found if n.code not in NOTES_ONLY),
         notes=found,
         inferences=inferences,
+    )
+
+
+def _refined(
+    fmt: str, plans: list[RunPlan], header: list[Any], sniffed: Sniffed, columns: Any
+) -> str:
+    """The layout, phyphox's told apart from a generic CSV by its numbers and names."""
+    if (
+        fmt == "phyphox"
+        and any(p.force is not None for p in plans)
+        and not _phyphox_numbers(sniffed)
+    ):  # phyphox records no force sensor, and writes its numbers as 1.005775000E-2
+        return "generic"
+    if fmt == "generic" and not columns and _phyphox_like(header, sniffed):
+        return "phyphox"  # another phyphox experiment (Elevator: 'Acceleration (m/s²)')
+    return fmt
+
+
+def _turned_notes(recordings: list[Any], g: float) -> list[Note]:
+    """A note for each run whose sensor turned during it (issue 19.3)."""
+    found = []
+    for rec in recordings:
+        parts = orientations(rec, g)
+        if len(parts) > 1:
+            found.append(Note("read.turned_sensor", turned_note_text(rec, parts), rec.name))
+    return found
+
+
+def _bounds(plans: list[RunPlan]) -> dict[int, float]:
+    """The largest magnitude each time and signal column may hold (beyond: not a number)."""
+    limits: dict[int, float] = {}
+    for plan in plans:
+        for col in (plan.time, plan.force_time, plan.clock):
+            if col is not None:
+                limits[col] = TIME_BOUND
+        for col in (plan.force, *plan.accel):
+            if col is not None:  # the bound holds after the column map's scale
+                factor, offset = plan.scales.get(col, (1.0, 0.0))
+                limits[col] = (SIGNAL_BOUND + abs(offset)) / max(abs(factor), 1e-300)
+    return limits
+
+
+def _no_rows_error(sniffed: Sniffed, plans: list[RunPlan], table: Table) -> LogReadError:
+    """Why no run could be built: too few rows, or none with the measurements."""
+    n_filled = _rows_with_a_value(table)
+    if 0 < n_filled < MIN_ROWS_OF_A_RUN:
+        return LogReadError(
+            sniffed.path,
+            f"only {n_filled} data row(s): a log needs at least {MIN_ROWS_OF_A_RUN} "
+            "samples of a run",
+            line=sniffed.header_line + 1,
+            hint="record longer, or check that the export includes every sample",
+        )
+    return LogReadError(
+        sniffed.path,
+        "no usable data rows: " + _blank_cause(plans, table, sniffed.header),
+        line=sniffed.header_line + 1,
+        hint="check that the export includes the measurements",
     )
 
 

@@ -225,8 +225,7 @@ def build_trials(
             )
         else:
             level_new = level_now + change
-        if accel is None:
-            notes.append("no acceleration channel")
+        notes += [] if accel is not None else ["no acceleration channel"]
         notes += _gap_notes(rec, win)
         if clipped is not None:
             clip_note(int(clipped[st.onset : win.stop].sum()), notes, typed)
@@ -235,9 +234,7 @@ def build_trials(
         if force is not None and np.isfinite(st.size):
             if not chained[j] or not np.isfinite(ref_chain):
                 ref_chain = level(force[win.start : max(win.start + 1, st.onset - gb)])
-            orientation = sign * np.sign(st.size)
-            if chained[j] and mounting is not None:
-                orientation = mounting if force_sign is None else force_sign
+            orientation = _force_orientation(sign, st, chained[j], mounting, force_sign)
             trial_force = orientation * (force[sl] - ref_chain)
         direction = int(np.sign(level_new)) or sign
         trials.append(
@@ -250,9 +247,7 @@ def build_trials(
                 thrust_N=float(level_new),
                 direction="up" if direction > 0 else "down",
                 time=_read_only(rec.time[sl]),
-                accel=_read_only(accel[sl])
-                if accel is not None
-                else np.full(sl.stop - sl.start, np.nan),
+                accel=_trial_accel(accel, sl),
                 force=trial_force,
                 end_reason=win.end_reason,
                 source=source,
@@ -267,6 +262,23 @@ def build_trials(
         )
         level_now = level_new
     return trials
+
+
+def _force_orientation(
+    sign: int, st: Step, chained: bool, mounting: int | None, force_sign: int | None
+) -> float:
+    """The factor turning the force channel into the thrust: the step's direction, or in
+    a chain the sensor's mounting (or the sign given)."""
+    if chained and mounting is not None:
+        return mounting if force_sign is None else force_sign
+    return sign * np.sign(st.size)
+
+
+def _trial_accel(accel: np.ndarray | None, sl: slice) -> np.ndarray:
+    """The trial's acceleration (read only), or NaN without an acceleration channel."""
+    if accel is None:
+        return np.full(sl.stop - sl.start, np.nan)
+    return _read_only(accel[sl])
 
 
 def _gap_notes(rec: Recording, win: Window) -> list[str]:

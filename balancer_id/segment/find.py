@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -95,23 +96,50 @@ def find_trials(
     _note_verticals(log, runs)
     total = sum(len(r.steps) for r in runs)
     if total == 0 and given is None:
-        moves = [
-            guided_move(
-                r.rec,
-                r.motion,
-                r.breaks,
-                force_sign=force_sign,
-                settings=settings,
-                index=0,
-                source=str(log.path),
-            )
-            for r in runs
-        ]
-        found = [m for m in moves if m is not None]
-        for k, m in enumerate(found):
-            m.index = k
+        found = _guided_moves(log, runs, force_sign, settings)
         if found:
             return found
+    _refuse_unusable(log, runs, total, given)
+    _note_empty_runs(log, runs)
+    _note_missed_motions(log, runs)
+    first = np.cumsum([0] + [len(r.steps) for r in runs])
+    run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
+    signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
+    for run, gv in zip(runs, run_given, strict=True):
+        orient(run, gv, force_sign, signed=signed)
+    _note_verticals(log, runs)  # the signs the force or the thrusts fixed
+    trials: list[Trial] = []
+    for run, i0, gv in zip(runs, first, run_given, strict=False):
+        trials.extend(
+            build_trials(run, int(i0), gv, force_sign, settings, str(log.path), signed=signed)
+        )
+    return trials
+
+
+def _guided_moves(
+    log: Log, runs: list[Run], force_sign: int | None, settings: StepSettings
+) -> list[Trial]:
+    """Without a step: each run's move guided by a reference (a robot's), numbered."""
+    moves = [
+        guided_move(
+            r.rec,
+            r.motion,
+            r.breaks,
+            force_sign=force_sign,
+            settings=settings,
+            index=0,
+            source=str(log.path),
+        )
+        for r in runs
+    ]
+    found = [m for m in moves if m is not None]
+    for k, m in enumerate(found):
+        m.index = k
+    return found
+
+
+def _refuse_unusable(log: Log, runs: list[Run], total: int, given: list[float] | None) -> None:
+    """No trial, thrusts that do not match the trials, or onsets no thrust belongs to."""
     if total == 0:
         why = "; ".join(f"{r.rec.name}: {r.why}" for r in runs) or "the log holds no run"
         raise NoTrialError(f"{log.path}: no step trial found ({why})")
@@ -133,7 +161,11 @@ def find_trials(
             f"{log.path}: no step trial found (no force channel and no thrusts given: the "
             f"acceleration shows {total} onset(s) at {_onsets(runs)}{missed}; {advice})"
         )
-    empty = [r for r in runs if not r.steps]  # a run without a trial says why
+
+
+def _note_empty_runs(log: Log, runs: list[Run]) -> None:
+    """A run without a trial says why (counted in one warning beyond a few)."""
+    empty = [r for r in runs if not r.steps]
     for r in empty:
         _note_run_without_trial(log, r.rec.name, r.why, quiet=len(empty) > MAX_RUN_WARNINGS)
     if len(empty) > MAX_RUN_WARNINGS:
@@ -144,19 +176,6 @@ def find_trials(
         )
         if text not in log.warnings:
             log.warnings.append(text)
-    _note_missed_motions(log, runs)
-    first = np.cumsum([0] + [len(r.steps) for r in runs])
-    run_given = [None if given is None else given[a:b] for a, b in itertools.pairwise(first)]
-    signed = any(v < 0 for v in given or ()) if thrusts_signed is None else thrusts_signed
-    for run, gv in zip(runs, run_given, strict=True):
-        orient(run, gv, force_sign, signed=signed)
-    _note_verticals(log, runs)  # the signs the force or the thrusts fixed
-    trials: list[Trial] = []
-    for run, i0, gv in zip(runs, first, run_given, strict=False):
-        trials.extend(
-            build_trials(run, int(i0), gv, force_sign, settings, str(log.path), signed=signed)
-        )
-    return trials
 
 
 def find_onsets(
@@ -240,23 +259,12 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     """
     tell("the vertical")
     motion = vertical_motion(rec, vertical=vertical, g=g)
-    breaks = gap_breaks(rec, settings.bridge_gap_s)
-    if motion is not None and motion.turns:  # a turned sensor: no window crosses a turn
-        edges = [i for turn in motion.turns for i in turn if 0 < i < rec.n_samples]
-        breaks = np.unique(np.concatenate([breaks, np.asarray(edges, dtype=int)]))
-    usable = rec.force is not None and np.isfinite(rec.force).sum() >= 2
-    force = fill_nan(rec.force) if usable and rec.force is not None else None
+    breaks = _breaks(rec, motion, settings)
+    force = _usable_force(rec)
     accel = motion.accel if motion is not None else None
     if rec.n_samples < 4 or (force is None and accel is None):
         return Run(rec, motion, breaks, [], [], "no usable force or acceleration channel")
-    if force is not None:
-        tell("the force steps")
-        det = detect_force_steps(rec.time, force, breaks, settings)
-        what = "force change"
-    else:
-        assert accel is not None
-        det = detect_accel_steps(rec.time, accel, breaks, settings)
-        what = "acceleration departure"
+    det, what = _first_steps(rec, force, accel, breaks, settings)
     rate = rate_of(rec.time)
     tell("the trials' windows")
     chans = (channel(force, rate, settings), channel(accel, rate, settings))
@@ -271,22 +279,12 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             ]
             steps = measure_responses(rec.time, accel, steps, breaks, settings, limits)
             windows = _windows(rec.time, chans, steps, breaks, settings)
-            mounting = mounting_sign(steps, settings.response_k_sigma)
-            still = [
-                i
-                for i, st in enumerate(steps)
-                if not _moved(st, mounting, settings)
-                and not (i and windows[i - 1].end_reason == "next step")
-            ]
+            still = _still(steps, windows, settings)
             if still:
                 det.reject("no motion followed the force step")
                 steps = steps[: still[0]] + steps[still[0] + 1 :]
                 continue
-        caught = [
-            i
-            for i in range(1, len(steps))
-            if (settled := windows[i - 1].settled) is not None and steps[i].onset < settled
-        ]
+        caught = _caught(steps, windows)
         if force is not None and not caught:
             released = _released_after_gaps(force, steps, windows, rate, settings)
             if released:
@@ -301,6 +299,56 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
             return Run(rec, motion, breaks, steps, windows, _why(det, what))
         det.reject("inside a catch")
         steps = steps[: caught[0]] + steps[caught[0] + 1 :]
+
+
+def _breaks(rec: Recording, motion: Any, settings: StepSettings) -> np.ndarray:
+    """Where no window may cross: the drop-outs, and a turned sensor's turns."""
+    breaks = gap_breaks(rec, settings.bridge_gap_s)
+    if motion is not None and motion.turns:  # a turned sensor: no window crosses a turn
+        edges = [i for turn in motion.turns for i in turn if 0 < i < rec.n_samples]
+        breaks = np.unique(np.concatenate([breaks, np.asarray(edges, dtype=int)]))
+    return breaks
+
+
+def _usable_force(rec: Recording) -> np.ndarray | None:
+    """The force channel with its gaps filled, when it holds two samples or more."""
+    usable = rec.force is not None and np.isfinite(rec.force).sum() >= 2
+    return fill_nan(rec.force) if usable and rec.force is not None else None
+
+
+def _first_steps(
+    rec: Recording,
+    force: np.ndarray | None,
+    accel: np.ndarray | None,
+    breaks: np.ndarray,
+    settings: StepSettings,
+) -> tuple[Detection, str]:
+    """The steps of the force (else of the acceleration) and what a step is called."""
+    if force is not None:
+        tell("the force steps")
+        return detect_force_steps(rec.time, force, breaks, settings), "force change"
+    assert accel is not None
+    return detect_accel_steps(rec.time, accel, breaks, settings), "acceleration departure"
+
+
+def _still(steps: list[Step], windows: list[Window], settings: StepSettings) -> list[int]:
+    """The force steps no motion followed (a step chained to the one before excepted)."""
+    mounting = mounting_sign(steps, settings.response_k_sigma)
+    return [
+        i
+        for i, st in enumerate(steps)
+        if not _moved(st, mounting, settings)
+        and not (i and windows[i - 1].end_reason == "next step")
+    ]
+
+
+def _caught(steps: list[Step], windows: list[Window]) -> list[int]:
+    """The steps that start before the motion of the one before settled (inside a catch)."""
+    return [
+        i
+        for i in range(1, len(steps))
+        if (settled := windows[i - 1].settled) is not None and steps[i].onset < settled
+    ]
 
 
 def _released_after_gaps(

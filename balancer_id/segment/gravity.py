@@ -168,16 +168,7 @@ def vertical_motion(
     w = n_samples(REST_WINDOW_S, rate if np.isfinite(rate) else 200.0, minimum=3)
 
     if vertical != "auto":
-        axis = vertical.lstrip("+-")
-        if axis not in axes:
-            raise UsageError(
-                f"vertical axis {vertical!r} is not in the accel columns {', '.join(axes)}"
-            )
-        col = axes.index(axis)
-        m = _single_axis(acc, col, w, rec.accel_includes_gravity, f"axis {vertical} as given")
-        if vertical.startswith("-") and not rec.accel_includes_gravity:
-            return VerticalMotion(-m.accel, -m.up, m.rest, f"{m.method}; up is -{axis}", True)
-        return m
+        return _given_axis(rec, acc, axes, vertical, w)
     if acc.shape[1] == 1:
         m = _single_axis(acc, 0, w, rec.accel_includes_gravity, f"single axis {axes[0]}")
         if rec.accel_includes_gravity:
@@ -196,6 +187,22 @@ def vertical_motion(
             return _project_turned(acc, parts, w, g, axes)
         return _project_on_gravity(acc, w, g)
     return _principal_axis(acc, axes, w)
+
+
+def _given_axis(
+    rec: Recording, acc: np.ndarray, axes: tuple[str, ...], vertical: str, w: int
+) -> VerticalMotion:
+    """The motion along the axis the user gave (``-z``: up is minus z)."""
+    axis = vertical.lstrip("+-")
+    if axis not in axes:
+        raise UsageError(
+            f"vertical axis {vertical!r} is not in the accel columns {', '.join(axes)}"
+        )
+    col = axes.index(axis)
+    m = _single_axis(acc, col, w, rec.accel_includes_gravity, f"axis {vertical} as given")
+    if vertical.startswith("-") and not rec.accel_includes_gravity:
+        return VerticalMotion(-m.accel, -m.up, m.rest, f"{m.method}; up is -{axis}", True)
+    return m
 
 
 def check_vertical(vertical: str) -> None:

@@ -55,6 +55,25 @@ def _lagged_correlation(t: np.ndarray, u: np.ndarray, a: np.ndarray) -> float:
     return float(np.corrcoef(f, a)[0, 1])
 
 
+def _stretch(breaks: np.ndarray, first: int, n: int) -> tuple[int, int]:
+    """The gap-free stretch around sample ``first``: its start and its end."""
+    later = breaks[breaks > first] if breaks.size else breaks
+    stop = int(later[0]) if later.size else n
+    earlier = breaks[breaks <= first] if breaks.size else breaks
+    lo = int(earlier[-1]) if earlier.size else 0
+    return lo, stop
+
+
+def _orientation(
+    force_sign: int | None, change: np.ndarray, accel: np.ndarray
+) -> tuple[float, str]:
+    """The force's sign (given, else from the motion it drives) and how it was found."""
+    if force_sign is not None:
+        return float(force_sign), "force sign as given"
+    orientation = float(np.sign(np.dot(change, accel))) or 1.0
+    return orientation, "force sign from the motion (a push moves the load its way)"
+
+
 def guided_move(
     rec: Recording,
     motion: VerticalMotion | None,
@@ -109,10 +128,7 @@ def guided_move(
     if gone.size == 0:
         return None
     first = int(gone[0])
-    later = breaks[breaks > first] if breaks.size else breaks
-    stop = int(later[0]) if later.size else rec.n_samples
-    earlier = breaks[breaks <= first] if breaks.size else breaks
-    lo = int(earlier[-1]) if earlier.size else 0
+    lo, stop = _stretch(breaks, first, rec.n_samples)
     begin = first
     while begin > lo and dev[begin - 1] > START_K * sigma:
         begin -= 1
@@ -128,12 +144,7 @@ def guided_move(
     change = force[start:stop] - ref
     if abs(_lagged_correlation(time[start:stop], change, acc_s[start:stop])) < MIN_CORRELATION:
         return None
-    if force_sign is not None:
-        orientation = float(force_sign)
-        how = "force sign as given"
-    else:
-        orientation = float(np.sign(np.dot(smooth(change, w), acc_s[start:stop]))) or 1.0
-        how = "force sign from the motion (a push moves the load its way)"
+    orientation, how = _orientation(force_sign, smooth(change, w), acc_s[start:stop])
     u = orientation * change
     peak = float(u[int(np.argmax(np.abs(u)))])
     sl = slice(start, stop)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -143,7 +143,12 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
         b = n * np.log(rss(support) / n) + len(support) * np.log(n)
         if b < best_bic - 1e-9:
             best, best_bic = support, b
-    # each term must pay: removing it costs more than TERM_BIC
+    return [cols[j] for j in _each_term_pays(best, rss, n)]
+
+
+def _each_term_pays(best: list[int], rss: Any, n: int) -> list[int]:
+    """Drop, one by one, the term whose removal costs least while it costs under
+    :data:`TERM_BIC`."""
     changed = True
     while changed and best:
         changed = False
@@ -153,7 +158,7 @@ def select(lin: _Linear, trials: Sequence[int], usable: Sequence[int]) -> list[i
         if costs[worst] < TERM_BIC:
             best = [k for k in best if k != best[worst]]
             changed = True
-    return [cols[j] for j in best]
+    return best
 
 
 def _ranked(r: np.ndarray, p: np.ndarray, q: np.ndarray) -> list[tuple[int, float]]:

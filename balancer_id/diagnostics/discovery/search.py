@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -311,18 +311,7 @@ def forward_round(inp: ArenaInput, lib: Library, path: Pursuit, seed: int | None
     if seed is not None:
         path.inclusion = _bootstrap(lin, rest, len(terms), seed)
     r, p, q = lin.rows(every)
-    ranked = _ranked(r, p, q)
-    top = ranked[0][1] if ranked else 0.0
-    tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > max(TERM_BIC, CLOSE * top)]
-    tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
-    # a Stribeck term comes with its Coulomb level: the pair is tried too
-    coulomb = next((k for k in rest if terms[k].name == COULOMB), None)
-    groups: list[tuple[int, ...]] = [(j,) for j in tries]
-    groups += [
-        (coulomb, j)
-        for j in tries
-        if coulomb is not None and terms[j].name.startswith(STRIBECK) and coulomb != j
-    ]
+    groups = _groups_to_try(lin, terms, rest, _ranked(r, p, q))
     tried = []
     for group in groups:
         cols = [rest.index(k) for k in group]
@@ -337,6 +326,25 @@ def forward_round(inp: ArenaInput, lib: Library, path: Pursuit, seed: int | None
         return False
     _take(lib, path, best, tried)
     return True
+
+
+def _groups_to_try(
+    lin: Any, terms: Sequence[Any], rest: list[int], ranked: list[tuple[int, float]]
+) -> list[tuple[int, ...]]:
+    """The best-ranked terms that gain on held-out trials, each alone, and a Stribeck term
+    with its Coulomb level too."""
+    top = ranked[0][1] if ranked else 0.0
+    tries = [rest[c] for c, gain in ranked[:REFITTED] if gain > max(TERM_BIC, CLOSE * top)]
+    tries = [j for j in tries if held_out_gain(lin, [rest.index(j)])[0] > 1.0]
+    # a Stribeck term comes with its Coulomb level: the pair is tried too
+    coulomb = next((k for k in rest if terms[k].name == COULOMB), None)
+    groups: list[tuple[int, ...]] = [(j,) for j in tries]
+    groups += [
+        (coulomb, j)
+        for j in tries
+        if coulomb is not None and terms[j].name.startswith(STRIBECK) and coulomb != j
+    ]
+    return groups
 
 
 def _try_group(
