@@ -828,12 +828,14 @@ def trial_notes(trials: Sequence[Trial]) -> list[Note]:
     out = []
     for t in trials:
         subject = f"trial {t.index}"
-        typed = {n.text: n.code for n in getattr(t, "typed_notes", ())}
+        typed = {n.text: n for n in getattr(t, "typed_notes", ())}
         for text in map(str, t.notes):
             if text.startswith("warning:"):
-                code = typed.get(text, "segment.other")
+                own = typed.get(text)
+                code = own.code if own is not None else "segment.other"
+                severity = own.severity if own is not None else "warning"
                 said = text.removeprefix("warning:").strip()
-                out.append(Note(code, f"{subject}: {said}", subject))
+                out.append(Note(code, f"{subject}: {said}", subject, severity))
     return out
 
 

@@ -160,6 +160,10 @@ def diagnose_case(path: Path, param: str) -> tuple[bool, str]:
     return _names_moving(d, param), str(d["verdict"])
 
 
+#: AR(1) coefficient of the accelerometer noise (``--noise-correlation``; 0: white).
+NOISE_CORRELATION = [0.0]
+
+
 def run_case(case: Case, folder: Path, diagnosis: bool = False) -> dict[str, object]:
     """Simulate, fit and score one case (and diagnose a drifting one)."""
     rng = np.random.default_rng(case.seed)
@@ -171,7 +175,8 @@ def run_case(case: Case, folder: Path, diagnosis: bool = False) -> dict[str, obj
     names = ("m_a", "T_a", "D0", "A")
     _, noise = SCALES[case.mass]
     sensor = SensorSettings(accel_noise=noise, force_noise=FORCE_NOISE * k,
-                            tilt_deg=float(rng.uniform(3, 20)))
+                            tilt_deg=float(rng.uniform(3, 20)),
+                            noise_correlation=NOISE_CORRELATION[0])
     rec = record_drifting(
         MODEL,
         lambda t: {n: float(case.value(n, np.array([t]))[0]) for n in names},
@@ -226,11 +231,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--controls", type=float, default=0.25,
                         help="share of controls (nothing moves); 1 for controls only")
+    parser.add_argument("--noise-correlation", type=float, default=0.0,
+                        help="AR(1) coefficient of the accelerometer noise (0: white)")
     parser.add_argument("--diagnose", action="store_true",
                         help="also diagnose each drifting log: is the moving parameter named?")
     args = parser.parse_args()
     seed = args.seed if args.seed is not None else int(np.random.SeedSequence().entropy % 2**31)
-    print(f"seed {seed} (repeat with --seed {seed})")
+    NOISE_CORRELATION[0] = args.noise_correlation
+    print(f"seed {seed} (repeat with --seed {seed}); accelerometer noise AR(1) "
+          f"{args.noise_correlation:g}")
     rng = np.random.default_rng(seed)
     cases = _draw(rng, args.cases, [float(m) for m in args.minutes.split(",")], args.controls)
     rows = []
@@ -262,6 +271,12 @@ def main() -> None:
     wcov = [r["window_coverage"] for r in rows]
     print(f"| blocks inside the 95 % band (all {len(rows)} cases) | {np.mean(cov):.1%} | "
           f"{np.mean(wcov):.1%} | >= 90 % |")
+    for label, group in (("drifting", drifting), ("controls", controls)):
+        if group and len(group) < len(rows):
+            print(f"| blocks inside the 95 % band ({label}, {len(group)} cases) | "
+                  f"{np.mean([r['coverage'] for r in group]):.1%} | "
+                  f"{np.mean([r['window_coverage'] for r in group]):.1%} | "
+                  f"{'>= 90 %' if label == 'drifting' else ''} |")
     print(f"| cases with >= 90 % of blocks inside | {np.mean([c >= 0.9 for c in cov]):.0%} | "
           f"{np.mean([c >= 0.9 for c in wcov]):.0%} | |")
     print(f"| relative RMSE of the curve (median) | {np.median([r['rel_rmse'] for r in rows]):.4f}"

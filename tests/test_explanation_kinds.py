@@ -16,7 +16,7 @@ from balancer_id.diagnostics.explanations import KINDS, Verdict, kind_of
 from balancer_id.diagnostics.explanations.force_delay import ForceDelay
 from balancer_id.diagnostics.explanations.sensor_clipping import pinned_level, soft_clip
 from balancer_id.diagnostics.explanations.sensor_gain import SensorGain
-from balancer_id.diagnostics.explanations.time_trend import blocks
+from balancer_id.diagnostics.explanations.time_trend import _wander_design, blocks
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import match_trials
 from balancer_id.model import parse_model
@@ -189,6 +189,19 @@ def test_blocks_cut_long_runs_in_time_and_leave_short_ones_whole():
     assert [g for g in b.groups if len(g) == 1] == [[12], [13]]
     short = SimpleNamespace(trials=trials[:5], runs=["s"] * 5)
     assert blocks(short) is None  # type: ignore[arg-type]
+    # the trend with a value per block: one column per block of a long run after its
+    # first; the short runs' trials keep the base
+    design = _wander_design(b)
+    assert design is not None and design.shape == (len(b.groups), 5)
+    rows = {tuple(r) for r in design[:6]}
+    assert design[0].sum() == 0 and len(rows) == 6  # the first block is the base
+    assert np.all(design[6:] == 0) and np.all(design.sum(axis=0) == 1)
+    # two long runs: each run's first block is its base
+    two = [td("s", 8.0 * k) for k in range(8)] + [td("t", 8.0 * k) for k in range(8)]
+    b2 = blocks(SimpleNamespace(trials=two, runs=[x.source for x in two]))  # type: ignore[arg-type]
+    d2 = _wander_design(b2)
+    assert d2 is not None and d2.shape == (8, 6)
+    assert d2[0].sum() == 0 and d2[4].sum() == 0
 
 
 def test_force_delay_moves_the_force_back_when_read_and_is_refused_out_of_range(tmp_path):

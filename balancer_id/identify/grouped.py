@@ -12,7 +12,7 @@ factored to ``k + 1`` rows by :class:`~balancer_id.identify.matching._Problem`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -79,6 +79,55 @@ class GroupedFit:
     own_given_shared: list[dict[str, float | None]]
     converged: bool
     iterations: int
+    #: Per group, what a change of the own parameters between its trials would do to
+    #: the estimates (:class:`WithinGroup`; see :meth:`moved_within`).
+    within: list[WithinGroup] = field(default_factory=list)
+
+    def moved_within(
+        self, offsets: Sequence[np.ndarray]
+    ) -> tuple[dict[str, float], list[dict[str, float]]]:
+        """The estimates had each group's own parameters been offset trial by trial.
+
+        A group fits one value of each own parameter to all its trials; where the
+        parameter moves between them (a block of a session while it drifts) the estimates,
+        the shared ones too, take up the difference. Given each trial's offset from the
+        group's value (from a smoothed path of the parameter), the least-squares estimates
+        with those offsets in the model are one Gauss-Newton step away (the offsets'
+        effect on the response is linear in them through the sensitivities): the shared
+        values and each group's own, corrected.
+
+        Parameters
+        ----------
+        offsets : sequence of numpy.ndarray
+            Per group, an array ``trials x own parameters``: each trial's offset of each
+            own parameter from the group's value.
+
+        Returns
+        -------
+        (dict of str to float, list of dict of str to float)
+            The shared parameters' corrected values, and each group's own.
+        """
+        shared_names = [n for n, e in self.shared.items() if e.vary]
+        own_names = list(self.own[0]) if self.own else []
+        p = len(shared_names)
+        s = np.array([self.shared[n].value for n in shared_names], float)
+        schur = np.zeros((p, p))
+        rhs = np.zeros(p)
+        solved = []
+        for w, d in zip(self.within, offsets, strict=True):
+            grad = np.einsum("kjc,kj->c", w.gradients, np.asarray(d, float))
+            gs, go = grad[:p], grad[p:]
+            inv = np.linalg.pinv(w.hoo)
+            schur += w.hss - w.hso @ inv @ w.hso.T
+            rhs -= gs - w.hso @ inv @ go
+            solved.append((inv, go, w.hso))
+        ds = np.linalg.lstsq(schur, rhs, rcond=None)[0] if p else np.zeros(0)
+        shared = {n: float(s[j] + ds[j]) for j, n in enumerate(shared_names)}
+        owns = []
+        for (inv, go, hso), own in zip(solved, self.own, strict=True):
+            do = inv @ (-go - hso.T @ ds)
+            owns.append({n: float(own[n].value + do[j]) for j, n in enumerate(own_names)})
+        return shared, owns
 
     @property
     def n_effective(self) -> float:
@@ -106,6 +155,48 @@ class GroupedFit:
         out = {k: p.value for k, p in self.shared.items()}
         out.update({k: p.value for k, p in self.own[group].items()})
         return out
+
+
+@dataclass
+class WithinGroup:
+    """One group's linearization at the fit (:meth:`GroupedFit.moved_within`).
+
+    Attributes
+    ----------
+    hss, hso, hoo : numpy.ndarray
+        The blocks of ``J^T J`` (shared-shared, shared-own, own-own).
+    gradients : numpy.ndarray
+        ``trials x own x (shared + own)``: ``J^T u`` with ``u`` the response's change when
+        one own parameter moves by 1 in one trial only.
+    times : numpy.ndarray
+        ``trials x own``: each trial's information-weighted mean time of each own
+        parameter (the group's own clock).
+    """
+
+    hss: np.ndarray
+    hso: np.ndarray
+    hoo: np.ndarray
+    gradients: np.ndarray
+    times: np.ndarray
+
+
+def _within(sens: np.ndarray, slices: Sequence[slice], times: np.ndarray, p: int) -> WithinGroup:
+    """A group's :class:`WithinGroup` from its full sensitivities."""
+    ok = np.where(np.isfinite(sens), sens, 0.0)
+    a, b = ok[:, :p], ok[:, p:]
+    q = b.shape[1]
+    grads = np.zeros((len(slices), q, p + q))
+    tk = np.zeros((len(slices), q))
+    for k, sl in enumerate(slices):
+        rows = ok[sl]
+        grads[k] = (rows.T @ rows[:, p:]).T
+        w = rows[:, p:] ** 2
+        total = w.sum(axis=0)
+        t = times[sl]
+        mean_t = float(np.mean(t)) if t.size else 0.0
+        tk[k] = np.where(total > 0, (w * t[:, None]).sum(axis=0) / np.maximum(total, 1e-300),
+                         mean_t)
+    return WithinGroup(a.T @ a, a.T @ b, b.T @ b, grads, tk)
 
 
 def _estimate(model: Model, name: str, value: float, se: float | None, lo: float, hi: float,
@@ -251,10 +342,13 @@ def fit_grouped(
     k = p + q * len(groups)
     residuals = []
     own_time = []
+    within = []
     for pr, og in zip(problems, o, strict=True):
         r, sens = pr.evaluate(np.concatenate([s, og]))
         residuals.append(np.where(np.isfinite(r), r, 0.0))
         times = np.concatenate([td.time for td in pr.data.trials])[: r.size]
+        if q:
+            within.append(_within(sens, pr.data.slices(), times, p))
         w = sens[:, p:] ** 2
         total = w.sum(axis=0)
         own_time.append(
@@ -302,6 +396,7 @@ def fit_grouped(
         own_given_shared=own_given_shared,
         converged=converged,
         iterations=iterations,
+        within=within,
     )
 
 

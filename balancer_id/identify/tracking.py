@@ -18,7 +18,7 @@ Two stages (docs/DECISIONS.md, "Tracking a parameter in time"):
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -610,11 +610,11 @@ def track_parameters(
         if previous is not None and _settled(previous, fit, names):
             break
     assert fit is not None
-    offsets = session_offsets(trials)
+    offsets_s = session_offsets(trials)
     estimates: list[LocalEstimate] = []
     for g, b in enumerate(blocks):
         group = [trials[k] for k in b]
-        off = float(offsets[b[0]])
+        off = float(offsets_s[b[0]])
         t0 = float(group[0].time[0]) if group[0].time.size else 0.0
         t1 = float(group[-1].time[-1]) if group[-1].time.size else 0.0
         estimates.append(
@@ -629,6 +629,61 @@ def track_parameters(
                 times={n: fit.own_time[g][n] + off for n in names},
             )
         )
+    tracks, notes = _tracks(model, names, estimates, values)
+    shared = {n: p.value for n, p in fit.shared.items() if n not in names}
+    if fit.within and any(len(b) > 1 for b in blocks):
+        # a parameter moving within a block of several trials: the block's one value and
+        # the shared ones took up the change between its trials; with each trial's offset
+        # from the smoothed path in the model, the estimates are corrected and smoothed
+        # again (docs/DECISIONS.md, "Within a block")
+        own_names = list(fit.own[0])
+        moved_shared: dict[str, float] = {}
+        for _ in range(WITHIN_PASSES):
+            offsets = []
+            for g, b in enumerate(blocks):
+                off = float(offsets_s[b[0]])
+                w = fit.within[g]
+                d = np.zeros_like(w.times)
+                for j, name in enumerate(own_names):
+                    tr = tracks[name]
+                    at = _path(w.times[:, j] + off, tr.time_s, tr.value)
+                    d[:, j] = at - _path(np.array([fit.own_time[g][name] + off]),
+                                         tr.time_s, tr.value)[0]
+                offsets.append(d)
+            moved_shared, moved_own = fit.moved_within(offsets)
+            estimates = [
+                replace(e, values={n: moved_own[g][n] for n in names})
+                for g, e in enumerate(estimates)
+            ]
+            tracks, notes = _tracks(model, names, estimates, values)
+        shared.update({n: v for n, v in moved_shared.items() if n not in names})
+    return Tracking(tracks=tracks, blocks=estimates, notes=notes, shared=shared)
+
+
+#: Corrections for a parameter moving within a block (each from the path the last gave).
+WITHIN_PASSES = 2
+
+
+def _path(t: np.ndarray, time_s: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """The smoothed path at times ``t``: linear between its points, and beyond its ends
+    along its first and last segments."""
+    out = np.interp(t, time_s, value)
+    if time_s.size >= 2:
+        lo, hi = t < time_s[0], t > time_s[-1]
+        s0 = (value[1] - value[0]) / max(time_s[1] - time_s[0], 1e-12)
+        s1 = (value[-1] - value[-2]) / max(time_s[-1] - time_s[-2], 1e-12)
+        out = np.where(lo, value[0] + s0 * (t - time_s[0]), out)
+        out = np.where(hi, value[-1] + s1 * (t - time_s[-1]), out)
+    return out
+
+
+def _tracks(
+    model: Model,
+    names: Sequence[str],
+    estimates: Sequence[LocalEstimate],
+    values: Mapping[str, float],
+) -> tuple[dict[str, ParameterTrack], list[Note]]:
+    """Each tracked parameter smoothed through the blocks' estimates, and the notes."""
     notes: list[Note] = []
     tracks: dict[str, ParameterTrack] = {}
     for name in names:
@@ -666,8 +721,7 @@ def track_parameters(
             common_variance=se**2 - own**2,
             joint=float(values[name]),
         )
-    shared = {n: p.value for n, p in fit.shared.items() if n not in names}
-    return Tracking(tracks=tracks, blocks=estimates, notes=notes, shared=shared)
+    return tracks, notes
 
 
 def _settled(before, after, names: Sequence[str]) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -148,7 +149,9 @@ class TimeTrend(ExplanationKind):
     )
 
     def propose(self, inp: ArenaInput) -> list[Explanation]:
-        """Each free parameter trending in time within the long runs."""
+        """Each free parameter trending in time within the long runs: along a line, and
+        (where a run has :data:`MIN_WANDER_BLOCKS` blocks) with its own value in each
+        block (a step, a warm-up that levels off, an oscillation: shapes a line misses)."""
         b = blocks(inp)
         if b is None:
             return []
@@ -156,19 +159,24 @@ class TimeTrend(ExplanationKind):
         model = inp.match.model
         fixed = {k: v for k, v in arena.held(inp.match).items() if k in model.param_names}
         free = [n for n in model.param_names if n not in fixed]
-        design = b.tau[:, None]
+        designs = {"line": b.tau[:, None]}
+        wander = _wander_design(b)
+        if wander is not None:
+            designs["blocks"] = wander
 
         def fit_one(
-            name: str, begin: dict[str, float], c0: np.ndarray | None, nfev: int
+            job: tuple[str, str], begin: dict[str, float], c0: np.ndarray | None, nfev: int
         ) -> Explanation:
+            name, shape = job
+            design = designs[shape]
             # first from the current fit's states at the blocks' starts, then again from
             # the states the blocks, each with its own value, hand on to each other
             parts, base, c, _ = arena.fit_varying(
                 model, first, begin, fixed, name, design, c_start=c0, max_nfev=nfev
             )
             pvecs = []
-            for tau in b.tau:
-                vals = {**base, name: base[name] + float(c[0]) * float(tau)}
+            for row in design:
+                vals = {**base, name: base[name] + float(row @ c)}
                 pvecs.append(np.array([vals[n] for n in model.param_names]))
             chained = arena.Trials(inp.trials, _block_data(inp, b, pvecs))
             solution: list[object] = []
@@ -183,18 +191,27 @@ class TimeTrend(ExplanationKind):
                 max_nfev=nfev,
                 solution=solution,
             )
-            mid, slope = base[name], float(c[0])
-            start, end = mid - 0.5 * slope, mid + 0.5 * slope
-            se_start, se_end = _end_errors(solution, free.index(name), inp.independence)
-            rel = abs(end - start) / max(abs(start), abs(end), 1e-300)
-            d, rmse = arena.score(inp, parts, 1)
+            path = base[name] + design @ c
+            start, end = float(path[0]), float(path[-1])
+            se_start, se_end = _end_errors(
+                solution, free.index(name), inp.independence, design[0], design[-1]
+            )
+            scale = max(float(np.max(np.abs(path))), 1e-300)
+            rel = float(np.ptp(path)) / scale
+            d, rmse = arena.score(inp, parts, design.shape[1])
+            label = (
+                f"{name} drifting in time within the run"
+                if shape == "line"
+                else f"{name} changing in time within the run (not along a line)"
+            )
             e = self.make(
-                f"{name} drifting in time within the run",
+                label,
                 d,
                 rmse,
                 parameters=[name],
                 detail={
                     "trend": True,
+                    "shape": shape,
                     "start": start,
                     "end": end,
                     "start_stderr": se_start,
@@ -205,12 +222,13 @@ class TimeTrend(ExplanationKind):
                 },
                 null=rel < MIN_RELATIVE_CHANGE,
             )
-            e.refine = lambda: fit_one(name, base, c, REFINE_NFEV)
+            e.refine = lambda: fit_one(job, base, c, REFINE_NFEV)
             return e
 
         start = inp.match.values()
+        jobs = [(name, shape) for shape in designs for name in free]
         return arena.fit_in_threads(
-            free, lambda name: fit_one(name, start, None, FIRST_NFEV), inp.threads
+            jobs, lambda job: fit_one(job, start, None, FIRST_NFEV), inp.threads
         )
 
     def sentence(self, e: Explanation, fit: FitResult) -> str:
@@ -220,6 +238,9 @@ class TimeTrend(ExplanationKind):
         p = e.parameters[0]
         a, b = float(d["start"]), float(d["end"])  # type: ignore[arg-type]
         way = "falls" if b < a else "rises"
+        if d.get("shape") == "blocks":
+            rel = float(d["relative_change"])  # type: ignore[arg-type]
+            way = f"changes in time, not along a line (by {rel:.0%}); it goes"
         return (
             f"{p} {way} from {_pm(a, d.get('start_stderr'))} at the start of the run to "
             f"{_pm(b, d.get('end_stderr'))} at its end (over {float(d['span_s']):.0f} s: "  # type: ignore[arg-type]
@@ -232,13 +253,42 @@ def _pm(x: float, se: object) -> str:
     return f"{x:.4g} +/- {1.96 * se:.2g}" if isinstance(se, float) else f"{x:.4g}"
 
 
-def _end_errors(
-    solution: list[object], k: int, independence: float
-) -> tuple[float | None, float | None]:
-    """Standard errors of the line's start and end from the fit's Jacobian.
+#: A run's blocks for a trend with its own value in each (fewer: the line only).
+MIN_WANDER_BLOCKS = 4
 
-    The parameter ``k`` of the free ones is the line's middle; the last is its slope
-    (``tau`` from -0.5 to 0.5): start = mid - slope/2, end = mid + slope/2.
+
+def _wander_design(b: Blocks) -> np.ndarray | None:
+    """The design of a parameter with its own value in each block of a long run: one
+    column per block after a run's first (that block is the base); None when no run has
+    :data:`MIN_WANDER_BLOCKS` blocks. A trial of a short run (``tau`` 0, alone) keeps the
+    base."""
+    trended = np.flatnonzero(b.tau != 0.0)
+    if trended.size < MIN_WANDER_BLOCKS:
+        return None
+    # the first block of each long run is where tau is lowest within its run: blocks
+    # in order, a run's start where tau falls back
+    firsts = {int(trended[0])}
+    for i, j in itertools.pairwise(trended):
+        if b.tau[j] < b.tau[i]:
+            firsts.add(int(j))
+    cols = [int(i) for i in trended if int(i) not in firsts]
+    design = np.zeros((b.tau.size, len(cols)))
+    for c, i in enumerate(cols):
+        design[i, c] = 1.0
+    return design
+
+
+def _end_errors(
+    solution: list[object],
+    k: int,
+    independence: float,
+    first_row: np.ndarray,
+    last_row: np.ndarray,
+) -> tuple[float | None, float | None]:
+    """Standard errors of the path's start and end from the fit's Jacobian.
+
+    The parameter ``k`` of the free ones is the base; the coefficients follow them (the
+    last columns): the value in a block is ``base + row @ c``.
     """
     if not solution:
         return None, None
@@ -250,9 +300,11 @@ def _end_errors(
         return None, None
     cov = np.linalg.pinv(jac.T @ jac) * float(res @ res) / (n - p) / max(independence, 0.05)
     out = []
-    for sign in (-0.5, 0.5):
+    q = first_row.size
+    for row in (first_row, last_row):
         w = np.zeros(p)
-        w[k], w[-1] = 1.0, sign
+        w[k] = 1.0
+        w[p - q :] = row
         var = float(w @ cov @ w)
         out.append(float(np.sqrt(var)) if np.isfinite(var) and var >= 0 else None)
     return out[0], out[1]
