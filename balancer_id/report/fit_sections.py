@@ -94,6 +94,8 @@ def fit_sections(
 def _parameter_table(result: FitResult) -> Table:
     descriptions = {p.name: p.description for p in result.match.model.params}
     rows: list[list[str | Cell]] = []
+    distrust = result.parameter_distrust()
+    some_trusted = any(not why for why in distrust.values())
     for name, p in result.match.parameters.items():
         value, se = format_estimate(p.value, p.stderr)
         note = ""
@@ -103,6 +105,8 @@ def _parameter_table(result: FitResult) -> Table:
             note = f"at {p.at_bound} bound"
         elif p.stderr is None or not np.isfinite(p.stderr) or p.stderr > abs(p.value):
             note = "poorly determined"
+        if some_trusted and distrust.get(name):  # trusted for some, not this one
+            note = "; ".join(x for x in (note, f"not trusted: {distrust[name][-1]}") if x)
         rows.append(
             [
                 Cell(name, "strong"),

@@ -202,11 +202,14 @@ def _parameter_table(result: dict[str, Any], post: dict[str, Any]) -> Table:
     cols += ["95% credible"] if post else []
     for col in (*cols, "unit", "note"):
         table.add_column(col)
+    some_trusted = any(p.get("trusted") for p in result["parameters"].values())
     for name, p in result["parameters"].items():
         ci = p.get("ci95")
         note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
         if p.get("claim"):  # a bound, not a value (issue 31)
             note = "not reached" if p.get("not_reached") == "above" else "not resolved"
+        if p.get("trusted") is False and some_trusted:  # trusted for some, not this one
+            note = ", ".join(x for x in (note, "not trusted") if x)
         cells = [
             name,
             p["claim"] if p.get("claim") else _fmt(p["value"]),
