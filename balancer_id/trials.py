@@ -832,10 +832,11 @@ def trial_notes(trials: Sequence[Trial]) -> list[Note]:
         for text in map(str, t.notes):
             if text.startswith("warning:"):
                 own = typed.get(text)
-                code = own.code if own is not None else "segment.other"
-                severity = own.severity if own is not None else "warning"
                 said = text.removeprefix("warning:").strip()
-                out.append(Note(code, f"{subject}: {said}", subject, severity))
+                if own is not None:
+                    out.append(Note(own.code, f"{subject}: {said}", subject, own.severity))
+                else:
+                    out.append(Note("segment.other", f"{subject}: {said}", subject, "warning"))
     return out
 
 
