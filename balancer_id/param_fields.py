@@ -72,11 +72,14 @@ def note_text(p: Any) -> str:
     Returns
     -------
     str
-        ``held (not fitted)``, ``not reached``/``not resolved`` (a bound claimed),
+        ``held (not fitted)``, ``not trusted`` (a check such as the drive's timing moved
+        it beyond its error), ``not reached``/``not resolved`` (a bound claimed),
         ``at upper bound``, ``poorly determined`` (an error larger than the value), or ''.
     """
     if not _get(p, "vary", True):
         return "held (not fitted)"
+    if _get(p, "distrust"):  # a check moved it beyond its error: this one not trusted
+        return "not trusted"
     if _get(p, "claim"):  # a bound, not a value (issue 31)
         return "not reached" if _get(p, "not_reached") == "above" else "not resolved"
     if _get(p, "at_bound"):
