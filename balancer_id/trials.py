@@ -828,12 +828,15 @@ def trial_notes(trials: Sequence[Trial]) -> list[Note]:
     out = []
     for t in trials:
         subject = f"trial {t.index}"
-        typed = {n.text: n.code for n in getattr(t, "typed_notes", ())}
+        typed = {n.text: n for n in getattr(t, "typed_notes", ())}
         for text in map(str, t.notes):
             if text.startswith("warning:"):
-                code = typed.get(text, "segment.other")
+                own = typed.get(text)
                 said = text.removeprefix("warning:").strip()
-                out.append(Note(code, f"{subject}: {said}", subject))
+                if own is not None:
+                    out.append(Note(own.code, f"{subject}: {said}", subject, own.severity))
+                else:
+                    out.append(Note("segment.other", f"{subject}: {said}", subject, "warning"))
     return out
 
 

@@ -28,7 +28,15 @@ trusted per class (clean, sensor, effect); refusals, tracebacks and hangs (a wor
 Works on any version of the code (it reads only ``fit``'s result), so "before" comes from
 an older checkout with ``PYTHONPATH`` pointing there.
 
-Run: ``python benchmarks/bench_universe.py [--worlds N] [--seed S] [--timeout S] [-v]``.
+With ``--verdicts`` each fitted world is also diagnosed (``balancer_id.diagnostics.api.
+diagnose``) and its verdict scored (target >= 90 %): a drawn effect named first by
+``effect missing`` (a dead time also as its twin, a late acceleration channel); a drawn
+sensor fault (gain, channel delay, low-pass, clipping) named by its explanation or, for
+clipping, by the reader's note on the trials; nothing drawn, ``adequate``; ``adequate``
+also where every trusted value still holds the truth (a fault below detection).
+
+Run: ``python benchmarks/bench_universe.py [--worlds N] [--seed S] [--timeout S] [-v]
+[--verdicts]``.
 """
 
 from __future__ import annotations
@@ -74,6 +82,9 @@ class World:
     levels: list[float]
     rate: float
     faults: list[str] = field(default_factory=list)
+    #: The sensor's draw: accelerometer noise (m/s^2), its AR(1) coefficient, force noise
+    #: as a share of the median thrust, tilt (degrees).
+    sensor: dict[str, float] = field(default_factory=dict)
 
     @property
     def kind(self) -> str:
@@ -87,7 +98,8 @@ class World:
         return (
             f"m_a={t['m_a']:.3g} T_a={t['T_a']:.3g} D0={t['D0']:.3g} A={t['A']:.3g} "
             f"{self.recording}/{self.layout} {self.rate:g}Hz levels={len(self.levels)} "
-            f"effect={self.effect}{self.effect_values or ''} faults={','.join(self.faults)}"
+            f"effect={self.effect}{self.effect_values or ''} faults={','.join(self.faults)} "
+            + " ".join(f"{k}={v:.3g}" for k, v in self.sensor.items())
         )
 
 
@@ -146,9 +158,11 @@ def draw_world(seed: int) -> tuple[World, list[Recording]]:
     elif recording in ("session", "updown"):
         times, values_u = [rest], []
         for u in levels if recording == "session" else list(mags):
-            pattern = [(u, hold), (0.0, hold)] if recording == "session" else [
-                (u, hold / 2), (-u, hold / 2), (0.0, hold)
-            ]
+            pattern = (
+                [(u, hold), (0.0, hold)]
+                if recording == "session"
+                else [(u, hold / 2), (-u, hold / 2), (0.0, hold)]
+            )
             for level, span in pattern:
                 values_u.append(level)
                 times.append(times[-1] + span)
@@ -224,6 +238,12 @@ def draw_world(seed: int) -> tuple[World, list[Recording]]:
     if drop:
         faults.append("dropouts")
     world = World(seed, truth, effect, effect_values, recording, layout, levels, rate, faults)
+    world.sensor = {
+        "sigma": sigma,
+        "rho": rho,
+        "force_noise": force_noise / u_med,
+        "tilt": tilt,
+    }
     return world, recs
 
 
@@ -234,6 +254,10 @@ class Outcome:
     seconds: float
     message: str = ""
     params: dict[str, dict] = field(default_factory=dict)
+    #: ``diagnose``'s verdict and what it names (``--verdicts``), and whether it is right.
+    verdict: str = ""
+    named: list[str] = field(default_factory=list)
+    verdict_right: bool | None = None
 
 
 class _Timeout(Exception):
@@ -244,7 +268,74 @@ def _alarm(signum, frame):
     raise _Timeout
 
 
-def run_world(seed: int, folder: Path, timeout: float) -> Outcome:
+#: The sensor faults the draw makes, by the name ``diagnose`` gives their explanation.
+SENSOR_NAMES = {
+    "gain": "gain",
+    "delay": "channel timing",
+    "lowpass": "low-pass",
+    "clipped": "clipping",
+}
+
+
+def drawn_sensor_faults(world: World) -> set[str]:
+    """The sensor faults drawn (by their explanations' names); coloured noise and
+    drop-outs are no fault to name (the tool widens for one, bridges the other)."""
+    return {
+        name for key, name in SENSOR_NAMES.items() if any(f.startswith(key) for f in world.faults)
+    }
+
+
+def named_by(d: dict) -> list[str]:
+    """What a diagnosis names: the effects and sensors of its best explanation, of both
+    when it is ambiguous, and the clipping the reader found in the trials' motion."""
+    exps = d.get("explanations") or []
+    amb = d.get("ambiguity") or {}
+    labels = [amb.get("best"), amb.get("runner_up")] if d.get("verdict") == "ambiguous" else []
+    top = [e for lab in labels for e in exps if e.get("label") == lab][:2] or exps[:1]
+    out: list[str] = []
+    for e in top:
+        out.extend(e.get("effects") or [])
+        sensor = (e.get("detail") or {}).get("sensor")
+        if sensor:
+            out.append(str(sensor))
+        out.extend(e.get("parameters") or [])
+    if not exps:
+        for sug in (d.get("suggestions") or [])[:1]:
+            out.append(str(sug.get("effect")))
+    fit_notes = (d.get("fit") or {}).get("notes") or d.get("notes") or []
+    if any(
+        n.get("code") == "read.sensor_limit" and n.get("severity") == "error" for n in fit_notes
+    ):
+        out.append("clipping")
+    return out
+
+
+def judge_verdict(world: World, verdict: str, named: list[str], covered: bool) -> bool:
+    """Whether the verdict is right for the world.
+
+    A drawn effect: ``effect missing`` (or ``ambiguous``) naming it first; a dead time
+    also as its twin, the acceleration channel late (one log cannot tell them). A drawn
+    sensor fault: ``sensor effect`` (or ``ambiguous``) naming one of the faults drawn.
+    With both, either is right. Nothing drawn: ``adequate``. ``adequate`` is also right
+    where the fault or effect left no trace, i.e. every trusted value's 95 % interval
+    holds the truth (``covered``: below detection, and harmless).
+    """
+    sensors = drawn_sensor_faults(world)
+    if not sensors and not world.effect:
+        return verdict == "adequate"
+    if verdict == "adequate":
+        return covered
+    right = False
+    if world.effect and verdict in ("effect missing", "ambiguous") and named:
+        right = named[0] == world.effect or (verdict == "ambiguous" and world.effect in named)
+        if world.effect == "dead_time" and "channel timing" in named:
+            right = True
+    if sensors and verdict in ("sensor effect", "ambiguous", "effect missing"):
+        right = right or bool(sensors & set(named))
+    return right
+
+
+def run_world(seed: int, folder: Path, timeout: float, verdicts: bool = False) -> Outcome:
     """Draw, write, fit one world; classify the outcome."""
     from balancer_id.errors import BalancerIdError
     from balancer_id.identify.api import fit
@@ -267,7 +358,17 @@ def run_world(seed: int, folder: Path, timeout: float) -> Outcome:
         doc = result.to_dict()
         status = "trusted" if doc.get("trusted", True) else "untrusted"
         why = "; ".join(doc.get("untrusted_because") or [])
-        return Outcome(world, status, time.perf_counter() - start, why, doc["parameters"])
+        out = Outcome(world, status, time.perf_counter() - start, why, doc["parameters"])
+        if verdicts:
+            from balancer_id.diagnostics.api import diagnose
+
+            d = diagnose(result).to_dict()
+            d.setdefault("fit", {})["notes"] = doc.get("notes", [])
+            out.verdict = str(d.get("verdict"))
+            out.named = named_by(d)
+            out.verdict_right = judge_verdict(world, out.verdict, out.named, covered(out))
+            out.seconds = time.perf_counter() - start
+        return out
     except _Timeout:
         return Outcome(world, "hang", time.perf_counter() - start)
     except BalancerIdError as exc:
@@ -277,6 +378,25 @@ def run_world(seed: int, folder: Path, timeout: float) -> Outcome:
     finally:
         signal.alarm(0)
         path.unlink(missing_ok=True)
+
+
+def verdict_class(world: World) -> str:
+    """``effect``, ``sensor`` (a sensor fault to name) or ``clean`` (neither)."""
+    if world.effect:
+        return "effect"
+    return "sensor" if drawn_sensor_faults(world) else "clean"
+
+
+def covered(o: Outcome) -> bool:
+    """Whether every trusted fitted value's 95 % interval holds the truth."""
+    for name in FITTED:
+        p = o.params.get(name)
+        if p is None or not p.get("vary") or not p.get("trusted", o.status == "trusted"):
+            continue
+        iv = interval(p, Z95)
+        if iv is None or not iv[0] <= o.world.truth[name] <= iv[1]:
+            return False
+    return True
 
 
 def interval(p: dict, z: float) -> tuple[float, float] | None:
@@ -298,16 +418,22 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--timeout", type=float, default=120.0)
     ap.add_argument("-v", "--verbose", action="store_true")
+    ap.add_argument(
+        "--verdicts", action="store_true", help="also diagnose each world and score the verdict"
+    )
     args = ap.parse_args()
     seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "little")
     print(f"seed {seed} ({args.worlds} worlds); repeat with --seed {seed}", flush=True)
     outcomes: list[Outcome] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.worlds):
-            o = run_world(seed * 1000 + k, Path(tmp), args.timeout)
+            o = run_world(seed * 1000 + k, Path(tmp), args.timeout, args.verdicts)
             outcomes.append(o)
             if args.verbose or o.status in ("traceback", "hang"):
-                print(f"[{k}] {o.status} {o.seconds:.1f}s {o.world.describe()}", flush=True)
+                said = (
+                    f" verdict {o.verdict} {o.named} right={o.verdict_right}" if o.verdict else ""
+                )
+                print(f"[{k}] {o.status} {o.seconds:.1f}s {o.world.describe()}{said}", flush=True)
                 if o.message and (args.verbose or o.status == "traceback"):
                     print("    " + o.message.strip().replace("\n", "\n    ")[:1500], flush=True)
     report(outcomes)
@@ -366,6 +492,23 @@ def report(outcomes: list[Outcome]) -> None:
         for o, missed in wrong_worlds[:25]:
             w = o.world
             print(f"  seed {w.seed}: {w.kind}: {w.describe()}: {'; '.join(missed)}")
+    judged = [o for o in outcomes if o.verdict_right is not None]
+    if judged:
+        right = sum(bool(o.verdict_right) for o in judged)
+        print(
+            f"right verdict (diagnose): {right}/{len(judged)} "
+            f"({100 * right / len(judged):.0f} %; target >= 90 %)"
+        )
+        for kind in ("clean", "sensor", "effect"):
+            part = [o for o in judged if verdict_class(o.world) == kind]
+            if part:
+                ok = sum(bool(o.verdict_right) for o in part)
+                print(f"  {kind:7s} {ok}/{len(part)}")
+        wrong = [o for o in judged if not o.verdict_right]
+        if wrong:
+            print("wrong verdicts (first 15):")
+            for o in wrong[:15]:
+                print(f"  seed {o.world.seed}: {o.world.describe()}: {o.verdict} {o.named}")
     refused = [o for o in outcomes if o.status == "refused"]
     if refused:
         print("refusals (first 8):")

@@ -76,7 +76,7 @@ _rivals, _tell_apart = rivals, tell_apart
 REFIT_THREADS: int | None = None
 
 
-@dataclass(repr=False)
+@dataclass(repr=False, frozen=True)
 class Diagnosis(Displayable):
     """Everything ``balancer-id diagnose`` reports.
 
@@ -119,7 +119,7 @@ class Diagnosis(Displayable):
     def __post_init__(self) -> None:
         # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
         # full lmfit-style text (as every result of the API has)
-        self.summary = CallableText(str(self.summary), self._summary_text)
+        object.__setattr__(self, "summary", CallableText(str(self.summary), self._summary_text))
 
     @property
     def match(self) -> MatchResult:

@@ -20,6 +20,7 @@ from balancer_id.identify.result import FitResult, fit_match, robot_coupling
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
 from balancer_id.identify.timing import check_timing
+from balancer_id.identify.trial_scatter import widen_by_trial_scatter
 from balancer_id.model.registry import Registry
 from balancer_id.model.spec import Model, resolve_model
 from balancer_id.notes import Note
@@ -363,6 +364,7 @@ def fit(
     structured = structured_residual(match)  # a misfit beyond the noise seen at rest
     if structured is not None:
         notes.append(structured)
+    notes.extend(widen_by_trial_scatter(match))  # errors shared by a whole trial
     notes.extend(check_timing(match))  # a drive late or early against the acceleration
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
         from balancer_id.identify.intervals import attach_profile_intervals

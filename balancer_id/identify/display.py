@@ -21,6 +21,7 @@ import numpy as np
 from balancer_id.identify.shown import ShownFit
 from balancer_id.metric_fields import metric_cells, metric_line
 from balancer_id.numbers import format_with_uncertainty
+from balancer_id.param_fields import PARAM_FIELDS, parameter_cells
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -254,25 +255,17 @@ def match_html(match: ShownFit, heading: str = "") -> str:
     m = match.metrics
     rows = []
     for name, p in match.parameters.items():
-        value = format_with_uncertainty(p.value, p.stderr) if p.vary else f"{p.value:.6g}"
-        ci = getattr(p, "ci95", None)
-        ci_text = f"{ci[0]:.4g} .. {ci[1]:.4g}" if ci and p.vary else "-"
-        note = "fixed" if not p.vary else (f"at {p.at_bound} bound" if p.at_bound else "")
-        rows.append(
-            "<tr>"
-            + "".join(
-                f"<td>{html.escape(str(x))}</td>" for x in (name, value, p.unit, ci_text, note)
-            )
-            + "</tr>"
-        )
+        cells = (name, *parameter_cells(p).values())
+        rows.append("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in cells) + "</tr>")
     stats = f"{metric_line(m)}, {len(match.data.trials)} trials"
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in match.warnings)
     return (
         "<div>"
         + (f"<p><b>{html.escape(heading)}</b></p>" if heading else "")
         + f"<p>{html.escape(stats)}</p>"
-        + "<table><thead><tr><th>parameter</th><th>value</th><th>unit</th>"
-        + "<th>95% interval</th><th>note</th></tr></thead><tbody>"
+        + "<table><thead><tr>"
+        + "".join(f"<th>{h}</th>" for h in ("parameter", *(f.heading for f in PARAM_FIELDS)))
+        + "</tr></thead><tbody>"
         + "".join(rows)
         + "</tbody></table>"
         + (f"<ul>{warn}</ul>" if warn else "")

@@ -32,8 +32,9 @@ import numpy as np
 from balancer_id.identify.matching import MatchResult
 from balancer_id.notes import Note
 
-#: The shift must be this many standard errors from zero to be called.
-TIMING_Z = 4.0
+#: The shift must be this many standard errors from zero to be called (a sensor low-pass of
+#: 13-17 Hz shows at 3: its few ms of lag move T_a by 4 standard errors).
+TIMING_Z = 3.0
 
 #: A parameter the shift moves by more than this many of its standard errors loses trust.
 SHIFT_SE = 1.0

@@ -158,11 +158,34 @@ def _runs(mask: np.ndarray) -> np.ndarray:
     return edges[1::2] - edges[::2]
 
 
+#: A range reached near the channel's median is told from a quantized noise's top level by
+#: its pile-up: this many times the samples of each of the next levels inward.
+PILE_UP = 5.0
+
+
+def _piled_up(finite: np.ndarray, ext: float) -> bool:
+    """Whether the extreme value holds far more samples than the levels next to it.
+
+    A sensor at its range piles every sample beyond it onto one value; a quantized
+    signal's top level holds about as many as the levels just inside it.
+    """
+    at = int(np.count_nonzero(finite == ext))
+    if at < 10:
+        return False
+    inside = finite[finite < ext] if ext >= np.median(finite) else finite[finite > ext]
+    if inside.size == 0:
+        return False
+    _, counts = np.unique(inside, return_counts=True)
+    nearest = counts[-3:] if ext >= np.median(finite) else counts[:3]
+    return bool(at >= PILE_UP * max(int(nearest.max()), 1))
+
+
 def pinned_extremes(values: np.ndarray) -> list[tuple[int, float, int, int]]:
     """Find where a channel sits pinned at one extreme value: a sensor at its range.
 
     At any range (±2 g, ±8 g, a load cell's span): the channel's largest (or smallest)
-    value, far from its median (over 30 % of its span), held by runs of at least
+    value, far from its median (over 30 % of its span, or nearer with
+    :data:`PILE_UP` times the samples of the levels inside it), held by runs of at least
     :data:`PINNED_RUN` equal samples, twice or more (or once for 5 samples and more).
 
     Parameters
@@ -188,13 +211,54 @@ def pinned_extremes(values: np.ndarray) -> list[tuple[int, float, int, int]]:
         if span <= 0:
             continue
         for ext in (hi, lo):
-            if abs(ext - med) < 0.3 * span:
+            if abs(ext - med) < 0.3 * span and not (
+                _piled_up(finite, ext) and _beyond_resolution(finite, ext)
+            ):
                 continue
             lengths = _runs(x == ext)
             held = lengths[lengths >= PINNED_RUN]
             if held.size >= 2 or (held.size == 1 and held[0] >= 5):
                 found.append((j, ext, int(held.sum()), int(held.size)))
     return found
+
+
+def clipped_mask(values: np.ndarray) -> np.ndarray:
+    """The samples that read a pinned extreme on any axis (:func:`pinned_extremes`).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Shape ``(n,)`` or ``(n, k)``; NaN ignored.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean, shape ``(n,)``: True where some axis reads the value it is pinned at
+        (the sensor's range reached: the true value lies at or beyond it, unknown).
+    """
+    block = values.reshape(values.shape[0], -1)
+    mask = np.zeros(block.shape[0], dtype=bool)
+    for j, value, _, _ in pinned_extremes(block):
+        x = block[:, j]
+        if _beyond_resolution(x[np.isfinite(x)], value):
+            mask |= x == value
+    return mask
+
+
+#: A range is told from a quantized signal's last level by its distance from the median:
+#: this many quantization steps and noise sigmas at least.
+RANGE_STEPS = 3.0
+
+
+def _beyond_resolution(finite: np.ndarray, ext: float) -> bool:
+    """Whether ``ext`` lies :data:`RANGE_STEPS` quantization steps and noise sigmas from the
+    channel's median (a quantized sensor's outer levels hold runs of equal samples too)."""
+    if finite.size < 3:
+        return False
+    steps = np.diff(np.unique(finite))
+    step = float(np.median(steps[: 64])) if steps.size else 0.0
+    sigma = float(np.median(np.abs(np.diff(finite))) / (0.6745 * np.sqrt(2.0)))
+    return bool(abs(ext - float(np.median(finite))) >= RANGE_STEPS * max(step, sigma))
 
 
 def repeat_factor(values: np.ndarray) -> int:

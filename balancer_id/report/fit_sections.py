@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from balancer_id.metric_fields import metric_cells
-from balancer_id.numbers import format_estimate, format_interval, format_number
+from balancer_id.numbers import format_estimate, format_number
+from balancer_id.param_fields import PARAM_FIELDS, parameter_cells
 from balancer_id.report.blocks import (
     Block,
     Cell,
@@ -94,28 +95,18 @@ def fit_sections(
 def _parameter_table(result: FitResult) -> Table:
     descriptions = {p.name: p.description for p in result.match.model.params}
     rows: list[list[str | Cell]] = []
+    style = {"value": "strong", "note": "warn"}
     for name, p in result.match.parameters.items():
-        value, se = format_estimate(p.value, p.stderr)
-        note = ""
-        if not p.vary:
-            note = "held (not fitted)"
-        elif p.at_bound:
-            note = f"at {p.at_bound} bound"
-        elif p.stderr is None or not np.isfinite(p.stderr) or p.stderr > abs(p.value):
-            note = "poorly determined"
+        cells = parameter_cells(p)
         rows.append(
             [
                 Cell(name, "strong"),
                 descriptions.get(name, ""),
-                Cell(value, "strong"),
-                se if p.vary else "-",
-                _interval_text(p) if p.vary else "-",
-                p.unit,
-                Cell(note, "warn") if note else "",
+                *(Cell(t, style[k]) if k in style and t else t for k, t in cells.items()),
             ]
         )
     return Table(
-        ["parameter", "meaning", "value", "std. error", "95 % interval", "unit", "note"],
+        ["parameter", "meaning", *(f.heading for f in PARAM_FIELDS)],
         rows,
         "Identified by simulation matching over all trials at once (bounded least squares: "
         "Gauss-Newton steps with the simulated sensitivities as Jacobian, scipy's "
@@ -124,14 +115,6 @@ def _parameter_table(result: FitResult) -> Table:
         "a parameter's bounds, the profile-likelihood interval (marked 'profile': the "
         "other parameters refitted at each trial value).",
     )
-
-
-def _interval_text(p) -> str:
-    """The 95 % interval of an estimate, saying which kind when it is the profile one."""
-    if p.ci95_method == "profile" and p.ci95 is not None:
-        lo, hi = p.ci95
-        return f"{format_number(lo, 3)} .. {format_number(hi, 3)} (profile)"
-    return format_interval(p.value, p.stderr)
 
 
 def _summary_section(result: FitResult) -> Section:

@@ -11,6 +11,7 @@ from rich.table import Table
 
 from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
+from balancer_id.param_fields import PARAM_FIELDS, parameter_cells
 from balancer_id.verdicts import Verdict
 
 
@@ -195,33 +196,21 @@ def print_fit(console: Console, result: dict[str, Any]) -> None:
 
 
 def _parameter_table(result: dict[str, Any], post: dict[str, Any]) -> Table:
-    """The fit's parameters: value, standard error, interval (and credible interval)."""
+    """The fit's parameters (:data:`~balancer_id.param_fields.PARAM_FIELDS`), with the
+    credible interval after the 95 % one when the posterior was sampled."""
     table = Table(title=f"model {result['model']}: simulation matching over all trials")
     credible = {n: q.get("credible95") for n, q in post.get("parameters", {}).items()}
-    cols = ["parameter", "value", "std. error", "95% interval"]
-    cols += ["95% credible"] if post else []
-    for col in (*cols, "unit", "note"):
+    headings = [f.heading for f in PARAM_FIELDS]
+    if post:
+        headings.insert(3, "95 % credible")
+    for col in ("parameter", *headings):
         table.add_column(col)
     for name, p in result["parameters"].items():
-        ci = p.get("ci95")
-        note = "held" if not p["vary"] else (f"at {p['at_bound']} bound" if p["at_bound"] else "")
-        if p.get("claim"):  # a bound, not a value (issue 31)
-            note = "not reached" if p.get("not_reached") == "above" else "not resolved"
-        cells = [
-            name,
-            p["claim"] if p.get("claim") else _fmt(p["value"]),
-            _fmt(p["stderr"], 2),
-            (
-                f"{ci[0]:.4g} .. {ci[1]:.4g}"
-                + (" (profile)" if p.get("ci95_method") == "profile" else "")
-            )
-            if ci
-            else "-",
-        ]
+        cells = list(parameter_cells(p).values())
         if post:
             cr = credible.get(name)
-            cells.append(f"{cr[0]:.4g} .. {cr[1]:.4g}" if cr else "-")
-        table.add_row(*cells, p.get("unit", ""), note)
+            cells.insert(3, f"{cr[0]:.4g} .. {cr[1]:.4g}" if cr else "-")
+        table.add_row(name, *cells)
     return table
 
 

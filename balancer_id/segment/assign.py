@@ -206,6 +206,7 @@ def build_trials(
     ]
     mounting = mounting_sign(run.steps, settings.response_k_sigma, chained)
     accel = run.motion.accel if run.motion is not None else None
+    clipped = clipped_samples(rec)
     force = fill_nan(rec.force) if rec.force is not None else None
     gb = n_samples(settings.guard_before_s, rate_of(rec.time))
     trials: list[Trial] = []
@@ -226,6 +227,8 @@ def build_trials(
             level_new = level_now + change
         notes += [] if accel is not None else ["no acceleration channel"]
         notes += _gap_notes(rec, win)
+        if clipped is not None:
+            clip_note(int(clipped[st.onset : win.stop].sum()), notes, typed)
         sl = slice(win.start, win.stop)
         trial_force = None
         if force is not None and np.isfinite(st.size):
@@ -356,6 +359,54 @@ def vertical_name(
     if motion is None or motion.up.size == 0:
         return ""
     return axis_name(np.asarray(motion.up if at is None else motion.up_at(at), float), axes)
+
+
+def clipped_samples(rec: Recording) -> np.ndarray | None:
+    """Where the run's raw acceleration reads a pinned extreme (None: nowhere).
+
+    Parameters
+    ----------
+    rec : Recording
+        The run.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        A mask of the clipped samples, or None when none is.
+    """
+    from balancer_id.read.validate import clipped_mask
+
+    if rec.accel is None:
+        return None
+    mask = clipped_mask(np.asarray(rec.accel, dtype=float))
+    return mask if mask.any() else None
+
+
+def clip_note(n: int, notes: list[str], typed: list[Note]) -> None:
+    """Add the warning of ``n`` clipped samples in a trial's motion (severity ``error``).
+
+    A sample at the sensor's range holds a bound, not a value; a fit that follows it
+    bends ``D0``, ``A`` and ``m_a`` to the clip (issue 31.4), so the trial's fit is not
+    trusted: 'diagnose' weighs the clipping as the sensor's explanation.
+
+    Parameters
+    ----------
+    n : int
+        Clipped samples in the motion.
+    notes : list of str
+        The trial's notes (the warning is added).
+    typed : list of Note
+        The trial's typed notes (the note is added).
+    """
+    if n <= 0:
+        return
+    text = (
+        f"warning: {n} acceleration sample(s) in the motion read the sensor's range "
+        "(clipped): the fit follows the clip, so its values are not trusted; record with a "
+        "wider range, or see 'balancer-id diagnose' (the clipping's explanation)"
+    )
+    notes.append(text)
+    typed.append(Note("read.sensor_limit", text, severity="error"))
 
 
 def _read_only(view: np.ndarray) -> np.ndarray:

@@ -21,6 +21,18 @@ VERTICAL_CHOICES = ("auto", "x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
 REST_WINDOW_S = 0.25
 REST_G_TOLERANCE = 0.05
 
+#: A resting magnitude this close to ``g`` (m/s^2) is the local gravity (9.78 at the
+#: equator to 9.83 at the poles, against the default 9.8) and is removed as measured;
+#: farther, the level is left for the diagnosis to name (a gain, a zero offset).
+LOCAL_G_SPAN = 0.03
+
+#: The log's first stretch is at rest while its moving mean stays within this many noise
+#: sigmas (of the mean) of the first windows' level.
+REST_SIGMAS = 5.0
+
+#: Windows of rest the first stretch needs before its level is used.
+MIN_REST_WINDOWS = 3
+
 
 @dataclass(frozen=True)
 class VerticalMotion:
@@ -251,6 +263,19 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     tilt = float(np.degrees(np.arccos(np.clip(np.max(np.abs(up)), -1.0, 1.0))))
     proj = acc @ up
     offset = float(np.median(proj[rest])) - g
+    start = _initial_rest_level(proj, w)
+    if start is not None and abs(start - g) <= LOCAL_G_SPAN:
+        offset = start - g
+        # the data's own gravity: local g (9.78-9.83) and a small zero offset, not a
+        # force; removing a fixed g would leave it as an acceleration the model lacks
+        method = (
+            f"gravity direction from {how} ({int(rest.sum())} samples), {tilt:.1f} deg "
+            f"from the nearest axis; the magnitude at rest before the motion, "
+            f"{g + offset:.4f} m/s^2, removed (within {LOCAL_G_SPAN:g} of g={g:g}: the "
+            "local gravity)"
+        )
+        proj -= g + offset
+        return VerticalMotion(proj, up, rest, method)
     method = (
         f"gravity direction from {how} ({int(rest.sum())} samples), "
         f"{tilt:.1f} deg from the nearest axis; resting level {offset:+.3f} m/s^2 after "
@@ -258,6 +283,35 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     )
     proj -= g
     return VerticalMotion(proj, up, rest, method)
+
+
+def _initial_rest_level(proj: np.ndarray, w: int) -> float | None:
+    """The level of the log's first stretch at rest, or None when it does not start at rest.
+
+    Only the stretch before anything moves is surely at rest: the "resting" samples
+    (quiet, ``|a|`` near g) also hold the slow parts of a motion. The stretch runs from
+    the first sample while the moving mean over ``w`` samples stays within
+    :data:`REST_SIGMAS` of the first window's noise (of the mean) from its level; at least
+    :data:`MIN_REST_WINDOWS` windows of it are needed.
+    """
+    if proj.size < MIN_REST_WINDOWS * w or w < 3:
+        return None
+    head = proj[: MIN_REST_WINDOWS * w]
+    sigma = float(np.median(np.abs(np.diff(head))) / (0.6745 * np.sqrt(2.0)))
+    if not np.isfinite(sigma):
+        return None
+    level0 = float(np.median(head))
+    mean = smooth(proj, w)
+    away = np.abs(mean - level0) > REST_SIGMAS * max(sigma, 1e-6) / np.sqrt(w) + 1e-9
+    first = int(np.argmax(away)) if away.any() else proj.size
+    end = max(first - w, 0)  # the moving mean sees the motion half a window early
+    if end < MIN_REST_WINDOWS * w:
+        return None
+    # the mean, trimmed of spikes: a median snaps to a quantized sensor's levels, while
+    # the noise dithers the mean to the level between them
+    rest = np.sort(proj[:end])
+    cut = rest.size // 20
+    return float(np.mean(rest[cut : rest.size - cut]))
 
 
 #: Samples per block of :func:`_mean_direction` (its temporaries stay this long).

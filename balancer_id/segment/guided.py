@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from balancer_id.notes import Note
 from balancer_id.read.recording import Recording
-from balancer_id.segment.assign import vertical_name
+from balancer_id.segment.assign import clip_note, clipped_samples, vertical_name
 from balancer_id.segment.gravity import VerticalMotion
 from balancer_id.segment.robust import fill_nan, n_samples, rate_of, smooth
 from balancer_id.segment.steps import StepSettings
@@ -147,6 +148,11 @@ def guided_move(
     u = orientation * change
     peak = float(u[int(np.argmax(np.abs(u)))])
     sl = slice(start, stop)
+    notes = [f"guided move: no step, the measured force drives the model; {how}"]
+    typed: list[Note] = []
+    clipped = clipped_samples(rec)
+    if clipped is not None:
+        clip_note(int(clipped[sl].sum()), notes, typed)
     return Trial(
         index=index,
         recording=rec.name,
@@ -160,7 +166,8 @@ def guided_move(
         force=u,
         end_reason="end of run" if stop == rec.n_samples else "gap",
         source=source,
-        notes=[f"guided move: no step, the measured force drives the model; {how}"],
+        notes=notes,
+        typed_notes=typed,
         kind="guided",
         vertical=vertical_name(motion, rec.accel_axes),
         vertical_sign_known=motion.sign_known,

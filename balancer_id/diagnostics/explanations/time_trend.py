@@ -268,9 +268,9 @@ def _wander_design(b: Blocks) -> np.ndarray | None:
     # the first block of each long run is where tau is lowest within its run: blocks
     # in order, a run's start where tau falls back
     firsts = {int(trended[0])}
-    for i, j in itertools.pairwise(trended):
+    for i, j in itertools.pairwise(int(k) for k in trended):
         if b.tau[j] < b.tau[i]:
-            firsts.add(int(j))
+            firsts.add(j)
     cols = [int(i) for i in trended if int(i) not in firsts]
     design = np.zeros((b.tau.size, len(cols)))
     for c, i in enumerate(cols):
