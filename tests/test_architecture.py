@@ -405,3 +405,30 @@ def test_simulate_log_checks_its_values_as_the_command_does(tmp_path):
     with pytest.raises(UsageError, match="--seed -1"):
         simulate_log(out, seed=-1)
     assert not out.exists()
+
+
+def test_a_validation_and_a_batch_row_read_back_from_their_json():
+    from balancer_id.batch.rows import BatchRow
+    from balancer_id.diagnostics.validate import Validation
+
+    v = Validation(
+        "viscous", {"m_a": 15.1, "T_a": 0.3}, False,
+        [{"name": "level", "passed": False, "value": 2.5, "limit": 1.5, "text": "too high"}],
+        ["too high"], float("nan"),
+    )
+    data = json.loads(json.dumps(v.to_dict()))
+    again = Validation.from_dict(data)
+    assert again.to_dict() == data
+    assert again.values == v.values and again.holds is False
+    rows = [
+        BatchRow("a.csv", "ok", model="viscous", n_trials=3,
+                 parameters={"m_a": {"value": 15.0, "stderr": 0.1}}, warnings=["w"]),
+        BatchRow("b.csv", "ok", model="viscous", trusted=False),
+        BatchRow("c.csv", "ok", model="viscous", diagnosis_verdict="effect missing"),
+        BatchRow("d.csv", "failed", error="cannot read", exit_code=3),
+    ]
+    for row in rows:
+        data = json.loads(json.dumps(row.to_dict()))
+        back = BatchRow.from_dict(data)
+        assert back.to_dict() == data
+        assert (back.trusted, back.diagnosis_verdict) == (row.trusted, row.diagnosis_verdict)

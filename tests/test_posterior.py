@@ -129,4 +129,5 @@ def test_short_log_posterior_leaves_the_corner_with_no_viscosity():
     assert result.match.parameters["D0"].value > 100  # the ridge
     for name in ("m_a", "T_a", "A"):
         assert cred[name][0] <= truth[name] <= cred[name][1], name
-    assert cred["D0"][1] < 1000  # the corner of no viscosity is left
+    # the corner of no viscosity (D0 up to its support's 1e6 under the flat prior) is left
+    assert cred["D0"][1] < 1e5

@@ -6,7 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -128,6 +128,40 @@ class BatchRow:
             "verdict": self.verdict,
             "warnings": list(self.warnings),
         }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> BatchRow:
+        """The row a :meth:`to_dict` object describes (``to_dict`` gives it back).
+
+        The ``verdict`` tells what the row held: ``not trusted``, a diagnosis's verdict, or
+        neither (``identified``...).
+
+        Parameters
+        ----------
+        data : mapping
+            A row of ``batch --json``'s ``rows``.
+
+        Returns
+        -------
+        BatchRow
+        """
+        verdict = str(data.get("verdict", ""))
+        plain = {"failed", "not trusted", "identified", "identified, check the warnings"}
+        return cls(
+            file=str(data["file"]),
+            status=str(data["status"]),
+            json=data.get("json"),
+            error=data.get("error"),
+            exit_code=int(data.get("exit_code") or 0),
+            model=data.get("model"),
+            n_trials=data.get("n_trials"),
+            parameters={k: dict(v) for k, v in (data.get("parameters") or {}).items()},
+            metrics=dict(data.get("metrics") or {}),
+            seconds=data.get("seconds"),
+            warnings=[str(w) for w in data.get("warnings") or []],
+            trusted=verdict != "not trusted",
+            diagnosis_verdict=None if verdict in plain else verdict,
+        )
 
     def summary_record(self, parameter_names: Sequence[str]) -> dict[str, object]:
         """The row's cells of ``summary.csv`` (see :func:`summary_columns`).

@@ -26,7 +26,7 @@ from balancer_id.diagnostics.arena import (
     independence,
 )
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
-from balancer_id.diagnostics.explanations import Verdict
+from balancer_id.diagnostics.explanations import Verdict, run_arena
 from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.sensor_lowpass import rest_cutoff
 from balancer_id.diagnostics.residual_tests import (
@@ -76,7 +76,7 @@ _rivals, _tell_apart = rivals, tell_apart
 REFIT_THREADS: int | None = None
 
 
-@dataclass(repr=False)
+@dataclass(repr=False, frozen=True)
 class Diagnosis(Displayable):
     """Everything ``balancer-id diagnose`` reports.
 
@@ -119,7 +119,7 @@ class Diagnosis(Displayable):
     def __post_init__(self) -> None:
         # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
         # full lmfit-style text (as every result of the API has)
-        self.summary = CallableText(str(self.summary), self._summary_text)
+        object.__setattr__(self, "summary", CallableText(str(self.summary), self._summary_text))
 
     @property
     def match(self) -> MatchResult:
@@ -267,7 +267,7 @@ def diagnose(
     checks = adequacy_checks(fit, ctx)
     suggestions, failures = suggest(fit, ctx, threads)
     inp = arena_input(fit, ctx, checks, suggestions, threads, discover, extra_terms)
-    explanations = arena.run_arena(inp)
+    explanations = run_arena(inp)
     judgement = judge(ctx, tests, checks, inp, fit)
     if judgement.best is not None and judgement.verdict == Verdict.PARAMETER_CHANGED:
         tests.parameter_groups = groups_record(judgement.best, *_per_trial(fit))

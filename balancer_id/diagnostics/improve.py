@@ -8,7 +8,7 @@ drop of the error above the noise floor, :func:`~balancer_id.diagnostics.diagnos
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from balancer_id.verdicts import Verdict
 CV_FOLDS = 3
 
 
-@dataclass
+@dataclass(frozen=True)
 class ImproveStep:
     """One rung of the ladder.
 
@@ -78,7 +78,7 @@ class ImproveStep:
         }
 
 
-@dataclass(repr=False)
+@dataclass(repr=False, frozen=True)
 class ImproveResult(Displayable):
     """The ladder of models and the final diagnosis."""
 
@@ -264,14 +264,15 @@ def improve(
             diagnosis = diagnose(current)
     result = ImproveResult(steps, diagnosis, rejected)
     if discover_to is not None:
-        _discover_step(result, trials, discover_to, overwrite)
+        result = _discover_step(result, trials, discover_to, overwrite)
     return result
 
 
 def _discover_step(
     result: ImproveResult, trials: list[TrialData], path: str | Path, overwrite: bool
-) -> None:
-    """Write the last diagnosis's discovered force as an effect file, add it and refit."""
+) -> ImproveResult:
+    """Write the last diagnosis's discovered force as an effect file, add it and refit
+    (``result`` with the step added, or with why none was)."""
     from balancer_id.diagnostics.discover import write_effect
     from balancer_id.model.registry import Registry
 
@@ -284,10 +285,9 @@ def _discover_step(
             else "no force in the candidate terms explains what is missing better than the "
             "explanations tried"
         )
-        result.discovery_note = Note(
+        return replace(result, discovery_note=Note(
             "improve.no_discovery", f"{why}: no effect file written ({path})", None, "info"
-        )
-        return
+        ))
     fixed = current.fixed or None
     cv_old = result.steps[-1].cv_rmse
     cv_new = cross_validated_rmse(found.refit.model, trials, found.refit.values(), found.fixed)
@@ -296,14 +296,13 @@ def _discover_step(
             f"discovered {found.formula}: BIC falls by {found.delta_bic:.0f} but the held-out "
             f"error does not ({cv_new:.4f} vs {cv_old:.4f} m/s^2)"
         )
-        result.discovery_note = Note(
+        return replace(result, discovery_note=Note(
             "improve.no_discovery",
             f"the discovered force does not lower the held-out error: no effect file written "
             f"({path})",
             None,
             "info",
-        )
-        return
+        ))
     evidence = (
         f"Held-out RMSE {cv_new:.4g} m/s^2 (before {cv_old:.4g})."
         if cv_new is not None and cv_old is not None
@@ -326,13 +325,19 @@ def _discover_step(
             fixed=current.held(model),
             effects_files=[*current.effects_files, str(path)],
         )
-        result.steps.append(ImproveStep(new.model, name, new, cv_new, found.formula, True))
-        result.final = diagnose(new)
-    result.discovered = {"file": str(path), "effect": name, "formula": found.formula}
-    result.discovery = found
-    result.discovery_note = Note(
-        "improve.discovered",
-        f"wrote {path}: effect '{name}', {found.formula} (N); load it with --effects-file {path}",
-        None,
-        "info",
+        added = ImproveStep(new.model, name, new, cv_new, found.formula, True)
+        final = diagnose(new)
+    return replace(
+        result,
+        steps=[*result.steps, added],
+        final=final,
+        discovered={"file": str(path), "effect": name, "formula": found.formula},
+        discovery=found,
+        discovery_note=Note(
+            "improve.discovered",
+            f"wrote {path}: effect '{name}', {found.formula} (N); load it with "
+            f"--effects-file {path}",
+            None,
+            "info",
+        ),
     )

@@ -90,7 +90,31 @@ class Validation:
                 "fit_percent": self.fit_percent,
                 "tests": self.tests,
                 "reasons": self.reasons,
+                "values": self.values,
             }
+        )
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Validation:
+        """The validation a :meth:`to_dict` object describes (``to_dict`` gives it back).
+
+        Parameters
+        ----------
+        data : mapping
+            A ``validation`` object (``compare --params --json``).
+
+        Returns
+        -------
+        Validation
+        """
+        fit = data.get("fit_percent")
+        return cls(
+            model=str(data["model"]),
+            values={k: float(v) for k, v in (data.get("values") or {}).items()},
+            holds=bool(data["holds"]),
+            tests=[dict(t) for t in data.get("tests") or []],
+            reasons=[str(r) for r in data.get("reasons") or []],
+            fit_percent=float("nan") if fit is None else float(fit),
         )
 
 

@@ -481,10 +481,10 @@ def sample_posterior(
         tau = _autocorr(sampler)
         while (
             steps < max_steps
-            and steps < CHAIN_TAUS * float(np.nanmax(tau))
+            and steps < CHAIN_TAUS * _longest(tau)
             and time.monotonic() - began < max_seconds
         ):
-            more = int(min(max_steps - steps, max(200, CHAIN_TAUS * np.nanmax(tau) - steps)))
+            more = int(min(max_steps - steps, max(200, CHAIN_TAUS * _longest(tau) - steps)))
             state = sampler.run_mcmc(state, more, progress=False)
             steps += more
             tau = _autocorr(sampler)
@@ -545,6 +545,11 @@ def _from_log(u: np.ndarray, logged: np.ndarray) -> np.ndarray:
     """Parameters from the sampler's coordinates (the logged columns exponentiated)."""
     with np.errstate(over="ignore"):
         return np.where(logged, np.exp(u), u)
+
+
+def _longest(tau: np.ndarray) -> float:
+    """The longest autocorrelation time estimated (nan when none is)."""
+    return float(np.nanmax(tau)) if np.any(np.isfinite(tau)) else float("nan")
 
 
 def _autocorr(sampler) -> np.ndarray:

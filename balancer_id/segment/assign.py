@@ -362,7 +362,18 @@ def vertical_name(
 
 
 def clipped_samples(rec: Recording) -> np.ndarray | None:
-    """Where the run's raw acceleration reads a pinned extreme (None: nowhere)."""
+    """Where the run's raw acceleration reads a pinned extreme (None: nowhere).
+
+    Parameters
+    ----------
+    rec : Recording
+        The run.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        A mask of the clipped samples, or None when none is.
+    """
     from balancer_id.read.validate import clipped_mask
 
     if rec.accel is None:
@@ -377,6 +388,15 @@ def clip_note(n: int, notes: list[str], typed: list[Note]) -> None:
     A sample at the sensor's range holds a bound, not a value; a fit that follows it
     bends ``D0``, ``A`` and ``m_a`` to the clip (issue 31.4), so the trial's fit is not
     trusted: 'diagnose' weighs the clipping as the sensor's explanation.
+
+    Parameters
+    ----------
+    n : int
+        Clipped samples in the motion.
+    notes : list of str
+        The trial's notes (the warning is added).
+    typed : list of Note
+        The trial's typed notes (the note is added).
     """
     if n <= 0:
         return

@@ -201,7 +201,8 @@ class Plan:
             rows,
             "The step trials to record next, in order, each chosen from the fit's Fisher "
             "information given the ones before it (levels up to 3x the largest recorded, "
-            "moves up to 1.5x as far); the half-widths are predicted at the fitted values.",
+            "moves up to 1.5x as far); the half-widths are predicted at the fitted values "
+            "(for a parameter held at a guess, over the values it could have).",
         )
         blocks: list[Any] = [table, *(Paragraph(line.strip()) for line in self.lines()[1:])]
         return Section("Next trials", blocks=blocks)

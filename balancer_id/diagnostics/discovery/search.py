@@ -204,14 +204,7 @@ def search(
         return None
     final = _final_inclusion(lib.model, inp, refit, hold, freed, lib.terms, support, seed)
     inclusion = final if final is not None else path.inclusion
-    found = []
-    for j in support:
-        est = refit.parameters[lib.q_names[j]]
-        term = lib.terms[j]
-        if term.shapes and all(key in freed for key, _ in term.shapes):
-            term = replace(term, shapes=tuple((key, freed[key]) for key, _ in term.shapes))
-        share = float(inclusion[j]) if inclusion is not None else 0.0
-        found.append(DiscoveredTerm(term, float(est.value), est.stderr, share))
+    found = _discovered_terms(lib, refit, support, freed, inclusion)
     return Discovery(
         terms=found,
         delta_bic=d_bic,
@@ -226,6 +219,22 @@ def search(
         ],
         states=_states(refit, found),
     )
+
+
+def _discovered_terms(
+    lib: Library, refit: MatchResult, support: list[int], freed: dict[str, float], inclusion: Any
+) -> list[DiscoveredTerm]:
+    """The kept terms with their refitted coefficients, their shapes where freed, and their
+    share of the bootstrap resamples."""
+    found = []
+    for j in support:
+        est = refit.parameters[lib.q_names[j]]
+        term = lib.terms[j]
+        if term.shapes and all(key in freed for key, _ in term.shapes):
+            term = replace(term, shapes=tuple((key, freed[key]) for key, _ in term.shapes))
+        share = float(inclusion[j]) if inclusion is not None else 0.0
+        found.append(DiscoveredTerm(term, float(est.value), est.stderr, share))
+    return found
 
 
 def _shapes(terms: Sequence[Term]) -> dict[str, float]:
