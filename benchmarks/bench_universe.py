@@ -291,7 +291,10 @@ def named_by(d: dict) -> list[str]:
     exps = d.get("explanations") or []
     amb = d.get("ambiguity") or {}
     labels = [amb.get("best"), amb.get("runner_up")] if d.get("verdict") == "ambiguous" else []
-    top = [e for lab in labels for e in exps if e.get("label") == lab][:2] or exps[:1]
+    # the explanation the verdict is about: both of an ambiguity, else the best whose own
+    # verdict is the diagnosis's (a gain and a zero offset fit alike; the verdict says which)
+    same = [e for e in exps if e.get("verdict") == d.get("verdict")][:1]
+    top = [e for lab in labels for e in exps if e.get("label") == lab][:2] or same or exps[:1]
     out: list[str] = []
     for e in top:
         out.extend(e.get("effects") or [])

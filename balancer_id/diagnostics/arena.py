@@ -5,8 +5,9 @@ An explanation of what the current model misses is a model fitted to the same tr
 library effect added, a parameter split at a run boundary or drifting over the runs or
 in time, a sensor's effect, a pair, a discovered force). Each is scored by the same
 criterion (:func:`score`): the fall of BIC against the current fit on residuals
-prewhitened with the resting noise's AR(2) colour. :func:`run_arena` fits every kind,
-stage by stage; :func:`standing` keeps those with a benefit, best first.
+prewhitened with the resting noise's AR(2) colour.
+:func:`~balancer_id.diagnostics.explanations.run_arena` fits every kind, stage by stage;
+:func:`standing` keeps those with a benefit, best first.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
     from balancer_id.diagnostics.context import DiagnosisContext
     from balancer_id.identify.result import FitResult
 
-__all__ = ["ArenaInput", "Explanation", "Stage", "Verdict", "run_arena", "score", "standing"]
+__all__ = ["ArenaInput", "Explanation", "Stage", "Verdict", "score", "standing"]
 
 #: One fit's arguments (:func:`fit_in_threads`).
 Job = TypeVar("Job")
@@ -574,31 +575,3 @@ def standing(explanations: Sequence[Explanation], tests_failed: bool) -> list[Ex
         out.append(e)
     out = [e for e in out if not any(x.explainer.absorbs(x, e) for x in out if x is not e)]
     return sorted(out, key=lambda e: -e.delta_bic)
-
-
-def run_arena(inp: ArenaInput) -> list[Explanation]:
-    """Every kind's explanations, stage by stage, best first.
-
-    The kinds of a stage see the explanations of the stages before (``inp.found``); a
-    kind whose fit fails is named in ``inp.failures`` and the others go on.
-
-    Parameters
-    ----------
-    inp : ArenaInput
-
-    Returns
-    -------
-    list of Explanation
-    """
-    from balancer_id.diagnostics.explanations import KINDS
-
-    for stage in Stage:
-        for kind in (k for k in KINDS if k.stage == stage):
-            try:
-                new = kind.propose(inp)
-            except Exception as exc:  # one kind must not stop the others
-                inp.failures.append(f"explanations of {kind.key} failed: {exc!r}")
-                continue
-            inp.found.extend(inp.polish(e) for e in new)
-        inp.found.sort(key=lambda e: -e.delta_bic)
-    return inp.found

@@ -159,11 +159,14 @@ class DiagnosisContext:
         """
         fs = 1.0 / self.dt
         psds: list[Any] = []
+        f: Any = None
         for tv in self.trials:
             if tv.residual.size >= 128:
-                f, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))
+                f_here, p = welch_psd(tv.residual, fs, min(256, tv.residual.size))
                 if psds and p.size != psds[0].size:
-                    continue
+                    continue  # another segment length: its bins are not the first's
+                if f is None:
+                    f = f_here  # the frequencies of the spectra kept, not of the last seen
                 psds.append(p)
         if not psds:
             return {"peaks": [], "frequency_hz": [], "psd": []}

@@ -26,7 +26,7 @@ from balancer_id.diagnostics.arena import (
     independence,
 )
 from balancer_id.diagnostics.context import DiagnosisContext, build_context
-from balancer_id.diagnostics.explanations import Verdict
+from balancer_id.diagnostics.explanations import Verdict, run_arena
 from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.sensor_lowpass import rest_cutoff
 from balancer_id.diagnostics.residual_tests import (
@@ -267,7 +267,7 @@ def diagnose(
     checks = adequacy_checks(fit, ctx)
     suggestions, failures = suggest(fit, ctx, threads)
     inp = arena_input(fit, ctx, checks, suggestions, threads, discover, extra_terms)
-    explanations = arena.run_arena(inp)
+    explanations = run_arena(inp)
     judgement = judge(ctx, tests, checks, inp, fit)
     if judgement.best is not None and judgement.verdict == Verdict.PARAMETER_CHANGED:
         tests.parameter_groups = groups_record(judgement.best, *_per_trial(fit))

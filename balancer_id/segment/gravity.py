@@ -30,8 +30,11 @@ LOCAL_G_SPAN = 0.03
 #: sigmas (of the mean) of the first windows' level.
 REST_SIGMAS = 5.0
 
+#: The level at rest replaces g where it differs from it by this many standard errors.
+REST_Z = 3.0
+
 #: Windows of rest the first stretch needs before its level is used.
-MIN_REST_WINDOWS = 3
+MIN_REST_WINDOWS = 1
 
 
 @dataclass(frozen=True)
@@ -264,17 +267,18 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     proj = acc @ up
     offset = float(np.median(proj[rest])) - g
     start = _initial_rest_level(proj, w)
-    if start is not None and abs(start - g) <= LOCAL_G_SPAN:
-        offset = start - g
+    # measured where it differs from g beyond its own error (else g is as good, and a
+    # run's noisy level would offset that run alone: a quantized sensor's)
+    if start is not None and REST_Z * start[1] < abs(start[0] - g) <= LOCAL_G_SPAN:
         # the data's own gravity: local g (9.78-9.83) and a small zero offset, not a
         # force; removing a fixed g would leave it as an acceleration the model lacks
         method = (
             f"gravity direction from {how} ({int(rest.sum())} samples), {tilt:.1f} deg "
             f"from the nearest axis; the magnitude at rest before the motion, "
-            f"{g + offset:.4f} m/s^2, removed (within {LOCAL_G_SPAN:g} of g={g:g}: the "
+            f"{start[0]:.4f} m/s^2, removed (within {LOCAL_G_SPAN:g} of g={g:g}: the "
             "local gravity)"
         )
-        proj -= g + offset
+        proj -= start[0]
         return VerticalMotion(proj, up, rest, method)
     method = (
         f"gravity direction from {how} ({int(rest.sum())} samples), "
@@ -285,8 +289,9 @@ def _project_on_gravity(acc: np.ndarray, w: int, g: float) -> VerticalMotion:
     return VerticalMotion(proj, up, rest, method)
 
 
-def _initial_rest_level(proj: np.ndarray, w: int) -> float | None:
-    """The level of the log's first stretch at rest, or None when it does not start at rest.
+def _initial_rest_level(proj: np.ndarray, w: int) -> tuple[float, float] | None:
+    """The level of the log's first stretch at rest and its standard error, or None when
+    the log does not start at rest.
 
     Only the stretch before anything moves is surely at rest: the "resting" samples
     (quiet, ``|a|`` near g) also hold the slow parts of a motion. The stretch runs from
@@ -303,6 +308,7 @@ def _initial_rest_level(proj: np.ndarray, w: int) -> float | None:
     level0 = float(np.median(head))
     mean = smooth(proj, w)
     away = np.abs(mean - level0) > REST_SIGMAS * max(sigma, 1e-6) / np.sqrt(w) + 1e-9
+    away[: w // 2] = False  # the moving mean's edge sees a half window only
     first = int(np.argmax(away)) if away.any() else proj.size
     end = max(first - w, 0)  # the moving mean sees the motion half a window early
     if end < MIN_REST_WINDOWS * w:
@@ -311,7 +317,8 @@ def _initial_rest_level(proj: np.ndarray, w: int) -> float | None:
     # the noise dithers the mean to the level between them
     rest = np.sort(proj[:end])
     cut = rest.size // 20
-    return float(np.mean(rest[cut : rest.size - cut]))
+    kept = rest[cut : rest.size - cut]
+    return float(np.mean(kept)), float(np.std(kept) / np.sqrt(kept.size))
 
 
 #: Samples per block of :func:`_mean_direction` (its temporaries stay this long).

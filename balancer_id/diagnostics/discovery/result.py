@@ -16,7 +16,7 @@ from balancer_id.diagnostics.discovery.terms import Term, _class_name, _py, fric
 from balancer_id.identify.matching import MatchResult
 
 if TYPE_CHECKING:
-    from balancer_id.diagnostics.arena import Explanation
+    from balancer_id.diagnostics.explanations.base import Explanation
 
 
 # ---- the result -------------------------------------------------------------------------
@@ -134,7 +134,7 @@ class Discovery:
 
     def explanation(self) -> Explanation:
         """The discovery as one of the arena's explanations (kind ``discovered``)."""
-        from balancer_id.diagnostics.explanations import kind_of
+        from balancer_id.diagnostics.explanations.base import kind_of
 
         e = kind_of("discovered").make(
             f"discovered force {self.formula}",

@@ -7,11 +7,15 @@ the trial that separates it), one line in :data:`KINDS` and its test.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from balancer_id.diagnostics.explanations.base import (
     Explanation,
     ExplanationKind,
     Stage,
     Verdict,
+    kind_of,
+    register,
 )
 from balancer_id.diagnostics.explanations.discovered import Discovered
 from balancer_id.diagnostics.explanations.drift import Drift
@@ -38,23 +42,38 @@ KINDS: tuple[ExplanationKind, ...] = (
     Discovered(),
 )
 
-_BY_KEY = {k.key: k for k in KINDS}
-if len(_BY_KEY) != len(KINDS):
-    raise RuntimeError("two explanation kinds share a key")
+register(KINDS)
+
+if TYPE_CHECKING:
+    from balancer_id.diagnostics.arena import ArenaInput
 
 
-def kind_of(key: str) -> ExplanationKind:
-    """The kind registered under ``key`` (an unknown key: a plain missing effect).
+def run_arena(inp: ArenaInput) -> list[Explanation]:
+    """Every kind's explanations, stage by stage, best first.
+
+    The kinds of a stage see the explanations of the stages before (``inp.found``); a
+    kind whose fit fails is named in ``inp.failures`` and the others go on.
 
     Parameters
     ----------
-    key : str
+    inp : ArenaInput
 
     Returns
     -------
-    ExplanationKind
+    list of Explanation
     """
-    return _BY_KEY.get(key) or _BY_KEY["effect"]
+    for stage in Stage:
+        for kind in (k for k in KINDS if k.stage == stage):
+            try:
+                new = kind.propose(inp)
+            except Exception as exc:  # one kind must not stop the others
+                inp.failures.append(f"explanations of {kind.key} failed: {exc!r}")
+                continue
+            inp.found.extend(inp.polish(e) for e in new)
+        inp.found.sort(key=lambda e: -e.delta_bic)
+    return inp.found
 
 
-__all__ = ["KINDS", "Explanation", "ExplanationKind", "Stage", "Verdict", "kind_of"]
+__all__ = [
+    "KINDS", "Explanation", "ExplanationKind", "Stage", "Verdict", "kind_of", "run_arena",
+]

@@ -12,12 +12,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from balancer_id.verdicts import Verdict
 
 if TYPE_CHECKING:
-    from balancer_id.diagnostics.arena import ArenaInput
     from balancer_id.identify.result import FitResult
 
 
@@ -94,8 +93,6 @@ class Explanation:
     @property
     def explainer(self) -> ExplanationKind:
         """Its kind, from the registry."""
-        from balancer_id.diagnostics.explanations import kind_of
-
         return kind_of(self.key)
 
     @property
@@ -163,7 +160,7 @@ class ExplanationKind:
     measurement: ClassVar[bool] = False
     tried: ClassVar[str] = ""
 
-    def propose(self, inp: ArenaInput) -> list[Explanation]:
+    def propose(self, inp: Any) -> list[Explanation]:
         """Its explanations of the current fit, fitted and scored.
 
         Parameters
@@ -326,3 +323,41 @@ def head(e: Explanation) -> str:
         f"{e.label} lowers BIC by {e.delta_bic:.0f} and removes {e.excess_drop:.0%} of the "
         "error above the noise floor"
     )
+
+
+#: The kinds by key, filled once by :mod:`balancer_id.diagnostics.explanations` from its
+#: list (kept here so that an explanation finds its kind without importing the list).
+_BY_KEY: dict[str, ExplanationKind] = {}
+
+
+def register(kinds: tuple[ExplanationKind, ...]) -> None:
+    """Record the kinds by key (each key once).
+
+    Parameters
+    ----------
+    kinds : tuple of ExplanationKind
+        Every kind, as :data:`~balancer_id.diagnostics.explanations.KINDS` lists them.
+
+    Raises
+    ------
+    RuntimeError
+        When two kinds share a key.
+    """
+    by_key = {k.key: k for k in kinds}
+    if len(by_key) != len(kinds):
+        raise RuntimeError("two explanation kinds share a key")
+    _BY_KEY.update(by_key)
+
+
+def kind_of(key: str) -> ExplanationKind:
+    """The kind registered under ``key`` (an unknown key: a plain missing effect).
+
+    Parameters
+    ----------
+    key : str
+
+    Returns
+    -------
+    ExplanationKind
+    """
+    return _BY_KEY.get(key) or _BY_KEY["effect"]
