@@ -368,6 +368,25 @@ def _typical_halfwidths(infos: list[np.ndarray], names: list[str]) -> dict[str, 
     }
 
 
+def _widening(match: MatchResult, info: np.ndarray, names: list[str]) -> np.ndarray:
+    """Per parameter, the fit's standard error over the Fisher information's, the
+    parameters the fit held (at a guess) held here too; never below 1 (1 where the fit
+    gives none)."""
+    fitted = [j for j, n in enumerate(names) if match.parameters[n].vary]
+    out = np.ones(len(names))
+    if not fitted:
+        return out
+    try:
+        var = np.diag(np.linalg.inv(info[np.ix_(fitted, fitted)]))
+    except np.linalg.LinAlgError:
+        return out
+    for v, j in zip(var, fitted, strict=True):
+        se = match.parameters[names[j]].stderr
+        if se and math.isfinite(se) and v > 0:
+            out[j] = max(1.0, se / math.sqrt(v))
+    return out
+
+
 def _halfwidths(info: np.ndarray, names: list[str]) -> dict[str, float]:
     cov = np.linalg.inv(info)
     return {n: float(Z95 * math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(names)}
@@ -475,6 +494,11 @@ def design_trials(
     for adds_p in adds_at:
         for i in np.flatnonzero(far):
             adds_p[i] = np.zeros_like(infos[0])
+    # the fit reports standard errors that may exceed the Fisher information's (widened
+    # to the trials' scatter): the information held now is scaled to them, parameter by
+    # parameter (its correlations kept), so that the plan starts from the fit's intervals
+    d = _widening(match, infos[0], names)
+    infos = [inf / np.outer(d, d) for inf in infos]
     info = infos[0]
     now = _halfwidths(info, names)
     peaks = list(peak_arr)
