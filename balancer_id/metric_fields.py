@@ -78,6 +78,13 @@ FIT_METRICS: tuple[MetricField, ...] = (
     # the residual's integrated autocorrelation time: the standard errors are widened by
     # its square root (1 for white residuals)
     MetricField("residual_tau", "residual τ", "samples", digits=3),
+    # how far the acceleration leads the recorded force at the optimum (a Rao score test,
+    # identify/timing.py; negative: it lags), and that lead's standard error
+    MetricField("timing_lead_s", "timing lead", "s", digits=2),
+    MetricField("timing_lead_stderr_s", "timing lead s.e.", "s", digits=2),
+    # the largest ratio of a standard error from the trials' scatter to the one from the
+    # noise within them (identify/trial_scatter.py; the standard errors take the larger)
+    MetricField("trial_scatter_ratio", "trial scatter", digits=3),
 )
 
 
