@@ -283,7 +283,16 @@ def _readme_api_code() -> str:
 
 
 def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
+    import functools
+
+    from balancer_id.identify import posterior
+
     monkeypatch.chdir(REPO)
+    # the section's posterior line runs as written, on a short chain: sampling to the
+    # default length twice took 46 of this test's 65 s, and test_posterior checks the
+    # sampling itself
+    short = functools.partial(posterior.sample_posterior, max_steps=100, min_steps=100)
+    monkeypatch.setattr(posterior, "sample_posterior", short)
     code = _readme_api_code()
     for _ in range(2):
         env: dict = {}
