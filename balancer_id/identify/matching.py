@@ -552,6 +552,9 @@ def match_trials(
     fixed = dict(fixed or {})
     notes: list[Note | str] = []
     levels = thrust_levels(trials)
+    # at 0 N only (a robot's moves) a thrust-level parameter changes nothing: D0 is the
+    # viscosity seen, and holding it at a guess costs no identification
+    pushed = any(abs(x) > 0 for x in levels)
     for name in model.thrust_level_names:
         if name in model.param_names and name not in fixed and len(levels) < 2:
             value = dict(start or {}).get(name, model.param(name).value)
@@ -565,12 +568,11 @@ def match_trials(
                     + (
                         ", a guess: the values it trades with (D0) are no identification; "
                         "give --fix with a known value or record more levels"
-                        if any(abs(x) > 0 for x in levels)
+                        if pushed
                         else " (with no operating force it changes nothing here)"
                     ),
                     subject=name,
-                    # at 0 N (a robot's moves) A changes nothing: D0 is the viscosity seen
-                    severity="error" if any(abs(x) > 0 for x in levels) else "info",
+                    severity="error" if pushed else "info",
                 )
             )
     values = dict(start or {})
