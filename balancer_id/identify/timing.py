@@ -116,6 +116,41 @@ def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return g
 
 
+def sampling_variance(match: MatchResult) -> float:
+    """The variance of the lead that the force's sampling leaves (s^2).
+
+    A held force's change is placed halfway between the two samples that bracket it
+    (:func:`~balancer_id.identify.data.centred_changes`); the true instant lies anywhere
+    between them, uniformly, so each change is off by a spread of ``dt^2 / 12``, and the
+    mean over ``n`` changes by ``sum(dt^2 / 12) / n^2``. A clean log with few steps at
+    a low rate would otherwise be called late or early by its own sampling.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    float
+        0 when no held force changes.
+    """
+    total, count = 0.0, 0
+    for td in match.data.trials:
+        times = np.asarray(td.input.thrust.times, dtype=float)
+        t = np.asarray(td.time, dtype=float)
+        if times.size < 2 or t.size < 2:
+            continue
+        dt = float(np.median(np.diff(t)))
+        values = np.asarray(td.input.thrust.values, dtype=float)
+        if td.continues and td.previous is not None and td.previous.input.thrust.values.size:
+            values = np.concatenate([td.previous.input.thrust.values[-1:], values])
+        n = int(np.count_nonzero(np.diff(values)))
+        total += n * dt * dt / 12.0
+        count += n
+    return total / (count * count) if count else 0.0
+
+
 def timing_check(match: MatchResult) -> TimingCheck | None:
     """Regress the fit's residual on its sensitivities and on ``dy_model/dt``.
 
@@ -160,7 +195,7 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     rss = max(float(rtr - coef @ xtr), 0.0)
     tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     s2 = rss / max(n - k - 1, 1) * tau
-    var_d = float(inv[k, k]) * s2
+    var_d = float(inv[k, k]) * s2 + sampling_variance(match)
     if not (np.isfinite(var_d) and var_d > 0):
         return None
     shift = {name: float(coef[j]) for j, name in enumerate(names)}
