@@ -25,6 +25,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
+from balancer_id.records import FitRecord
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
@@ -372,6 +373,25 @@ class FitResult(Displayable):
                 d["untrusted_because"] = distrust[name]
             out[name] = d
         return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FitRecord:
+        """A fit read back from its JSON (a cached or saved ``fit --json`` object).
+
+        The JSON does not carry the trials, so what reads back is a
+        :class:`~balancer_id.records.FitRecord`: frozen, its ``to_dict()`` equal to
+        ``data``, rendered as the fit it came from.
+
+        Parameters
+        ----------
+        data : mapping
+            A :meth:`to_dict` object.
+
+        Returns
+        -------
+        FitRecord
+        """
+        return FitRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""
