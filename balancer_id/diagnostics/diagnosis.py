@@ -8,8 +8,9 @@ the suggestions it offers.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -51,6 +52,7 @@ from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
 from balancer_id.notes import Note, as_note, texts
+from balancer_id.records import DiagnosisRecord
 
 __all__ = [
     "BIC_THRESHOLD",
@@ -200,6 +202,23 @@ class Diagnosis(Displayable):
                 )
             lines.append(f"    {d.command}")
         return lines
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> DiagnosisRecord:
+        """A diagnosis read back from its JSON: a frozen
+        :class:`~balancer_id.records.DiagnosisRecord` whose ``to_dict()`` equals ``data``
+        (the JSON carries no trials to diagnose again).
+
+        Parameters
+        ----------
+        data : mapping
+            A :meth:`to_dict` object.
+
+        Returns
+        -------
+        DiagnosisRecord
+        """
+        return DiagnosisRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object."""
