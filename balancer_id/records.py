@@ -10,9 +10,8 @@ back renders (terminal, JSON) exactly as the result it was made from.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from types import MappingProxyType
 from typing import Any, ClassVar, TypeVar
 
 from balancer_id.notes import Note
@@ -21,6 +20,7 @@ __all__ = [
     "ComparisonRecord",
     "DiagnosisRecord",
     "FitRecord",
+    "FrozenMapping",
     "ImproveRecord",
     "ResultRecord",
     "freeze",
@@ -28,6 +28,41 @@ __all__ = [
 ]
 
 R = TypeVar("R", bound="ResultRecord")
+
+
+class FrozenMapping(Mapping[Any, Any]):
+    """A read-only dict: it reads, iterates, compares and pickles as one, and has no
+    ``__setitem__`` (a complete result's tables cannot be changed in place).
+
+    Parameters
+    ----------
+    data : mapping or iterable of pairs
+        The entries (copied).
+    """
+
+    __slots__ = ("_data",)
+    _data: dict[Any, Any]
+
+    def __init__(self, data: Mapping[Any, Any] | Any = ()) -> None:
+        object.__setattr__(self, "_data", dict(data))
+
+    def __getitem__(self, key: Any) -> Any:
+        return self._data[key]
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"a FrozenMapping is read-only; cannot set {name}")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (FrozenMapping, (self._data,))
 
 
 def freeze(value: Any) -> Any:
@@ -41,10 +76,10 @@ def freeze(value: Any) -> Any:
     Returns
     -------
     object
-        ``MappingProxyType`` for a mapping, a tuple for a list, the scalar as is.
+        A :class:`FrozenMapping` for a mapping, a tuple for a list, the scalar as is.
     """
     if isinstance(value, Mapping):
-        return MappingProxyType({k: freeze(v) for k, v in value.items()})
+        return FrozenMapping({k: freeze(v) for k, v in value.items()})
     if isinstance(value, list | tuple):
         return tuple(freeze(v) for v in value)
     return value

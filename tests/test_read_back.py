@@ -70,10 +70,17 @@ def test_a_fit_reads_back_and_renders_as_it_did(fitted):
     assert _terminal(back.printer, back.to_dict()) == _terminal("print_fit", data)
 
 
-def test_a_diagnosis_reads_back_and_renders_as_it_did(fitted):
-    from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose
+@pytest.fixture(scope="module")
+def diagnosed(fitted):
+    from balancer_id.diagnostics.diagnosis import diagnose
 
-    diagnosis = diagnose(fitted, discover=False)
+    return diagnose(fitted, discover=False)
+
+
+def test_a_diagnosis_reads_back_and_renders_as_it_did(diagnosed):
+    from balancer_id.diagnostics.diagnosis import Diagnosis
+
+    diagnosis = diagnosed
     data = diagnosis.to_dict()
     back = Diagnosis.from_dict(json.loads(json.dumps(data)))
     assert back.to_dict() == data and back.verdict == diagnosis.verdict
@@ -93,3 +100,19 @@ def test_a_cached_fit_is_the_object_a_fresh_fit_gives(tmp_path, monkeypatch):
     assert isinstance(fresh.result, FitRecord) and isinstance(cached.result, FitRecord)
     assert cached.result == fresh.result
     assert cached.out == fresh.out and cached.trusted == fresh.trusted
+
+
+def test_a_fit_result_cannot_be_changed_in_place(fitted):
+    """Deep enough: no field of the fit or of its match can be set, and their tables and
+    lists are read-only (the checks annotate a match before the fit seals it)."""
+    before = fitted.to_dict()
+    with pytest.raises(dataclasses.FrozenInstanceError, match="nfev"):
+        fitted.match.nfev = 0
+    for table in (fitted.fixed, fitted.match.metrics, fitted.match.parameters):
+        with pytest.raises(TypeError):
+            table["added"] = 1
+    for seq in (fitted.warnings, fitted.match.warnings, fitted.effects_files):
+        with pytest.raises(AttributeError):
+            seq.append("added")
+    assert fitted.to_dict() == before
+

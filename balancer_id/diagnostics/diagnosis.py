@@ -429,7 +429,7 @@ def _per_trial(fit: FitResult) -> tuple[list, list[str]]:
     """The per-trial fits and each one's run."""
     per = fit.per_trial_fits()
     source_of = {td.index: td.source for td in fit.match.data.trials}
-    return per, [source_of.get(p.index, "") for p in per]
+    return list(per), [source_of.get(p.index, "") for p in per]
 
 
 def _thin(xc: dict[str, object]) -> dict[str, object]:

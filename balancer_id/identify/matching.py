@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import FrozenInstanceError, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -17,6 +17,7 @@ from balancer_id.identify.metrics import correlation_time, error_metrics
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note
+from balancer_id.records import FrozenMapping
 from balancer_id.simulation.kernel import OUT_COLUMNS
 from balancer_id.status import tell
 
@@ -103,6 +104,42 @@ class MatchResult(Displayable):
     warnings: list[Note | str] = field(default_factory=list)
     #: The distinct optima of a multi-start fit, best first (empty for one start).
     optima: list[basins.Optimum] = field(default_factory=list)
+    _sealed: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if getattr(self, "_sealed", False):
+            raise FrozenInstanceError(f"a MatchResult is sealed in a FitResult; cannot set {name}")
+        object.__setattr__(self, name, value)
+
+    def seal(self) -> MatchResult:
+        """Make the fit complete: no field can be set and its tables (parameters, metrics,
+        correlations) and lists (warnings, optima, per-trial RMSE) are read-only.
+
+        The checks that follow the optimizer (the settled limits, the trials' scatter,
+        the timing, the profile intervals) annotate a match before it is sealed; a
+        :class:`~balancer_id.identify.result.FitResult` seals the match it holds.
+
+        Returns
+        -------
+        MatchResult
+            This match.
+        """
+        if self._sealed:
+            return self
+        tables = {
+            "parameters": FrozenMapping(self.parameters),
+            "metrics": FrozenMapping(self.metrics),
+            "correlations": None if self.correlations is None else FrozenMapping(
+                {k: FrozenMapping(row) for k, row in self.correlations.items()}
+            ),
+            "warnings": tuple(self.warnings),
+            "optima": tuple(self.optima),
+            "trial_rmse": tuple(self.trial_rmse),
+            "_sealed": True,
+        }
+        for name, value in tables.items():
+            object.__setattr__(self, name, value)
+        return self
 
     def _shown_match(self) -> MatchResult:
         return self
