@@ -116,3 +116,32 @@ def test_a_fit_result_cannot_be_changed_in_place(fitted):
             seq.append("added")
     assert fitted.to_dict() == before
 
+
+def test_a_new_field_of_the_diagnosis_is_one_line_of_the_field_list(diagnosed, monkeypatch):
+    """Traced change (issue 30): a field added to DIAGNOSIS_FIELDS (beside its dataclass
+    line) shows in the JSON, the terminal, the notebook and the report, with no renderer
+    edited."""
+    from balancer_id import diagnosis_fields
+    from balancer_id.diagnosis_fields import DiagnosisField
+    from balancer_id.diagnostics import diagnosis as diagnosis_module
+    from balancer_id.report.blocks import Paragraph
+    from balancer_id.report.sections import diagnosis_section
+
+    before = _terminal("print_diagnosis", diagnosed.to_dict())
+    new = DiagnosisField(
+        "excess_share",
+        lambda d: d.context.excess_rmse() / d.match.metrics["rmse"],
+        line=lambda v: f"share of the error above the noise floor: {v:.1%}",
+    )
+    fields = (*diagnosis_fields.DIAGNOSIS_FIELDS, new)
+    monkeypatch.setattr(diagnosis_fields, "DIAGNOSIS_FIELDS", fields)
+    monkeypatch.setattr(diagnosis_module, "DIAGNOSIS_FIELDS", fields)
+    data = diagnosed.to_dict()
+    share = diagnosed.context.excess_rmse() / diagnosed.match.metrics["rmse"]
+    assert data["excess_share"] == pytest.approx(share)
+    line = f"share of the error above the noise floor: {share:.1%}"
+    shown = _terminal("print_diagnosis", data)
+    assert line in shown and line not in before
+    assert line in diagnosed.summary()
+    section = diagnosis_section(diagnosed)
+    assert any(isinstance(b, Paragraph) and b.text == line for b in section.blocks)
