@@ -248,6 +248,8 @@ def simulate(
     json_out: JsonOpt = False,
     params: Annotated[Path | None, Opt("--params", "FILE", "The model and values of 'fit "
                                        "--save' (or --json).")] = None,
+    servo_delay: Annotated[float, Opt("--servo-delay", "NUMBER", "With a robot servo: it acts "
+                                      "this late (s).")] = 0.0,
     quiet: QuietOpt = False,
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
@@ -266,7 +268,7 @@ def simulate(
         out, model=model, values=assignments(param, "--param"), params=params,
         thrusts=floats(thrust, "--thrust") or [], sensor=sensor, rest_s=rest,
         duration_s=duration, trajectory_text=trajectory_text, seed=seed,
-        effects_files=effects_file or (), overwrite=overwrite,
+        effects_files=effects_file or (), overwrite=overwrite, servo_delay_s=servo_delay,
     )
     if json_out:
         emit_json(done.to_dict())

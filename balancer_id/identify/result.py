@@ -32,6 +32,7 @@ from balancer_id.trials import TrialSet
 if TYPE_CHECKING:
     from balancer_id.identify.advice import Advice
     from balancer_id.identify.posterior import Posterior
+    from balancer_id.identify.servo_delay import ServoDelay
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
@@ -95,6 +96,7 @@ class FitResult(Displayable):
     posterior: Posterior | None = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
+    _servo_delay: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -264,10 +266,39 @@ class FitResult(Displayable):
             from balancer_id.identify.advice import advise_fit
 
             moves = [t.input for t in self.match.data.trials]
-            share = self.coupling.viscosity_factor  # simulated once, for the coupling
-            advice = advise_fit(self.match.model, self.values, moves, today=share)
+            late = self.servo_delay
+            if late is not None and late.use_delay and late.delayed_values is not None:
+                # checked on the loop of the late servo, over the delay's interval
+                lo, hi = late.interval or (late.tau_r, late.tau_r)
+                values = {k: late.delayed_values.get(k, v) for k, v in self.values.items()}
+                delays = (float(late.tau_r or 0.0), float(lo), float(hi))
+                advice = advise_fit(self.match.model, values, moves, delays=delays)
+            else:
+                share = self.coupling.viscosity_factor  # simulated once, for the coupling
+                advice = advise_fit(self.match.model, self.values, moves, today=share)
             object.__setattr__(self, "_advice", advice)  # a cache, not a change
         return self._advice
+
+    @property
+    def servo_delay(self) -> ServoDelay | None:
+        """Whether the robot's servo acts late (issue 31): the delay as an explanation
+        of the log beside a stiffer servo and a sensor's lag; None without a robot.
+
+        Derived from the fit alone, once, on first use.
+        """
+        if self.coupling is None:
+            return None
+        if self._servo_delay is None:
+            from balancer_id.identify.servo_delay import examine_servo_delay, move_forces
+
+            free = [n for n, e in self.match.parameters.items() if e.vary]
+            trials = self.match.data.trials
+            sources = [*self.trial_set.trials, *self.trial_set.loose]
+            found = examine_servo_delay(
+                self.match.model, self.values, free, trials, move_forces(trials, sources)
+            )
+            object.__setattr__(self, "_servo_delay", found)  # a cache, not a change
+        return self._servo_delay
 
     def per_trial_fits(self) -> Sequence[PerTrialFit]:
         """Each trial fitted alone from the joint fit; computed once, then reused.
@@ -404,6 +435,8 @@ class FitResult(Displayable):
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()
             out["advice"] = self.advice.to_dict() if self.advice is not None else None
+            late = self.servo_delay
+            out["servo_delay"] = late.to_dict() if late is not None else None
         if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
         if self.tracking is not None:

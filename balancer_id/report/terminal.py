@@ -512,6 +512,9 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
             f"({_coupling_word(result['coupling'])}); "
             f"dominated by {result['coupling'].get('dominant', '')}"
         )
+    late = result.get("servo_delay")
+    for line in late.get("lines", []) if late else []:
+        console.print(line, markup=False)
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
 
