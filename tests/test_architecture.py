@@ -396,14 +396,15 @@ def test_every_command_that_reads_logs_takes_every_reading_option_declared_once(
 
 def test_a_fit_job_refuses_option_combinations_before_reading_a_log(tmp_path):
     from balancer_id.workflows.fit_logs import FitJob
+    from balancer_id.workflows.request import FitRequest
 
     missing = str(tmp_path / "not-there.csv")  # never read: the combination fails first
     with pytest.raises(UsageError, match="--track follows one session's fit"):
-        FitJob((missing,), group_by="run", track=("D0",)).run()
+        FitJob(FitRequest((missing,), track=("D0",)), group_by="run").run()
     with pytest.raises(UsageError, match="--starts 1001: give at most 1000"):
-        FitJob((missing,), starts=1001).run()
+        FitJob(FitRequest((missing,), starts=1001)).run()
     with pytest.raises(UsageError, match="--per-log fits all logs at once"):
-        FitJob((missing,), per_log=("m_a",), series=tmp_path / "s.csv").run()
+        FitJob(FitRequest((missing,), per_log=("m_a",)), series=tmp_path / "s.csv").run()
 
 
 def test_simulate_log_checks_its_values_as_the_command_does(tmp_path):

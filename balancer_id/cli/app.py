@@ -204,11 +204,14 @@ def fit(
     Example: balancer-id fit sample_logs/paper_balancer.csv --model viscous+karnopp
     """
     from balancer_id.workflows.fit_logs import FitJob
+    from balancer_id.workflows.request import FitRequest
 
-    job = FitJob(
+    request = FitRequest(
         tuple(str(p) for p in logs), model, assignments(fix, "--fix"), options, per_trial,
-        starts, trajectory_text, _files(effects_file), names(track), names(per_log), params,
-        assignments(start_values, "--start"), bounds(bounds_text), posterior,
+        starts, trajectory_text, _files(effects_file), names(track), names(per_log),
+    )
+    job = FitJob(
+        request, params, assignments(start_values, "--start"), bounds(bounds_text), posterior,
         tuple(prior or ()), group_by, report, save, series, overwrite, not no_cache,
     )
     with stage(f"fitting {model or 'variable_viscosity'} ({starts or 'default'} start(s))"):
@@ -245,6 +248,8 @@ def simulate(
     json_out: JsonOpt = False,
     params: Annotated[Path | None, Opt("--params", "FILE", "The model and values of 'fit "
                                        "--save' (or --json).")] = None,
+    servo_delay: Annotated[float, Opt("--servo-delay", "NUMBER", "With a robot servo: it acts "
+                                      "this late (s).")] = 0.0,
     quiet: QuietOpt = False,
 ) -> None:
     """Write a synthetic log in PASCO Capstone CSV format (one run per thrust).
@@ -263,7 +268,7 @@ def simulate(
         out, model=model, values=assignments(param, "--param"), params=params,
         thrusts=floats(thrust, "--thrust") or [], sensor=sensor, rest_s=rest,
         duration_s=duration, trajectory_text=trajectory_text, seed=seed,
-        effects_files=effects_file or (), overwrite=overwrite,
+        effects_files=effects_file or (), overwrite=overwrite, servo_delay_s=servo_delay,
     )
     if json_out:
         emit_json(done.to_dict())

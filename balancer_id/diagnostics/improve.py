@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, texts
+from balancer_id.records import ImproveRecord
 from balancer_id.status import step
 from balancer_id.verdicts import Verdict
 
@@ -121,6 +123,22 @@ class ImproveResult(Displayable):
     def final_model(self) -> str:
         """Spec of the last accepted model."""
         return self.steps[-1].model
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ImproveRecord:
+        """An improve read back from its JSON: a frozen
+        :class:`~balancer_id.records.ImproveRecord` whose ``to_dict()`` equals ``data``.
+
+        Parameters
+        ----------
+        data : mapping
+            A :meth:`to_dict` object.
+
+        Returns
+        -------
+        ImproveRecord
+        """
+        return ImproveRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``improve`` object."""

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from balancer_id.identify.coupling import Coupling, coupling_of
+from balancer_id.identify.coupling import Coupling, coupling_of, delay_margin_of
 from balancer_id.model.spec import Model
 from balancer_id.simulation.engine import TrialInput, simulate_many
 from balancer_id.simulation.inputs import Thrust
@@ -49,6 +49,9 @@ class ModeFigures:
     oscillation_hz: float
     damping_ratio: float
     stability_margin: float | None = None
+    #: The largest servo delay (s) the loop stands before it goes unstable (None when not
+    #: computed: a simulated mode).
+    delay_margin_s: float | None = None
 
     def to_dict(self) -> dict[str, float | None]:
         """JSON-ready dict."""
@@ -56,6 +59,7 @@ class ModeFigures:
             "oscillation_hz": self.oscillation_hz,
             "damping_ratio": self.damping_ratio,
             "stability_margin": self.stability_margin,
+            "delay_margin_s": self.delay_margin_s,
         }
 
 
@@ -88,6 +92,9 @@ class Setting:
     #: False when the simulated mode contradicts the prediction (see
     #: :func:`check_by_simulation`); None before the check.
     confirmed: bool | None = None
+    #: With a servo delay: the least damping ratio over the delay's interval and the
+    #: interval (``{"tau_r_s": [lo, hi], "damping_ratio_min": ..}``); None without one.
+    over_delay: dict[str, Any] | None = None
 
     @property
     def change(self) -> float | None:
@@ -107,6 +114,7 @@ class Setting:
             "predicted": None if self.predicted is None else self.predicted.to_dict(),
             "simulated": None if self.simulated is None else self.simulated.to_dict(),
             "confirmed": self.confirmed,
+            "over_delay": self.over_delay,
             "note": self.note,
         }
 
@@ -132,6 +140,9 @@ class Advice:
     now: ModeFigures
     settings: list[Setting] = field(default_factory=list)
     viscosity_factor: float = 1.0
+    #: The servo delays (s) every setting must reach the target at (the estimate first,
+    #: then its interval's ends); empty: the undelayed loop.
+    delays: tuple[float, ...] = ()
 
     @property
     def needed(self) -> bool:
@@ -161,6 +172,7 @@ class Advice:
             "settings": [s.to_dict() for s in self.settings],
             "smallest_change": None if best is None else best.parameter,
             "viscosity_factor": self.viscosity_factor,
+            "servo_delay_s": list(self.delays) if self.delays else None,
         }
 
     def lines(self) -> list[str]:
@@ -190,9 +202,16 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
         if fac < 0.999
         else ""
     )
+    delays = advice.get("servo_delay_s") or []
+    late = f" with the servo {1e3 * delays[0]:.0f} ms late," if delays else ""
+    margin = (
+        f"unstable beyond a {1e3 * now['delay_margin_s']:.0f} ms servo delay"
+        if delays and now.get("delay_margin_s") is not None
+        else f"stability margin {now['stability_margin']:+.3g}"
+    )
     out = [
-        f"coupled mode today: {now['oscillation_hz']:.3g} Hz, damping ratio "
-        f"{now['damping_ratio']:.3g}, stability margin {now['stability_margin']:+.3g}{seen}"
+        f"coupled mode today:{late} {now['oscillation_hz']:.3g} Hz, damping ratio "
+        f"{now['damping_ratio']:.3g}, {margin}{seen}"
     ]
     if not advice["needed"]:
         out.append(f"the damping ratio is already at least {target:g}: no change needed")
@@ -203,11 +222,21 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
         if s["advised"] is None or p is None:
             out.append(f"  {s['what']} alone: not reachable ({s['note']})")
             continue
+        margin = "" if delays else f", margin {p['stability_margin']:+.3g}"
         text = (
             f"  {s['what']}: {s['current']:.4g} -> {s['advised']:.4g} "
             f"({s['change_percent'] or 0.0:+.0f} %): {p['oscillation_hz']:.3g} Hz, "
-            f"damping {p['damping_ratio']:.3g}, margin {p['stability_margin']:+.3g}"
+            f"damping {p['damping_ratio']:.3g}{margin}"
         )
+        over = s.get("over_delay")
+        if over:
+            lo, hi = over["tau_r_s"][0], over["tau_r_s"][-1]
+            text += (
+                f"; at least {over['damping_ratio_min']:.3g} for a servo delay of "
+                f"{1e3 * lo:.0f} .. {1e3 * hi:.0f} ms"
+            )
+        if p.get("delay_margin_s") is not None and np.isfinite(p["delay_margin_s"]):
+            text += f"; unstable beyond a {1e3 * p['delay_margin_s']:.0f} ms servo delay"
         sim = s.get("simulated")
         if sim is not None:
             text += (
@@ -233,7 +262,8 @@ def _coupling(values: Mapping[str, float], factor: float) -> Coupling:
 
 def _figures(values: Mapping[str, float], factor: float = 1.0) -> ModeFigures:
     c = _coupling(values, factor)
-    return ModeFigures(c.oscillation_hz, c.damping_ratio, c.stability_margin)
+    margin = delay_margin_of(values, factor)
+    return ModeFigures(c.oscillation_hz, c.damping_ratio, c.stability_margin, margin)
 
 
 def _ok(values: Mapping[str, float], target: float, factor: float = 1.0) -> bool:
@@ -247,6 +277,7 @@ def advise_setting(
     target: float = TARGET_DAMPING,
     bounds: tuple[float, float] | None = None,
     viscosity_factor: float | FactorOf = 1.0,
+    delays: Sequence[float] = (),
 ) -> Setting:
     """The value of one parameter nearest to today's that reaches the target damping.
 
@@ -268,38 +299,66 @@ def advise_setting(
         The effective viscosity during the settling as a share of ``D0`` (1 for a
         constant viscosity; see :func:`viscosity_factor`), or a function of the
         candidate value giving it (a setting changes the settling, and so the share).
+    delays : sequence of float
+        The servo's delay (s): its estimate first, then the ends of its interval. The
+        target must hold at every one (the loop of the late servo); empty: no delay.
 
     Returns
     -------
     Setting
-        Without ``simulated`` (see :func:`check_by_simulation`).
+        Without ``simulated`` (see :func:`check_by_simulation`); with ``over_delay``
+        when ``delays`` are given.
     """
     base = {k: float(v) for k, v in values.items()}
     base.setdefault("D0", 0.0)
+    base.pop("tau_r", None)
     current = float(base[parameter])
     share = viscosity_factor
     factor_of: FactorOf = share if callable(share) else (lambda _x: float(share))
+    worst_first = sorted({float(d) for d in delays}, reverse=True) or [0.0]
+    at = float(delays[0]) if len(delays) else 0.0
 
     def _ok_at(x: float) -> bool:
-        return _ok({**base, parameter: x}, target, factor_of(x))
+        return all(
+            _ok({**base, parameter: x, "tau_r": d}, target, factor_of(x)) for d in worst_first
+        )
 
     def _figures_at(x: float) -> ModeFigures:
-        return _figures({**base, parameter: x}, factor_of(x))
+        return _figures({**base, parameter: x, "tau_r": at}, factor_of(x))
+
+    def _setting(advised: float | None, note: str = "") -> Setting:
+        out = Setting(
+            parameter, current, advised, None if advised is None else _figures_at(advised),
+            note=note,
+        )  # fmt: skip
+        if len(delays) and advised is not None:
+            taus = sorted({float(d) for d in delays})
+            zetas = [
+                _coupling({**base, parameter: advised, "tau_r": d}, factor_of(advised))
+                for d in taus
+            ]
+            out.over_delay = {
+                "tau_r_s": taus,
+                "damping_ratio": [c.damping_ratio if c.stable else None for c in zetas],
+                "damping_ratio_min": min(
+                    (c.damping_ratio if c.stable else float("-inf")) for c in zetas
+                ),
+            }
+        return out
 
     if _ok_at(current):
-        return Setting(parameter, current, current, _figures_at(current), note="already reached")
+        return _setting(current, "already reached")
     ref = current if current > 0 else 1.0
-    grid = ref * np.logspace(-SEARCH_DECADES, SEARCH_DECADES, 801)
+    # the delayed loop's poles cost a root search each: a coarser grid (the boundary is
+    # refined by bisection below either way)
+    grid = ref * np.logspace(-SEARCH_DECADES, SEARCH_DECADES, 201 if len(delays) else 801)
     if bounds is not None:
         grid = grid[(grid >= bounds[0]) & (grid <= bounds[1])]
     ok = np.array([_ok_at(float(x)) for x in grid], dtype=bool)
     if not ok.any():
-        return Setting(
-            parameter,
-            current,
+        return _setting(
             None,
-            None,
-            note=f"no value in {float(grid[0]):.3g} .. {float(grid[-1]):.3g} reaches damping "
+            f"no value in {float(grid[0]):.3g} .. {float(grid[-1]):.3g} reaches damping "
             f"{target:g}"
             if grid.size
             else "no value allowed",
@@ -317,7 +376,7 @@ def advise_setting(
                 good = mid
             else:
                 bad = mid
-    return Setting(parameter, current, good, _figures_at(good))
+    return _setting(good)
 
 
 def advise(
@@ -326,6 +385,7 @@ def advise(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     viscosity_factor: float = 1.0,
     along: Mapping[str, FactorOf] | None = None,
+    delays: Sequence[float] = (),
 ) -> Advice:
     """Settings of ``D0``, ``c_r`` and ``k_r`` (each alone) that reach the target damping.
 
@@ -344,6 +404,9 @@ def advise(
         Per setting, the share as a function of its candidate value
         (:func:`factor_along`): re-evaluated at each candidate, since a setting changes
         the settling it is measured on. A setting not named keeps today's share.
+    delays : sequence of float
+        A late servo's delay (s), estimate first, then its interval's ends: every
+        setting must reach the target at each (see :func:`advise_setting`).
 
     Returns
     -------
@@ -352,12 +415,15 @@ def advise(
     """
     base = dict(values)
     base.setdefault("D0", 0.0)
+    base.pop("tau_r", None)
     today = float(viscosity_factor)
     per = dict(along or {})
     settings = [
-        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today)) for p in SETTINGS
+        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today), delays)
+        for p in SETTINGS
     ]
-    return Advice(target, _figures(base, today), settings, today)
+    now = {**base, "tau_r": float(delays[0]) if len(delays) else 0.0}
+    return Advice(target, _figures(now, today), settings, today, tuple(float(d) for d in delays))
 
 
 def mode_from_response(
@@ -421,8 +487,32 @@ def _simulate_move(model: Model, values: Mapping[str, float], move: TrialInput):
     grid = np.arange(t[0], t_end + CHECK_AFTER_S, dt)
     zg = np.interp(grid, t, zr)
     vg = np.interp(grid, t, vr, right=0.0)
+    if float(values.get("tau_r", 0.0)) > 0:  # a late servo: the delayed loop
+        return grid, _delayed_run(model, values, grid, zg, vg), t_end
     sim = simulate_many(model, values, [TrialInput(grid, Thrust.step(grid[0], 0.0), zg, vg)])[0]
     return grid, sim, t_end
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What :func:`viscosity_factor` and :func:`simulate_mode` read of a simulation."""
+
+    accel: np.ndarray
+    velocity: np.ndarray
+    operating_force: np.ndarray
+
+
+def _delayed_run(
+    model: Model, values: Mapping[str, float], grid: np.ndarray, zg: np.ndarray, vg: np.ndarray
+) -> _Run:
+    """The move simulated with the servo ``values["tau_r"]`` late."""
+    from balancer_id.simulation.delayed_servo import LANE_PARAMS, simulate_delayed_servo
+
+    full = {**model.resolve({k: v for k, v in values.items() if k in model.param_names})}
+    full["tau_r"] = float(values["tau_r"])
+    lane = np.array([float(full.get(n, 0.0)) for n in LANE_PARAMS])
+    a, h, v = simulate_delayed_servo(grid, zg, vg, lane)
+    return _Run(a[0], v[0], h[0])
 
 
 def simulate_mode(
@@ -613,6 +703,7 @@ def advise_fit(
     moves: Sequence[TrialInput],
     target: float = TARGET_DAMPING,
     today: float | None = None,
+    delays: Sequence[float] = (),
 ) -> Advice:
     """The whole advice for an identified robot-balancer pair, checked by simulation.
 
@@ -629,6 +720,10 @@ def advise_fit(
     today : float, optional
         Today's viscosity share when already known (the fit's coupling has it); None
         simulates it (:func:`viscosity_factor`).
+    delays : sequence of float
+        A late servo's delay (s): the estimate, then its interval's ends. The settings
+        are predicted on the delayed loop, must reach the target at every delay given,
+        and are simulated with the estimate (:mod:`~balancer_id.simulation.delayed_servo`).
 
     Returns
     -------
@@ -636,6 +731,9 @@ def advise_fit(
         Settings within the model's parameter bounds, predicted with the settling's
         effective viscosity (:func:`viscosity_factor`) and checked by simulation.
     """
+    values = {k: float(v) for k, v in values.items() if k != "tau_r"}
+    if len(delays) and float(delays[0]) > 0:
+        values["tau_r"] = float(delays[0])
     bounds = {p.name: (p.min, p.max) for p in model.params if p.name in SETTINGS}
     if today is None:
         today = viscosity_factor(model, values, moves[0]) if moves else 1.0
@@ -649,5 +747,5 @@ def advise_fit(
                 lo, hi = max(lo, bounds[name][0]), min(hi, bounds[name][1])
             if hi > lo > 0:
                 shares[name] = factor_along(model, values, moves[0], name, (lo, hi))
-    advice = advise(values, target, bounds, viscosity_factor=today, along=shares)
+    advice = advise(values, target, bounds, viscosity_factor=today, along=shares, delays=delays)
     return check_by_simulation(advice, model, values, moves)

@@ -25,12 +25,14 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
+from balancer_id.records import FitRecord, FrozenMapping
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
 if TYPE_CHECKING:
     from balancer_id.identify.advice import Advice
     from balancer_id.identify.posterior import Posterior
+    from balancer_id.identify.servo_delay import ServoDelay
 
 __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
@@ -49,19 +51,19 @@ class FitResult(Displayable):
     trial_set : TrialSet
         The trials fitted, the logs they came from, the reading options and the
         reference move.
-    fixed : dict of str to float
+    fixed : Mapping of str to float
         Parameters held at known values (``--fix``).
-    effects_files : list of str
+    effects_files : tuple of str
         User effect files the model was resolved with (``--effects-file``).
     coupling : Coupling or None
         Robot-balancer loop figures when the model needs a reference move (``servo``).
-    per_trial : list of PerTrialFit
+    per_trial : tuple of PerTrialFit
         Per-trial refits, once computed (:meth:`per_trial_fits`).
     include_per_trial : bool
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
     tracking : Tracking or None
         Parameters tracked in time within the session (``fit --track``, issue 33).
-    warnings : list of Note
+    warnings : tuple of Note
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
         The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
@@ -73,7 +75,9 @@ class FitResult(Displayable):
     -----
     A result is complete when returned (:func:`~balancer_id.identify.api.fit` and
     :func:`fit_match` compute the notes and the per-trial fits before returning it) and
-    immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`.
+    immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`,
+    its tables and lists are read-only (:class:`~balancer_id.records.FrozenMapping`,
+    tuples) and its match is sealed (:meth:`~balancer_id.identify.matching.MatchResult.seal`).
     What follows from it alone is derived on first use and cached: the per-trial fits of
     a result made without them (:meth:`per_trial_fits`) and a robot pair's settings
     advice (:attr:`advice`).
@@ -82,20 +86,26 @@ class FitResult(Displayable):
     match: MatchResult
     classic: ClassicResult
     trial_set: TrialSet = field(default_factory=TrialSet)
-    fixed: dict[str, float] = field(default_factory=dict)
-    effects_files: list[str] = field(default_factory=list)
+    fixed: Mapping[str, float] = field(default_factory=dict)
+    effects_files: Sequence[str] = ()
     coupling: Coupling | None = None
-    per_trial: list[PerTrialFit] = field(default_factory=list)
+    per_trial: Sequence[PerTrialFit] = ()
     include_per_trial: bool = False
-    warnings: list[Note | str] = field(default_factory=list)
+    warnings: Sequence[Note | str] = ()
     tracking: Any = None
     posterior: Posterior | None = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
+    _servo_delay: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.warnings = [as_note(w) for w in self.warnings]
+        # complete when made: the tables and lists read-only, the match sealed
+        self.fixed = FrozenMapping(self.fixed)
+        self.effects_files = tuple(self.effects_files)
+        self.per_trial = tuple(self.per_trial)
+        self.warnings = tuple(as_note(w) for w in self.warnings)
+        self.match.seal()
         self._frozen = True
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -256,24 +266,53 @@ class FitResult(Displayable):
             from balancer_id.identify.advice import advise_fit
 
             moves = [t.input for t in self.match.data.trials]
-            share = self.coupling.viscosity_factor  # simulated once, for the coupling
-            advice = advise_fit(self.match.model, self.values, moves, today=share)
+            late = self.servo_delay
+            if late is not None and late.use_delay and late.delayed_values is not None:
+                # checked on the loop of the late servo, over the delay's interval
+                lo, hi = late.interval or (late.tau_r, late.tau_r)
+                values = {k: late.delayed_values.get(k, v) for k, v in self.values.items()}
+                delays = (float(late.tau_r or 0.0), float(lo), float(hi))
+                advice = advise_fit(self.match.model, values, moves, delays=delays)
+            else:
+                share = self.coupling.viscosity_factor  # simulated once, for the coupling
+                advice = advise_fit(self.match.model, self.values, moves, today=share)
             object.__setattr__(self, "_advice", advice)  # a cache, not a change
         return self._advice
 
-    def per_trial_fits(self) -> list[PerTrialFit]:
+    @property
+    def servo_delay(self) -> ServoDelay | None:
+        """Whether the robot's servo acts late (issue 31): the delay as an explanation
+        of the log beside a stiffer servo and a sensor's lag; None without a robot.
+
+        Derived from the fit alone, once, on first use.
+        """
+        if self.coupling is None:
+            return None
+        if self._servo_delay is None:
+            from balancer_id.identify.servo_delay import examine_servo_delay, move_forces
+
+            free = [n for n, e in self.match.parameters.items() if e.vary]
+            trials = self.match.data.trials
+            sources = [*self.trial_set.trials, *self.trial_set.loose]
+            found = examine_servo_delay(
+                self.match.model, self.values, free, trials, move_forces(trials, sources)
+            )
+            object.__setattr__(self, "_servo_delay", found)  # a cache, not a change
+        return self._servo_delay
+
+    def per_trial_fits(self) -> Sequence[PerTrialFit]:
         """Each trial fitted alone from the joint fit; computed once, then reused.
 
         Returns
         -------
-        list of PerTrialFit
+        tuple of PerTrialFit
             One per trial whose fit succeeded.
         """
         if not self._per_trial_done:
             fits = fit_each_trial(
                 self.match.model, self.match.data.trials, self.values, self.fixed or None
             )
-            object.__setattr__(self, "per_trial", fits)  # a cache, not a change
+            object.__setattr__(self, "per_trial", tuple(fits))  # a cache, not a change
             object.__setattr__(self, "_per_trial_done", True)
         return self.per_trial
 
@@ -298,7 +337,7 @@ class FitResult(Displayable):
         if isinstance(model, Model):
             spec, fixed = model.spec, self.held(model)
         else:
-            spec, fixed = model or self.model, self.fixed
+            spec, fixed = model or self.model, dict(self.fixed)
         args = ["balancer-id", subcommand, *self.sources]
         args += ["--start" if subcommand == "improve" else "--model", spec]
         for name, value in fixed.items():
@@ -342,6 +381,25 @@ class FitResult(Displayable):
             out[name] = d
         return out
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FitRecord:
+        """A fit read back from its JSON (a cached or saved ``fit --json`` object).
+
+        The JSON does not carry the trials, so what reads back is a
+        :class:`~balancer_id.records.FitRecord`: frozen, its ``to_dict()`` equal to
+        ``data``, rendered as the fit it came from.
+
+        Parameters
+        ----------
+        data : mapping
+            A :meth:`to_dict` object.
+
+        Returns
+        -------
+        FitRecord
+        """
+        return FitRecord.from_dict(data)
+
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""
         trials = []
@@ -377,6 +435,8 @@ class FitResult(Displayable):
         if self.coupling is not None:
             out["coupling"] = self.coupling.to_dict()
             out["advice"] = self.advice.to_dict() if self.advice is not None else None
+            late = self.servo_delay
+            out["servo_delay"] = late.to_dict() if late is not None else None
         if self.include_per_trial and self.per_trial:
             out["per_trial"] = [p.to_dict() for p in self.per_trial]
         if self.tracking is not None:

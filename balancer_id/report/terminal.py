@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from balancer_id.diagnosis_fields import fact_lines
 from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
 from balancer_id.param_fields import PARAM_FIELDS, parameter_cells
@@ -370,6 +371,8 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
         f"above the floor {_fmt(m['excess_rmse'])} m/s²)"
     )
     console.print(result["summary"])
+    for line in fact_lines(result):
+        console.print(line, markup=False, highlight=False)
     tests = result["residual_tests"]
     groups = tests.get("parameter_groups")
     if groups:
@@ -509,6 +512,9 @@ def _print_robot(console: Console, result: dict[str, Any]) -> None:
             f"({_coupling_word(result['coupling'])}); "
             f"dominated by {result['coupling'].get('dominant', '')}"
         )
+    late = result.get("servo_delay")
+    for line in late.get("lines", []) if late else []:
+        console.print(line, markup=False)
     for line in advice_lines(result["advice"]) if result.get("advice") else []:
         console.print(line)
 

@@ -92,6 +92,7 @@ def synthetic_recordings(
     duration_s: float = 8.0,
     trajectory: Trapezoid | None = None,
     seed: int = 0,
+    servo_delay_s: float = 0.0,
 ) -> list[Recording]:
     """Simulate one run per thrust and record it as the sensor would.
 
@@ -113,11 +114,19 @@ def synthetic_recordings(
         A robot's reference move (``servo``), relative to each run's start.
     seed : int
         Seed of every random choice.
+    servo_delay_s : float
+        The robot's servo acts this late (s; ``servo`` with a viscosity only, see
+        :mod:`~balancer_id.simulation.delayed_servo`); 0 is the model as it stands.
 
     Returns
     -------
     list of Recording
         One per thrust, named ``Run #1``, ``Run #2``, ...
+
+    Raises
+    ------
+    ValueError
+        When ``servo_delay_s`` is given for a model or move it does not apply to.
     """
     sensor = sensor or SensorSettings()
     rng = np.random.default_rng(seed)
@@ -135,13 +144,19 @@ def synthetic_recordings(
             z_ref, v_ref = trajectory.evaluate(time)
         inputs.append(TrialInput(time, Thrust.step(rest_s, float(f_in)), z_ref, v_ref))
     sims = settled_simulation(model, params, inputs, dt)
+    if servo_delay_s > 0 and any(float(f) != 0.0 for f in thrusts):
+        raise ValueError("a servo delay applies to robot moves, which carry no thrust step")
+    delayed = _delayed_runs(model, params, inputs, servo_delay_s) if servo_delay_s > 0 else None
     recordings = []
     for k, sim in enumerate(sims):
-        specific = (sim.accel + sensor.g)[:, None] * up[None, :]
+        sim_accel, sim_force = (
+            (sim.accel, sim.operating_force) if delayed is None else delayed[k]
+        )
+        specific = (sim_accel + sensor.g)[:, None] * up[None, :]
         accel = specific + ar1_noise(
             rng, sensor.accel_noise, sensor.noise_correlation, specific.shape
         )
-        force = sensor.force_offset + sensor.force_sign * sim.operating_force
+        force = sensor.force_offset + sensor.force_sign * sim_force
         force = force + rng.normal(0.0, sensor.force_noise, force.shape)
         if sensor.quantize:
             accel = np.round(accel / ACCEL_RESOLUTION) * ACCEL_RESOLUTION
@@ -159,6 +174,33 @@ def synthetic_recordings(
             )
         )
     return recordings
+
+
+def _delayed_runs(
+    model: Model, params: Mapping[str, float], inputs: Sequence[TrialInput], tau_r: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Acceleration and servo force of each robot move with the servo ``tau_r`` late."""
+    from balancer_id.simulation.delayed_servo import (
+        LANE_PARAMS,
+        SUPPORTED_EFFECTS,
+        simulate_delayed_servo,
+    )
+
+    names = {e.name for e in model.effects}
+    if "servo" not in names or not names <= SUPPORTED_EFFECTS:
+        raise ValueError(
+            "a servo delay applies to the servo with at most a viscosity "
+            f"({', '.join(sorted(SUPPORTED_EFFECTS))}), not to {model.spec}"
+        )
+    values = {**model.resolve(params), "tau_r": float(tau_r)}
+    lane = np.array([float(values.get(n, 0.0)) for n in LANE_PARAMS])
+    out = []
+    for inp in inputs:
+        if inp.z_ref is None or inp.v_ref is None:
+            raise ValueError("a servo delay needs the robot's reference move (--trajectory)")
+        a, h, _ = simulate_delayed_servo(inp.time, inp.z_ref, inp.v_ref, lane)
+        out.append((a[0], h[0]))
+    return out
 
 
 #: RK4 steps are taken this fine against the fastest time constant of the model (RK4
@@ -300,6 +342,7 @@ def write_synthetic_log(
     trajectory: Trapezoid | None = None,
     seed: int = 0,
     overwrite: bool = False,
+    servo_delay_s: float = 0.0,
 ) -> list[Recording]:
     """Simulate and write a PASCO Capstone CSV (what ``balancer-id simulate`` does).
 
@@ -328,6 +371,8 @@ def write_synthetic_log(
         Seed of every random choice.
     overwrite : bool
         Replace an existing file; False refuses to.
+    servo_delay_s : float
+        The robot's servo acts this late (s); see :func:`synthetic_recordings`.
 
     Returns
     -------
@@ -350,6 +395,7 @@ def write_synthetic_log(
         duration_s=duration_s,
         trajectory=trajectory,
         seed=seed,
+        servo_delay_s=servo_delay_s,
     )
     write_log(Path(path), recordings, "pasco-capstone", overwrite=overwrite)
     return recordings

@@ -20,6 +20,7 @@ from balancer_id.diagnostics.vibration import VibrationComparison, compare_vibra
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write_text, check_outputs, inputs_of
 from balancer_id.identify.params_file import params_model, read_params_file
+from balancer_id.records import ComparisonRecord
 from balancer_id.status import tell
 from balancer_id.trials import ReadOptions, load_trials
 
@@ -49,6 +50,22 @@ class CompareRun:
     validation: Any = None
     vibration: VibrationComparison | None = None
     written: tuple[Path, ...] = ()
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ComparisonRecord:
+        """A comparison read back from its JSON: a frozen
+        :class:`~balancer_id.records.ComparisonRecord` whose ``to_dict()`` equals ``data``.
+
+        Parameters
+        ----------
+        data : mapping
+            A :meth:`to_dict` object (JSON-ready).
+
+        Returns
+        -------
+        ComparisonRecord
+        """
+        return ComparisonRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``compare --json`` object."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,8 +18,9 @@ from balancer_id import cache
 from balancer_id.arguments import at_least, trajectory
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write_text, check_outputs, inputs_of
+from balancer_id.records import FitRecord, ResultRecord
 from balancer_id.status import tell
-from balancer_id.trials import ReadOptions, load_trials
+from balancer_id.trials import load_trials
 from balancer_id.workflows.request import FitRequest
 
 __all__ = ["MAX_STARTS", "FitJob", "FitRun", "track_series_path"]
@@ -49,17 +50,23 @@ class FitRun:
 
     Attributes
     ----------
-    out : dict
-        The JSON object (``{"groups": [...]}`` with ``group_by``).
+    result : ResultRecord
+        The result read back (:class:`~balancer_id.records.FitRecord`; a fresh fit and a
+        cached one are the same object): ``{"groups": [...]}`` with ``group_by``.
     shape : str
         ``fit``, ``per_log`` or ``groups``: how it is shown.
     written : tuple of Path
         The files written, in order.
     """
 
-    out: dict[str, Any]
+    result: ResultRecord
     shape: str = "fit"
     written: tuple[Path, ...] = ()
+
+    @property
+    def out(self) -> dict[str, Any]:
+        """The JSON object."""
+        return self.result.to_dict()
 
     @property
     def printer(self) -> str:
@@ -69,35 +76,20 @@ class FitRun:
     @property
     def trusted(self) -> bool:
         """False when any fit in it is not trusted (``trusted: false``)."""
-        fits = self.out["groups"] if self.shape == "groups" else [self.out]
-        return not any(isinstance(f, dict) and f.get("trusted") is False for f in fits)
+        return self.result.trusted
 
 
 @dataclass(frozen=True)
 class FitJob:
-    """A ``fit`` of logs, its options and its outputs (see :func:`balancer_id.fit` for the
-    options it shares).
+    """A ``fit`` of logs: what the result depends on (a :class:`FitRequest`), how it is
+    tuned and grouped, and its outputs (see :func:`balancer_id.fit` for the options).
 
     Attributes
     ----------
-    logs : tuple of str
-        The logs.
-    model : str or None
-        The model spec (None: the default, or ``params``' model).
-    fixed : dict of str to float
-        Held values (``--fix``); they win over ``params``'.
-    options : ReadOptions
-        How the logs are read.
-    per_trial : bool
-        Also fit each trial alone.
-    starts : int or None
-        Optimizer starts (1 .. :data:`MAX_STARTS`; None: the default search).
-    trajectory : str or None
-        The robot's reference move as given.
-    effects_files : tuple of str
-        User effect files.
-    track, per_log : tuple of str
-        Parameters tracked in time; parameters each log has its own value of.
+    request : FitRequest
+        The logs, the model, the ``--fix`` values, the reading options and the rest the
+        result depends on (the result cache's key); ``params``' held values join its
+        ``fixed`` when run.
     params : Path or None
         An earlier fit's JSON: its values of this model's parameters are held.
     start : dict of str to float
@@ -118,16 +110,7 @@ class FitJob:
         Serve and keep the result in the result cache (a tuned fit never is).
     """
 
-    logs: tuple[str, ...]
-    model: str | None = None
-    fixed: Mapping[str, float] = field(default_factory=dict)
-    options: ReadOptions = field(default_factory=ReadOptions)
-    per_trial: bool = False
-    starts: int | None = None
-    trajectory: str | None = None
-    effects_files: tuple[str, ...] = ()
-    track: tuple[str, ...] = ()
-    per_log: tuple[str, ...] = ()
+    request: FitRequest
     params: Path | None = None
     start: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
@@ -143,15 +126,16 @@ class FitJob:
     @property
     def track_series(self) -> Path | None:
         """The tracked parameters' CSV, beside ``series``."""
-        return track_series_path(self.series) if self.track and self.series else None
+        return track_series_path(self.series) if self.request.track and self.series else None
 
     def held(self) -> dict[str, float]:
         """The values held: ``params``' of this model's parameters, then ``fixed``."""
+        r = self.request
         if self.params is None:
-            return dict(self.fixed)
+            return dict(r.fixed)
         from balancer_id.identify.params_file import held_for_model
 
-        return {**held_for_model(self.params, self.model, self.effects_files), **self.fixed}
+        return {**held_for_model(self.params, r.model, r.effects_files), **r.fixed}
 
     def check(self) -> None:
         """Refuse, before any work, bad values, outputs and option combinations.
@@ -161,21 +145,22 @@ class FitJob:
         UsageError
             The first problem, naming its options.
         """
-        if self.starts is not None:
-            at_least(self.starts, 1, "--starts")
-            if self.starts > MAX_STARTS:
-                raise UsageError(f"--starts {self.starts}: give at most {MAX_STARTS} starts")
-        ins = inputs_of(self.logs, self.effects_files, self.trajectory)
+        r = self.request
+        if r.starts is not None:
+            at_least(r.starts, 1, "--starts")
+            if r.starts > MAX_STARTS:
+                raise UsageError(f"--starts {r.starts}: give at most {MAX_STARTS} starts")
+        ins = inputs_of(r.logs, r.effects_files, r.trajectory)
         check_outputs(
             {"--report": self.report, "--save": self.save, "--series": self.series,
              "--series (tracked)": self.track_series},
             ins + ([self.params] if self.params is not None else []),
             self.overwrite,
         )
-        if self.group_by is not None and self.track:
+        if self.group_by is not None and r.track:
             raise UsageError("--track follows one session's fit: not with --group-by")
-        if self.per_log and (self.group_by is not None or self.track or self.series is not None
-                             or self.report is not None):
+        if r.per_log and (self.group_by is not None or r.track or self.series is not None
+                          or self.report is not None):
             raise UsageError("--per-log fits all logs at once: not with --group-by, --track, "
                              "--series or --report")
 
@@ -195,6 +180,8 @@ class FitJob:
         Returns
         -------
         FitRun
+            A fresh fit and a cached one alike hold the result read back
+            (:class:`~balancer_id.records.FitRecord`).
         """
         held = self.held()
         self.check()
@@ -202,23 +189,21 @@ class FitJob:
         if self.group_by is not None:
             self._check_groups(priors)
             return self._fit_groups(held)
-        request = FitRequest(
-            logs=self.logs, model=self.model, fixed=held, options=self.options,
-            per_trial=self.per_trial, starts=self.starts, trajectory=self.trajectory,
-            effects_files=self.effects_files, track=self.track, per_log=self.per_log,
-        )
         tuned = bool(self.start or self.bounds or self.posterior or priors)
-        key = request.cache_key() if self.use_cache and not tuned else None
-        out = cache.load(key) if self.report is None and self.series is None else None
+        key = (replace(self.request, fixed=held).cache_key()
+               if self.use_cache and not tuned else None)
+        loaded = self.report is None and self.series is None
+        result = cache.load(key, FitRecord) if loaded else None
         written: list[Path] = []
-        if out is None:
-            out = self._fit(held, priors, written)
-            cache.store(key, out)
+        if result is None:
+            result = FitRecord.from_dict(self._fit(held, priors, written))
+            cache.store(key, result)
         if self.save is not None:
-            atomic_write_text(self.save, json.dumps(out, indent=2, allow_nan=False,
+            atomic_write_text(self.save, json.dumps(result.to_dict(), indent=2, allow_nan=False,
                                                     default=str) + "\n")
             written.append(self.save)
-        return FitRun(out, "per_log" if self.per_log else "fit", tuple(written))
+        shape = "per_log" if self.request.per_log else "fit"
+        return FitRun(result, shape, tuple(written))
 
     def _priors(self) -> list[Any]:
         if not self.priors:
@@ -228,32 +213,33 @@ class FitJob:
         return [parse_prior(item) for item in self.priors]
 
     def _trials(self) -> Any:
-        return load_trials(list(self.logs), self.options, trajectory(self.trajectory),
-                           self.trajectory)
+        r = self.request
+        return load_trials(list(r.logs), r.options, trajectory(r.trajectory), r.trajectory)
 
     def _fit_groups(self, held: dict[str, float]) -> FitRun:
         from balancer_id.identify.api import fit_groups
 
+        r = self.request
         out = fit_groups(
-            self._trials(), self.group_by or "", model=self.model, fixed=held,
-            effects_files=self.effects_files, per_trial=self.per_trial, n_starts=self.starts,
+            self._trials(), self.group_by or "", model=r.model, fixed=held,
+            effects_files=r.effects_files, per_trial=r.per_trial, n_starts=r.starts,
         ).to_dict()
-        return FitRun(out, "groups")
+        return FitRun(ResultRecord.from_dict(out), "groups")
 
     def _fit(self, held: dict[str, float], priors: list[Any], written: list[Path]) -> dict:
         from balancer_id.identify.api import fit
 
+        r = self.request
         if self.report is not None:
             from balancer_id.report.document import check_report_path
 
-            check_report_path(self.report, self.logs)
+            check_report_path(self.report, r.logs)
         trials = self._trials()
-        tell(f"fitting {self.model or 'variable_viscosity'} ({self.starts or 'default'} "
-             "start(s))")
+        tell(f"fitting {r.model or 'variable_viscosity'} ({r.starts or 'default'} start(s))")
         result: Any = fit(
-            trials, model=self.model, fixed=held, effects_files=self.effects_files,
-            per_trial=self.per_trial, n_starts=self.starts, start=self.start,
-            bounds=self.bounds, track=self.track, per_log=self.per_log,
+            trials, model=r.model, fixed=held, effects_files=r.effects_files,
+            per_trial=r.per_trial, n_starts=r.starts, start=self.start,
+            bounds=self.bounds, track=r.track, per_log=r.per_log,
             posterior=self.posterior, priors=priors,
         )
         out = result.to_dict()  # a robot pair's advice included (issue 9)

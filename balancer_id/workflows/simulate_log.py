@@ -53,6 +53,8 @@ class SimulatedLog:
         The seed of every random choice.
     runs : int
         The runs written.
+    servo_delay_s : float
+        The robot's servo acted this late (s; 0: at once).
     """
 
     out: Path
@@ -61,16 +63,20 @@ class SimulatedLog:
     thrusts: list[float] = field(default_factory=list)
     seed: int = 0
     runs: int = 0
+    servo_delay_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """The ``simulate --json`` object."""
-        return {
+        out = {
             "out": str(self.out),
             "model": self.model,
             "parameters": self.parameters,
             "thrusts": self.thrusts,
             "seed": self.seed,
         }
+        if self.servo_delay_s:
+            out["servo_delay_s"] = self.servo_delay_s
+        return out
 
 
 def check_ranges(
@@ -135,6 +141,30 @@ def _check_sensor(sensor: SensorSettings, rest_s: float, duration_s: float) -> N
         raise UsageError(f"--tilt {sensor.tilt_deg}: give the sensor's tilt in degrees")
 
 
+#: Longest servo delay ``simulate`` writes (s): beyond it no robot loop is stable.
+MAX_SERVO_DELAY_S = 1.0
+
+
+def _check_servo_delay(delay: float, model: Any, thrusts: Sequence[float]) -> None:
+    """Refuse a servo delay the delayed loop does not simulate (exit 2, one line)."""
+    if delay == 0:
+        return
+    from balancer_id.simulation.delayed_servo import SUPPORTED_EFFECTS
+
+    if not 0 < delay <= MAX_SERVO_DELAY_S:
+        raise UsageError(
+            f"--servo-delay {delay:g}: give a delay in seconds in 0 .. {MAX_SERVO_DELAY_S:g}"
+        )
+    names = {e.name for e in model.effects}
+    if "servo" not in names or not names <= SUPPORTED_EFFECTS:
+        raise UsageError(
+            f"--servo-delay applies to a robot's servo with at most a viscosity "
+            f"(e.g. --model variable_viscosity+servo), not to {model.spec}"
+        )
+    if any(float(f) != 0.0 for f in thrusts):
+        raise UsageError("--servo-delay: a robot move carries no thrust step; give --thrust 0")
+
+
 def simulate_log(
     out: str | Path,
     *,
@@ -149,6 +179,7 @@ def simulate_log(
     seed: int = 0,
     effects_files: Sequence[str | Path] = (),
     overwrite: bool = False,
+    servo_delay_s: float = 0.0,
 ) -> SimulatedLog:
     """Check everything, simulate one run per thrust and write a PASCO Capstone CSV.
 
@@ -176,6 +207,9 @@ def simulate_log(
         User effect files the model may name.
     overwrite : bool
         Replace ``out`` when it exists.
+    servo_delay_s : float
+        The robot's servo acts this late (s, ``--servo-delay``): the servo with a
+        viscosity only, robot moves only (thrust 0).
 
     Returns
     -------
@@ -200,11 +234,14 @@ def simulate_log(
         raise UsageError(f"--seed {seed}: give a seed >= 0")
     move = trajectory(trajectory_text)
     mdl.require_reference_move(move)
+    _check_servo_delay(servo_delay_s, mdl, thrusts)
     _check_sensor(sensor, rest_s, duration_s)
     inputs = inputs_of([], effects_files, trajectory_text) + ([params] if params else [])
     check_outputs({"--out": out}, inputs, overwrite)
     recs = write_synthetic_log(
         out, mdl, true_values, thrusts, sensor=sensor, rest_s=rest_s, duration_s=duration_s,
-        trajectory=move, seed=seed, overwrite=overwrite,
+        trajectory=move, seed=seed, overwrite=overwrite, servo_delay_s=servo_delay_s,
     )
-    return SimulatedLog(Path(out), mdl.spec, dict(true_values), thrusts, seed, len(recs))
+    return SimulatedLog(
+        Path(out), mdl.spec, dict(true_values), thrusts, seed, len(recs), servo_delay_s
+    )
