@@ -145,3 +145,16 @@ def test_a_new_field_of_the_diagnosis_is_one_line_of_the_field_list(diagnosed, m
     assert line in diagnosed.summary()
     section = diagnosis_section(diagnosed)
     assert any(isinstance(b, Paragraph) and b.text == line for b in section.blocks)
+
+
+def test_a_comparison_reads_back_and_renders_as_it_did():
+    from balancer_id.jsonsafe import json_ready
+    from balancer_id.records import ComparisonRecord
+    from balancer_id.workflows.compare_logs import CompareRun, compare_logs
+
+    run = compare_logs([SAMPLE_LOGS / "paper_balancer.csv"], "viscous")
+    data = json_ready(run.to_dict())
+    back = CompareRun.from_dict(json.loads(json.dumps(data)))
+    assert isinstance(back, ComparisonRecord) and back.models == ["viscous"]
+    assert back.to_dict() == data
+    assert _terminal(back.printer, back.to_dict()) == _terminal("print_compare", run.to_dict())

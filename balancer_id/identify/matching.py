@@ -17,7 +17,7 @@ from balancer_id.identify.metrics import correlation_time, error_metrics
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note
-from balancer_id.records import FrozenMapping
+from balancer_id.records import FrozenDict
 from balancer_id.simulation.kernel import OUT_COLUMNS
 from balancer_id.status import tell
 
@@ -127,11 +127,11 @@ class MatchResult(Displayable):
         if self._sealed:
             return self
         tables = {
-            "parameters": FrozenMapping(self.parameters),
-            "metrics": FrozenMapping(self.metrics),
+            "parameters": FrozenDict(self.parameters),
+            "metrics": FrozenDict(self.metrics),
             "correlations": None
             if self.correlations is None
-            else FrozenMapping({k: FrozenMapping(row) for k, row in self.correlations.items()}),
+            else FrozenDict({k: FrozenDict(row) for k, row in self.correlations.items()}),
             "warnings": tuple(self.warnings),
             "optima": tuple(self.optima),
             "trial_rmse": tuple(self.trial_rmse),

@@ -25,7 +25,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
-from balancer_id.records import FitRecord, FrozenMapping
+from balancer_id.records import FitRecord, FrozenDict
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
@@ -76,7 +76,7 @@ class FitResult(Displayable):
     A result is complete when returned (:func:`~balancer_id.identify.api.fit` and
     :func:`fit_match` compute the notes and the per-trial fits before returning it) and
     immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`,
-    its tables and lists are read-only (:class:`~balancer_id.records.FrozenMapping`,
+    its tables and lists are read-only (:class:`~balancer_id.records.FrozenDict`,
     tuples) and its match is sealed (:meth:`~balancer_id.identify.matching.MatchResult.seal`).
     What follows from it alone is derived on first use and cached: the per-trial fits of
     a result made without them (:meth:`per_trial_fits`) and a robot pair's settings
@@ -101,7 +101,7 @@ class FitResult(Displayable):
 
     def __post_init__(self) -> None:
         # complete when made: the tables and lists read-only, the match sealed
-        self.fixed = FrozenMapping(self.fixed)
+        self.fixed = FrozenDict(self.fixed)
         self.effects_files = tuple(self.effects_files)
         self.per_trial = tuple(self.per_trial)
         self.warnings = tuple(as_note(w) for w in self.warnings)
