@@ -5,7 +5,8 @@ log and effects file, the command's options, and the source of the installed
 balancer-id package itself (so a new version never serves an old result). Entries live
 in ``$BALANCER_ID_CACHE/results`` (default ``~/.cache/balancer-id/results``); set
 ``BALANCER_ID_NO_CACHE=1`` or pass ``--no-cache`` to bypass it. Only plain JSON results
-are cached; reports and plots are always made anew.
+are cached, read back as objects (:mod:`balancer_id.records`); reports and plots are
+always made anew.
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ import stat
 from collections.abc import Iterable
 from functools import lru_cache, partial
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from balancer_id.errors import BalancerIdError
 from balancer_id.files import atomic_write_text, cache_root, private_folder
+from balancer_id.records import ResultRecord
+
+R = TypeVar("R", bound=ResultRecord)
 
 #: Version of the entry layout; entries of another version are recomputed.
 SCHEMA = 2
@@ -122,8 +126,8 @@ def _checksum(result: Any) -> str:
     return hashlib.sha256(json.dumps(result, sort_keys=True).encode()).hexdigest()
 
 
-def load(key: str | None) -> dict[str, Any] | None:
-    """A cached result, or None.
+def load(key: str | None, kind: type[R] = ResultRecord) -> R | None:  # type: ignore[assignment]
+    """A cached result, read back as an object, or None.
 
     An entry is served only when it is whole and unaltered: it must hold the schema
     version, its key and a SHA-256 of its result. A corrupted entry is deleted and the
@@ -133,12 +137,15 @@ def load(key: str | None) -> dict[str, Any] | None:
     ----------
     key : str or None
         A key from :func:`result_key`; None (an unreadable input) never hits.
+    kind : type of ResultRecord
+        What the result is read back as (:class:`~balancer_id.records.FitRecord` for a
+        fit): the object a fresh result of the command is shown from.
 
     Returns
     -------
-    dict or None
-        The stored result, or None when the cache is off, holds no valid entry for
-        ``key``, or is unsafe (writable by others).
+    ResultRecord or None
+        The stored result (its ``to_dict()`` the JSON stored), or None when the cache is
+        off, holds no valid entry for ``key``, or is unsafe (writable by others).
     """
     if key is None or not enabled():
         return None
@@ -162,22 +169,24 @@ def load(key: str | None) -> dict[str, Any] | None:
     if not valid:
         path.unlink(missing_ok=True)
         return None
-    return entry["result"]
+    return kind.from_dict(entry["result"])
 
 
-def store(key: str | None, result: dict[str, Any]) -> None:
+def store(key: str | None, result: ResultRecord | dict[str, Any]) -> None:
     """Keep a result (silently does nothing when the cache cannot be written).
 
     Parameters
     ----------
     key : str or None
         A key from :func:`result_key`; None stores nothing.
-    result : dict
-        The command's JSON-ready result. It is stored with its key, the schema version and
-        a checksum, written whole or not at all.
+    result : ResultRecord or dict
+        The command's result (its JSON-ready ``to_dict()``). It is stored with its key,
+        the schema version and a checksum, written whole or not at all.
     """
     if key is None or not enabled():
         return
+    if isinstance(result, ResultRecord):
+        result = result.to_dict()
     folder = _results_dir(create=True)
     if folder is None:
         return

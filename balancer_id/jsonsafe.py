@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,7 @@ def json_ready(obj: Any) -> Any:
         The same structure with lists for tuples and arrays, Python scalars for numpy
         scalars and None for non-finite floats.
     """
-    if isinstance(obj, dict):
+    if isinstance(obj, Mapping):  # a dict, or a complete result's read-only table
         return {k: json_ready(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
         return [json_ready(v) for v in obj]

@@ -57,6 +57,7 @@ CODES: dict[str, str] = {
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
     "fit.posterior_not_converged": "the posterior chain is short against its autocorrelation time",
     "fit.posterior_disagrees": "a credible interval differs from the Wald interval",
+    "fit.posterior_modes": "the posterior holds other optima than the fit's (separate valleys)",
     "fit.other": "another remark about the fit",
     # diagnosing
     "diagnose.not_white": "the residual is not white beyond the sensor's noise colour",

@@ -9,6 +9,7 @@ before it is drawn.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 __all__ = ["make_figure_text_safe", "one_line", "printable", "shown"]
@@ -97,7 +98,7 @@ def printable(obj: Any) -> Any:
         if obj.isprintable():
             return obj
         return "".join(ch if ch.isprintable() or ch == "\n" else repr(ch)[1:-1] for ch in obj)
-    if isinstance(obj, dict):
+    if isinstance(obj, Mapping):
         return {k: printable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
         return [printable(v) for v in obj]

@@ -70,10 +70,17 @@ def test_a_fit_reads_back_and_renders_as_it_did(fitted):
     assert _terminal(back.printer, back.to_dict()) == _terminal("print_fit", data)
 
 
-def test_a_diagnosis_reads_back_and_renders_as_it_did(fitted):
-    from balancer_id.diagnostics.diagnosis import Diagnosis, diagnose
+@pytest.fixture(scope="module")
+def diagnosed(fitted):
+    from balancer_id.diagnostics.diagnosis import diagnose
 
-    diagnosis = diagnose(fitted, discover=False)
+    return diagnose(fitted, discover=False)
+
+
+def test_a_diagnosis_reads_back_and_renders_as_it_did(diagnosed):
+    from balancer_id.diagnostics.diagnosis import Diagnosis
+
+    diagnosis = diagnosed
     data = diagnosis.to_dict()
     back = Diagnosis.from_dict(json.loads(json.dumps(data)))
     assert back.to_dict() == data and back.verdict == diagnosis.verdict
@@ -93,3 +100,61 @@ def test_a_cached_fit_is_the_object_a_fresh_fit_gives(tmp_path, monkeypatch):
     assert isinstance(fresh.result, FitRecord) and isinstance(cached.result, FitRecord)
     assert cached.result == fresh.result
     assert cached.out == fresh.out and cached.trusted == fresh.trusted
+
+
+def test_a_fit_result_cannot_be_changed_in_place(fitted):
+    """Deep enough: no field of the fit or of its match can be set, and their tables and
+    lists are read-only (the checks annotate a match before the fit seals it)."""
+    before = fitted.to_dict()
+    with pytest.raises(dataclasses.FrozenInstanceError, match="nfev"):
+        fitted.match.nfev = 0
+    for table in (fitted.fixed, fitted.match.metrics, fitted.match.parameters):
+        with pytest.raises(TypeError):
+            table["added"] = 1
+    for seq in (fitted.warnings, fitted.match.warnings, fitted.effects_files):
+        with pytest.raises(AttributeError):
+            seq.append("added")
+    assert fitted.to_dict() == before
+
+
+def test_a_new_field_of_the_diagnosis_is_one_line_of_the_field_list(diagnosed, monkeypatch):
+    """Traced change (issue 30): a field added to DIAGNOSIS_FIELDS (beside its dataclass
+    line) shows in the JSON, the terminal, the notebook and the report, with no renderer
+    edited."""
+    from balancer_id import diagnosis_fields
+    from balancer_id.diagnosis_fields import DiagnosisField
+    from balancer_id.diagnostics import diagnosis as diagnosis_module
+    from balancer_id.report.blocks import Paragraph
+    from balancer_id.report.sections import diagnosis_section
+
+    before = _terminal("print_diagnosis", diagnosed.to_dict())
+    new = DiagnosisField(
+        "excess_share",
+        lambda d: d.context.excess_rmse() / d.match.metrics["rmse"],
+        line=lambda v: f"share of the error above the noise floor: {v:.1%}",
+    )
+    fields = (*diagnosis_fields.DIAGNOSIS_FIELDS, new)
+    monkeypatch.setattr(diagnosis_fields, "DIAGNOSIS_FIELDS", fields)
+    monkeypatch.setattr(diagnosis_module, "DIAGNOSIS_FIELDS", fields)
+    data = diagnosed.to_dict()
+    share = diagnosed.context.excess_rmse() / diagnosed.match.metrics["rmse"]
+    assert data["excess_share"] == pytest.approx(share)
+    line = f"share of the error above the noise floor: {share:.1%}"
+    shown = _terminal("print_diagnosis", data)
+    assert line in shown and line not in before
+    assert line in diagnosed.summary()
+    section = diagnosis_section(diagnosed)
+    assert any(isinstance(b, Paragraph) and b.text == line for b in section.blocks)
+
+
+def test_a_comparison_reads_back_and_renders_as_it_did():
+    from balancer_id.jsonsafe import json_ready
+    from balancer_id.records import ComparisonRecord
+    from balancer_id.workflows.compare_logs import CompareRun, compare_logs
+
+    run = compare_logs([SAMPLE_LOGS / "paper_balancer.csv"], "viscous")
+    data = json_ready(run.to_dict())
+    back = CompareRun.from_dict(json.loads(json.dumps(data)))
+    assert isinstance(back, ComparisonRecord) and back.models == ["viscous"]
+    assert back.to_dict() == data
+    assert _terminal(back.printer, back.to_dict()) == _terminal("print_compare", run.to_dict())

@@ -4,6 +4,7 @@ its PDF tables stay on the page."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -72,16 +73,15 @@ def test_poorly_determined_parameters_are_a_symptom_not_a_reason_to_fix(diagnose
         "the data cannot determine m_a (standard error ...); fix them with --fix NAME=VALUE",
         "m_a",
     )
-    diagnosis.fit.warnings.append(note)
-    try:
-        (reworded,) = [
-            w
-            for w in diagnosis.fit_warnings()
-            if w.code == "fit.symptom" and "m_a (standard error ...)" in w.text
-        ]
-        said = [b.text for b in finding_section(diagnosis).blocks if isinstance(b, Paragraph)]
-    finally:
-        diagnosis.fit.warnings.remove(note)
+    # a fit is complete when made: the note comes with a fit made with it
+    fit = dataclasses.replace(diagnosis.fit, warnings=(*diagnosis.fit.warnings, note))
+    diagnosis = dataclasses.replace(diagnosis, fit=fit)
+    (reworded,) = [
+        w
+        for w in diagnosis.fit_warnings()
+        if w.code == "fit.symptom" and "m_a (standard error ...)" in w.text
+    ]
+    said = [b.text for b in finding_section(diagnosis).blocks if isinstance(b, Paragraph)]
     assert reworded.subject == "m_a"
     assert "symptom of the missing effect" in reworded.text
     assert "not a reason to hold it with --fix" in reworded.text

@@ -14,10 +14,9 @@ from typing import TYPE_CHECKING, Any
 
 from balancer_id.batch.rows import (
     INTERNAL_EXIT_CODE,
-    METRIC_COLUMNS,
     BatchRow,
     _Task,
-    judge_row,
+    take_fit,
 )
 from balancer_id.errors import UsageError
 
@@ -108,14 +107,7 @@ def _resumed_row(task: _Task, key: str | None) -> BatchRow | None:
         json=str(task.output),
     )
     if row.status == "ok":
-        row.n_trials = len(doc.get("trials", []))
-        row.parameters = {
-            name: {"value": p.get("value"), "stderr": p.get("stderr")}
-            for name, p in doc.get("parameters", {}).items()
-        }
-        row.metrics = {k: doc.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
-        row.warnings = [str(w) for w in doc.get("warnings", [])]
-        judge_row(row, doc)
+        take_fit(row, doc)
     else:
         row.error = str(doc.get("error", "failed"))
         row.exit_code = int(doc.get("exit_code") or INTERNAL_EXIT_CODE)

@@ -325,14 +325,7 @@ def _write_log_result(
         doc: dict[str, Any] = {"file": task.display, "status": "ok", **data}
         row.status = "ok"
         row.model = data.get("model", spec)
-        row.n_trials = len(data.get("trials", []))
-        row.parameters = {
-            name: {"value": p.get("value"), "stderr": p.get("stderr")}
-            for name, p in data.get("parameters", {}).items()
-        }
-        row.metrics = {k: data.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
-        row.warnings = [str(w) for w in data.get("warnings", [])]
-        judge_row(row, data)
+        take_fit(row, data)
     else:
         error = str(payload.get("error") or "failed")
         if task.display not in error:
@@ -358,7 +351,30 @@ def _write_log_result(
     return row
 
 
-def judge_row(row: BatchRow, doc: dict[str, Any]) -> None:
+def take_fit(row: BatchRow, doc: Mapping[str, Any]) -> None:
+    """Fill an identified log's row from its fit: the trials, the parameters, the
+    metrics, the warnings, then its trust and verdict (:func:`judge_row`).
+
+    A fresh worker's result and a result read back for ``--resume`` fill it alike.
+
+    Parameters
+    ----------
+    row : BatchRow
+        An identified log's row.
+    doc : mapping
+        The log's result (``fit`` JSON, with ``diagnosis`` under ``--diagnose``).
+    """
+    row.n_trials = len(doc.get("trials", []))
+    row.parameters = {
+        name: {"value": p.get("value"), "stderr": p.get("stderr")}
+        for name, p in doc.get("parameters", {}).items()
+    }
+    row.metrics = {k: doc.get("metrics", {}).get(k) for k in METRIC_COLUMNS}
+    row.warnings = [str(w) for w in doc.get("warnings", [])]
+    judge_row(row, doc)
+
+
+def judge_row(row: BatchRow, doc: Mapping[str, Any]) -> None:
     """Set a row's ``trusted`` and ``diagnosis_verdict`` from its log's JSON.
 
     Parameters

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from balancer_id.diagnosis_fields import DIAGNOSIS_FIELDS, fact_lines
 from balancer_id.diagnostics import adequacy, arena
 from balancer_id.diagnostics import discover as discovery_search
 from balancer_id.diagnostics.arena import (
@@ -173,8 +174,15 @@ class Diagnosis(Displayable):
     def _summary_warnings(self) -> list[str]:
         return texts(self.fit_warnings())
 
+    def _fact_values(self) -> dict[str, object]:
+        """The JSON values of the fields shown as one line (not the whole object)."""
+        from balancer_id.jsonsafe import json_ready
+
+        return {f.key: json_ready(f.of(self)) for f in DIAGNOSIS_FIELDS if f.line is not None}
+
     def _summary_extra(self) -> list[str]:
         lines = ["[[Diagnosis]]", f"    verdict: {self.verdict}", f"    {self.summary!s}"]
+        lines += [f"    {t}" for t in fact_lines(self._fact_values())]
         for t in self.checks:
             state = "passed" if t["passed"] else "FAILED"
             lines.append(f"    test {t['name']}: {state}; {t['text']}")
@@ -221,30 +229,12 @@ class Diagnosis(Displayable):
         return DiagnosisRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
-        """The CONTRACT.md ``diagnose`` object."""
+        """The CONTRACT.md ``diagnose`` object: each of
+        :data:`~balancer_id.diagnosis_fields.DIAGNOSIS_FIELDS`, in order."""
         from balancer_id.jsonsafe import json_ready
 
-        return json_ready(
-            {
-                "model": self.match.model.spec,
-                "metrics": {
-                    **self.match.metrics,
-                    "noise_floor": self.context.noise_floor,
-                    "excess_rmse": self.context.excess_rmse(),
-                },
-                "parameters": {k: p.to_dict() for k, p in self.match.parameters.items()},
-                "residual_tests": self.tests.to_dict(),
-                "verdict": self.verdict,
-                "summary": self.summary,
-                "suggestions": [s.to_dict() for s in self.suggestions],
-                "failed_candidates": self.failures,
-                "tests": self.checks,
-                "explanations": [e.to_dict() for e in self.explanations],
-                "ambiguity": self.ambiguity,
-                "notes": [n.to_dict() for n in self.notes],
-                "discovery": self.discovery.to_dict() if self.discovery is not None else None,
-            }
-        )
+        out: dict[str, object] = json_ready({f.key: f.of(self) for f in DIAGNOSIS_FIELDS})
+        return out
 
 
 def diagnose(
@@ -429,7 +419,7 @@ def _per_trial(fit: FitResult) -> tuple[list, list[str]]:
     """The per-trial fits and each one's run."""
     per = fit.per_trial_fits()
     source_of = {td.index: td.source for td in fit.match.data.trials}
-    return per, [source_of.get(p.index, "") for p in per]
+    return list(per), [source_of.get(p.index, "") for p in per]
 
 
 def _thin(xc: dict[str, object]) -> dict[str, object]:

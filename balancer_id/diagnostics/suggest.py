@@ -98,7 +98,8 @@ def suggest(
     suggestions: list[Suggestion] = []
     failures: list[str] = []
     trials = list(match.data.trials)
-    refitted = _refit_candidates(cands, ctx, trials, match, fit.fixed or None, fit.classic, threads)
+    fixed = dict(fit.fixed) or None
+    refitted = _refit_candidates(cands, ctx, trials, match, fixed, fit.classic, threads)
     for cand, sig, refit, sig_failure in refitted:
         if sig_failure:
             failures.append(sig_failure)

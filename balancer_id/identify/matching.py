@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import FrozenInstanceError, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -17,6 +17,7 @@ from balancer_id.identify.metrics import correlation_time, error_metrics
 from balancer_id.identify.starts import lag_floor
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note
+from balancer_id.records import FrozenDict
 from balancer_id.simulation.kernel import OUT_COLUMNS
 from balancer_id.status import tell
 
@@ -103,6 +104,42 @@ class MatchResult(Displayable):
     warnings: list[Note | str] = field(default_factory=list)
     #: The distinct optima of a multi-start fit, best first (empty for one start).
     optima: list[basins.Optimum] = field(default_factory=list)
+    _sealed: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if getattr(self, "_sealed", False):
+            raise FrozenInstanceError(f"a MatchResult is sealed in a FitResult; cannot set {name}")
+        object.__setattr__(self, name, value)
+
+    def seal(self) -> MatchResult:
+        """Make the fit complete: no field can be set and its tables (parameters, metrics,
+        correlations) and lists (warnings, optima, per-trial RMSE) are read-only.
+
+        The checks that follow the optimizer (the settled limits, the trials' scatter,
+        the timing, the profile intervals) annotate a match before it is sealed; a
+        :class:`~balancer_id.identify.result.FitResult` seals the match it holds.
+
+        Returns
+        -------
+        MatchResult
+            This match.
+        """
+        if self._sealed:
+            return self
+        tables = {
+            "parameters": FrozenDict(self.parameters),
+            "metrics": FrozenDict(self.metrics),
+            "correlations": None
+            if self.correlations is None
+            else FrozenDict({k: FrozenDict(row) for k, row in self.correlations.items()}),
+            "warnings": tuple(self.warnings),
+            "optima": tuple(self.optima),
+            "trial_rmse": tuple(self.trial_rmse),
+            "_sealed": True,
+        }
+        for name, value in tables.items():
+            object.__setattr__(self, name, value)
+        return self
 
     def _shown_match(self) -> MatchResult:
         return self
@@ -506,6 +543,11 @@ def match_trials(
 ) -> MatchResult:
     """Fit every free parameter of ``model`` to all ``trials`` at once.
 
+    The stages: hold what one thrust level cannot determine
+    (:func:`_hold_single_level`), place the start inside the bounds (:class:`_Box`), set
+    up the problem (:func:`_problem`), run the starts (:class:`_StartSearch`), collect
+    the best end and say where the starts disagree (:func:`_note_optima`).
+
     Parameters
     ----------
     model : Model
@@ -545,15 +587,39 @@ def match_trials(
     IdentificationError
         No trial, or the optimizer failed on every start.
     """
-    from scipy.optimize import least_squares
-
     if not trials:
         raise IdentificationError("no trial to fit; check the log with 'balancer-id inspect'")
-    fixed = dict(fixed or {})
+    held = dict(fixed or {})
+    notes = _hold_single_level(model, trials, start, held)
+    box = _Box.of(model, trials, start, held, bounds)
+    data = FitData.build(trials)
+    problem = _problem(model, data, box, bounds, diff_step)
+    search = _StartSearch(problem, model, trials, box, n_starts, seed, max_nfev, diff_step, notes)
+    best, ends = search.run()
+    result = _collect(model, best, problem, data, notes)
+    _note_optima(result, best, ends, box.free_names)
+    return result
+
+
+def _hold_single_level(
+    model: Model,
+    trials: Sequence[TrialData],
+    start: Mapping[str, float] | None,
+    fixed: dict[str, float],
+) -> list[Note | str]:
+    """Hold (in ``fixed``) each thrust-level parameter that fewer than two thrust levels
+    cannot determine, at its start value, with a note saying so.
+
+    At 0 N only (a robot's moves) a thrust-level parameter changes nothing: D0 is the
+    viscosity seen, and holding it at a guess costs no identification (an ``info`` note);
+    with a push it is a guess the others trade with (an ``error`` note).
+
+    Returns
+    -------
+    list of Note
+    """
     notes: list[Note | str] = []
     levels = thrust_levels(trials)
-    # at 0 N only (a robot's moves) a thrust-level parameter changes nothing: D0 is the
-    # viscosity seen, and holding it at a guess costs no identification
     pushed = any(abs(x) > 0 for x in levels)
     for name in model.thrust_level_names:
         if name in model.param_names and name not in fixed and len(levels) < 2:
@@ -575,123 +641,257 @@ def match_trials(
                     severity="error" if pushed else "info",
                 )
             )
-    values = dict(start or {})
-    values.update(fixed)
-    full = model.resolve(values)
-    names = model.param_names
-    base = np.array([full[n] for n in names], dtype=float)
-    free = [i for i, n in enumerate(names) if n not in fixed]
-    lo = np.array([model.params[i].min for i in free], dtype=float)
-    hi = np.array([model.params[i].max for i in free], dtype=float)
-    for name, (b_lo, b_hi) in (bounds or {}).items():
-        spec = model.param(name)
-        if not (spec.min <= b_lo < b_hi <= spec.max):  # NaN fails too
-            raise UsageError(
-                f"--bounds {name}={b_lo:g}:{b_hi:g}: give MIN < MAX inside the parameter's "
-                f"own range {spec.min:g}:{spec.max:g}"
-            )
-        i = names.index(name)
-        base[i] = float(np.clip(base[i], b_lo, b_hi))
-        if i in free:
-            lo[free.index(i)], hi[free.index(i)] = b_lo, b_hi
-    floor = lag_floor(trials)  # a drive lag shorter than the samples resolve is not fitted
-    for name in model.drive_lag_names:
-        i = names.index(name) if name in names else -1
-        if i in free and name not in (bounds or {}):
-            j = free.index(i)
-            lo[j] = max(lo[j], floor)
-    for j, i in enumerate(free):  # starts strictly inside the bounds
-        inner = 1e-3 * (hi[j] - lo[j]) if np.isfinite(hi[j] - lo[j]) else 1e-3
-        base[i] = float(np.clip(base[i], lo[j] + min(inner, abs(lo[j]) + 1e-9), hi[j] - inner))
-    data = FitData.build(trials)
-    problem = _Problem(model, data, base, free)
-    problem.lo, problem.hi = lo.copy(), hi.copy()
-    problem.user_bounds = set(bounds or {})
-    problem.lag_floor = floor
+    return notes
 
-    if free and diff_step is None:
-        problem.fun(base[free])  # the first start's evaluation, kept for the optimizer
+
+@dataclass
+class _Box:
+    """The start and the bounds of a fit: the whole parameter vector ``base`` (held
+    values in place, free ones strictly inside their bounds), the free indices and their
+    bounds ``lo``, ``hi``, and the shortest drive lag the samples resolve."""
+
+    names: list[str]
+    base: np.ndarray
+    free: list[int]
+    lo: np.ndarray
+    hi: np.ndarray
+    floor: float
+
+    @property
+    def free_names(self) -> list[str]:
+        """The free parameters' names."""
+        return [self.names[i] for i in self.free]
+
+    @classmethod
+    def of(
+        cls,
+        model: Model,
+        trials: Sequence[TrialData],
+        start: Mapping[str, float] | None,
+        fixed: Mapping[str, float],
+        bounds: Mapping[str, tuple[float, float]] | None,
+    ) -> _Box:
+        """The box of a fit: the model's bounds, narrowed by ``bounds`` (checked) and by
+        the lag floor, with the start clipped strictly inside.
+
+        Raises
+        ------
+        UsageError
+            A ``--bounds`` range that is empty or outside the parameter's own.
+        """
+        values = dict(start or {})
+        values.update(fixed)
+        full = model.resolve(values)
+        names = model.param_names
+        base = np.array([full[n] for n in names], dtype=float)
+        free = [i for i, n in enumerate(names) if n not in fixed]
+        lo = np.array([model.params[i].min for i in free], dtype=float)
+        hi = np.array([model.params[i].max for i in free], dtype=float)
+        for name, (b_lo, b_hi) in (bounds or {}).items():
+            spec = model.param(name)
+            if not (spec.min <= b_lo < b_hi <= spec.max):  # NaN fails too
+                raise UsageError(
+                    f"--bounds {name}={b_lo:g}:{b_hi:g}: give MIN < MAX inside the "
+                    f"parameter's own range {spec.min:g}:{spec.max:g}"
+                )
+            i = names.index(name)
+            base[i] = float(np.clip(base[i], b_lo, b_hi))
+            if i in free:
+                lo[free.index(i)], hi[free.index(i)] = b_lo, b_hi
+        floor = lag_floor(trials)  # a drive lag shorter than the samples resolve is not fitted
+        for name in model.drive_lag_names:
+            i = names.index(name) if name in names else -1
+            if i in free and name not in (bounds or {}):
+                j = free.index(i)
+                lo[j] = max(lo[j], floor)
+        for j, i in enumerate(free):  # starts strictly inside the bounds
+            inner = 1e-3 * (hi[j] - lo[j]) if np.isfinite(hi[j] - lo[j]) else 1e-3
+            base[i] = float(np.clip(base[i], lo[j] + min(inner, abs(lo[j]) + 1e-9), hi[j] - inner))
+        return cls(list(names), base, free, lo, hi, floor)
+
+
+def _problem(
+    model: Model,
+    data: FitData,
+    box: _Box,
+    bounds: Mapping[str, tuple[float, float]] | None,
+    diff_step: float | None,
+) -> _Problem:
+    """The fit's :class:`_Problem`, its first start evaluated.
+
+    Raises
+    ------
+    IdentificationError
+        The model's acceleration is not finite at the start values.
+    """
+    problem = _Problem(model, data, box.base, box.free)
+    problem.lo, problem.hi = box.lo.copy(), box.hi.copy()
+    problem.user_bounds = set(bounds or {})
+    problem.lag_floor = box.floor
+    if box.free and diff_step is None:
+        problem.fun(box.base[box.free])  # the first start's evaluation, kept for the optimizer
         finite = problem.finite
     else:
-        finite = bool(np.all(np.isfinite(data.packed.run(model, base)[:, 0])))
+        finite = bool(np.all(np.isfinite(data.packed.run(model, box.base)[:, 0])))
     if not finite:
         raise IdentificationError(
             f"model '{model.spec}' gives a non-finite acceleration at its start values; "
             "check the effects' terms (a user effect returning NaN or inf?)"
         )
-    free_names = [names[i] for i in free]
-    auto = n_starts is None
-    spread = basins.DEFAULT_SPREAD if auto and basins.wants_spread(model, free_names) else 0
-    count = spread if auto else max(int(n_starts or 1), 1) - 1
-    starts = [base[free]]
-    starts += basins.spread_starts(model, free_names, base[free], lo, hi, count, trials, seed)
-    mirrored = not auto
-    rounds = 0  # rounds of random starts after the designed ones
-    polish: int | None = None  # the start that goes on from a best end cut at its budget
+    return problem
 
-    stopped: list[np.ndarray] = []
 
-    def callback(intermediate_result: Any) -> None:
-        x = np.asarray(intermediate_result.x, dtype=float)
-        last = problem.converged(x, lo, hi)
-        if last is not None:
-            stopped.append(x)
-            stopped.append(last)
-            raise StopIteration
+class _StartSearch:
+    """The starts of one fit, run one after another, the lowest cost kept.
 
-    best = None
-    ends: list[_Outcome] = []
-    if not free:
-        r = problem.residual(base[free])
-        best = _Outcome(base[free], r, np.zeros((0, 0)), True, "no free parameter", 1)
-    k = 0
-    while free:
-        if k == len(starts) and not mirrored and best is not None:
-            mirrored = True  # the lag and the viscous time swapped answer a step alike
-            mirror = basins.mirror_start(model, free_names, best.x, trials)
+    The designed starts first (the given one and, for a default search on a cost with
+    basins, spread ones); then the mirror of the best end (the lag and the viscous time
+    swapped answer a step alike), a polish of a best end cut at its budget, and, while a
+    default search's best end stays suspect (:func:`_suspect`), rounds of random starts.
+    """
+
+    def __init__(
+        self,
+        problem: _Problem,
+        model: Model,
+        trials: Sequence[TrialData],
+        box: _Box,
+        n_starts: int | None,
+        seed: int,
+        max_nfev: int,
+        diff_step: float | None,
+        notes: list[Note | str],
+    ) -> None:
+        self.problem, self.model, self.trials, self.box = problem, model, trials, box
+        self.seed, self.max_nfev, self.diff_step, self.notes = seed, max_nfev, diff_step, notes
+        self.free_names = box.free_names
+        self.auto = n_starts is None
+        wants = self.auto and basins.wants_spread(model, self.free_names)
+        self.spread = basins.DEFAULT_SPREAD if wants else 0
+        count = self.spread if self.auto else max(int(n_starts or 1), 1) - 1
+        x0 = box.base[box.free]
+        self.starts = [x0, *self._spread_starts(count)]
+        self.mirrored = not self.auto
+        self.rounds = 0  # rounds of random starts after the designed ones
+        self.polish: int | None = None  # the start that goes on from a best end cut short
+        self.best: _Outcome | None = None
+        self.ends: list[_Outcome] = []
+        self._stopped: list[np.ndarray] = []
+
+    def _spread_starts(self, count: int) -> list[np.ndarray]:
+        box = self.box
+        return list(basins.spread_starts(
+            self.model, self.free_names, box.base[box.free], box.lo, box.hi, count,
+            self.trials, self.seed,
+        ))  # fmt: skip
+
+    def run(self) -> tuple[_Outcome, list[_Outcome]]:
+        """Run the starts.
+
+        Returns
+        -------
+        (_Outcome, list of _Outcome)
+            The best end (its ``nfev`` the whole search's) and every start's end.
+
+        Raises
+        ------
+        IdentificationError
+            The optimizer failed on every start.
+        """
+        box, problem = self.box, self.problem
+        if not box.free:
+            r = problem.residual(box.base[box.free])
+            self.best = _Outcome(
+                box.base[box.free], r, np.zeros((0, 0)), True, "no free parameter", 1
+            )
+        k = 0
+        while box.free and self._has_start(k):
+            k += 1
+            if len(self.starts) > 1:
+                tell(f"start {k}/{len(self.starts)}")
+            self._run_start(self.starts[k - 1], k)
+        if self.best is None:
+            raise IdentificationError(
+                f"fit of '{self.model.spec}' did not converge from any start; "
+                "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
+            )
+        self.best.nfev = problem.nfev
+        return self.best, self.ends
+
+    def _has_start(self, k: int) -> bool:
+        """Whether there is a ``k``-th start, adding the mirror, the polish or a round
+        of random starts once the ones before have run."""
+        best = self.best
+        if k == len(self.starts) and not self.mirrored and best is not None:
+            self.mirrored = True  # the lag and the viscous time swapped answer a step alike
+            mirror = basins.mirror_start(self.model, self.free_names, best.x, self.trials)
             if mirror is not None:
-                starts.append(basins.inside(mirror, lo, hi))
-        if k == len(starts) and auto and polish is None and best is not None and not best.success:
-            polish = len(starts)  # the best end ran out of its start's budget: go on from it
-            starts.append(best.x)
-        if k == len(starts):
-            if not (auto and _suspect(problem, best, free_names)):
-                break
-            if not spread:
-                spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
-                starts += basins.spread_starts(
-                    model, free_names, base[free], lo, hi, spread, trials, seed
-                )
-            elif rounds < basins.MORE_ROUNDS and basins.wants_spread(model, free_names):
-                # still suspect after the designed starts, on a cost with basins (limits,
-                # friction, lags): more starts drawn at random, a round at a time
-                rounds += 1
-                drawn = basins.spread_starts(
-                    model, free_names, base[free], lo, hi, spread + basins.MORE_STARTS, trials,
-                    seed,
-                )  # fmt: skip
-                starts += drawn[spread:]
-                spread += basins.MORE_STARTS
-            else:
-                break
-        x0 = starts[k]
-        k += 1
-        if len(starts) > 1:
-            tell(f"start {k}/{len(starts)}")
+                self.starts.append(basins.inside(mirror, self.box.lo, self.box.hi))
+        if (
+            k == len(self.starts)
+            and self.auto
+            and self.polish is None
+            and best is not None
+            and not best.success
+        ):
+            self.polish = len(self.starts)  # the best end ran out of its budget: go on
+            self.starts.append(best.x)
+        if k < len(self.starts):
+            return True
+        if not (self.auto and _suspect(self.problem, best, self.free_names)):
+            return False
+        if not self.spread:
+            self.spread = basins.DEFAULT_SPREAD  # a suspect end: look for another basin
+            self.starts += self._spread_starts(self.spread)
+        elif self.rounds < basins.MORE_ROUNDS and basins.wants_spread(self.model, self.free_names):
+            # still suspect after the designed starts, on a cost with basins (limits,
+            # friction, lags): more starts drawn at random, a round at a time
+            self.rounds += 1
+            drawn = self._spread_starts(self.spread + basins.MORE_STARTS)
+            self.starts += drawn[self.spread :]
+            self.spread += basins.MORE_STARTS
+        else:
+            return False
+        return True
+
+    def _keep(self, outcome: _Outcome) -> None:
+        self.ends.append(outcome)
+        if self.best is None or outcome.chisqr < self.best.chisqr:
+            self.best = outcome
+
+    def _run_start(self, x0: np.ndarray, k: int) -> None:
+        """Run the ``k``-th start (from 1): Gauss-Newton steps while they converge, then
+        the trust-region optimizer; keep its end."""
+        problem = self.problem
         used = problem.nfev
         # a default search's other starts look for a basin, not a last digit
-        whole = k == 1 or not auto or k - 1 == polish
-        budget = max_nfev if whole else min(max_nfev, basins.SPREAD_NFEV)
-        if diff_step is None:
-            x0, last = problem.gauss_newton(x0, lo, hi, used + budget)
+        whole = k == 1 or not self.auto or k - 1 == self.polish
+        budget = self.max_nfev if whole else min(self.max_nfev, basins.SPREAD_NFEV)
+        if self.diff_step is None:
+            x0, last = problem.gauss_newton(x0, self.box.lo, self.box.hi, used + budget)
             if last is not None:
                 r, jtj = problem.linear_step(x0, last)
-                outcome = _Outcome(x0 + last, r, jtj, True, CONVERGED, problem.nfev - used)
-                ends.append(outcome)
-                if best is None or outcome.chisqr < best.chisqr:
-                    best = outcome
-                continue
+                self._keep(_Outcome(x0 + last, r, jtj, True, CONVERGED, problem.nfev - used))
+                return
         problem.restart()
+        outcome = self._least_squares(x0, max(budget - (problem.nfev - used), 1))
+        if outcome is not None:
+            self._keep(outcome)
+
+    def _callback(self, intermediate_result: Any) -> None:
+        x = np.asarray(intermediate_result.x, dtype=float)
+        last = self.problem.converged(x, self.box.lo, self.box.hi)
+        if last is not None:
+            self._stopped.append(x)
+            self._stopped.append(last)
+            raise StopIteration
+
+    def _least_squares(self, x0: np.ndarray, max_nfev: int) -> _Outcome | None:
+        """One trust-region run from ``x0``, stopped where a Gauss-Newton step converges;
+        None (with a note) when it fails."""
+        from scipy.optimize import least_squares
+
+        problem, diff_step = self.problem, self.diff_step
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
@@ -699,40 +899,37 @@ def match_trials(
                     problem.fun if diff_step is None else problem.residual,
                     x0,
                     jac=problem.jac if diff_step is None else "2-point",
-                    bounds=(lo, hi),
+                    bounds=(self.box.lo, self.box.hi),
                     method="trf",
                     x_scale="jac",
                     ftol=1e-8,
                     xtol=1e-8,
                     gtol=1e-8,
-                    max_nfev=max(budget - (problem.nfev - used), 1),
+                    max_nfev=max_nfev,
                     diff_step=diff_step,
-                    callback=callback if diff_step is None else None,
+                    callback=self._callback if diff_step is None else None,
                 )
             except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
-                notes.append(Note("fit.other", f"a start failed: {exc}"))
-                continue
+                self.notes.append(Note("fit.other", f"a start failed: {exc}"))
+                return None
         x_end = ret.x
         message = str(ret.message)
-        if stopped:
-            x_end, last = stopped[0], stopped[1]
-            stopped.clear()
+        if self._stopped:
+            x_end, last = self._stopped[0], self._stopped[1]
+            self._stopped.clear()
             r, jtj = problem.linear_step(x_end, last)
             x_end = x_end + last
             message = CONVERGED
         else:
             r, jtj = problem.outcome(x_end)
-        outcome = _Outcome(x_end, r, jtj, ret.status > 0 or message == CONVERGED, message, ret.nfev)
-        ends.append(outcome)
-        if best is None or outcome.chisqr < best.chisqr:
-            best = outcome
-    if best is None:
-        raise IdentificationError(
-            f"fit of '{model.spec}' did not converge from any start; "
-            "check the trials with 'balancer-id inspect' or fix known parameters with --fix"
-        )
-    best.nfev = problem.nfev
-    result = _collect(model, best, problem, data, notes)
+        return _Outcome(x_end, r, jtj, ret.status > 0 or message == CONVERGED, message, ret.nfev)
+
+
+def _note_optima(
+    result: MatchResult, best: _Outcome, ends: list[_Outcome], free_names: list[str]
+) -> None:
+    """Say where the starts disagree (first) and keep the distinct optima of a
+    multi-start fit (with a note when there are several)."""
     disagreement = _starts_disagree(result, best, ends, free_names)
     if disagreement is not None:
         result.warnings.insert(0, disagreement)
@@ -743,7 +940,6 @@ def match_trials(
         )
         if len(result.optima) > 1:
             result.warnings.append(_optima_note(result.optima, len(ends)))
-    return result
 
 
 #: A residual correlated over more samples than this after the first start: the model

@@ -36,6 +36,7 @@ import numpy as np
 from balancer_id.errors import UsageError
 from balancer_id.identify.band import covariance_of
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.posterior_modes import bridge_weights, posterior_modes, region_of
 from balancer_id.notes import Note
 
 __all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
@@ -44,8 +45,15 @@ __all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
 CHAIN_TAUS = 50
 #: A credible end this far (a share of the Wald width) from the Wald end disagrees.
 DISAGREE_SHARE = 0.25
-#: A credible interval whose end is this near a bound (a share of its width) is one-sided.
-AT_BOUND_SHARE = 0.1
+#: The posterior piles against a bound (its credible interval is one-sided) when its
+#: ``PILE_QUANTILE`` quantile lies within ``PILE_SHARE`` of the equal-tailed interval's
+#: width from the bound: a density there of at least a quarter of the interval's mean.
+#: (A posterior that only tails off towards the bound, as one spanning two valleys of
+#: m_a from 0.6 to 15 kg above a support from 0.013 kg, keeps both tails.)
+PILE_QUANTILE = 0.5
+PILE_SHARE = 0.02
+#: Another valley of the posterior with at least this share of the samples is named.
+MODE_NOTE_WEIGHT = 0.05
 #: Acceptance fractions outside this range say the sampler is not mixing well.
 ACCEPTANCE_RANGE = (0.15, 0.75)
 
@@ -148,6 +156,9 @@ class Posterior:
         Convergence and disagreement with the Wald intervals.
     bounds : dict of str to (float, float)
         Each parameter's bounds (the uniform prior's support).
+    modes : list of dict
+        The valleys sampled (the fit's optimum first, then its other optima that fit
+        about alike): each one's ``values`` and ``weight`` (its share of the samples).
     """
 
     names: list[str]
@@ -165,6 +176,7 @@ class Posterior:
     seed: int = 0
     notes: list[Note] = field(default_factory=list)
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    modes: list[dict[str, object]] = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
@@ -178,10 +190,11 @@ class Posterior:
         """Credible intervals: equal-tailed, or one-sided where the posterior piles
         against a bound.
 
-        Where the equal-tailed interval's end is nearer a parameter's bound than
-        :data:`AT_BOUND_SHARE` of its width (the posterior is cut by the bound: D0 near
-        0), the interval runs from the bound to the ``level`` quantile instead, as the
-        profile interval ends at a bound the data do not exclude.
+        Where the posterior piles against a parameter's bound (its
+        :data:`PILE_QUANTILE` % quantile within :data:`PILE_SHARE` of the equal-tailed
+        interval's width from it: the posterior is cut by the bound, D0 near 0), the
+        interval runs from the bound to the ``level`` quantile instead, as the profile
+        interval ends at a bound the data do not exclude.
 
         Parameters
         ----------
@@ -199,9 +212,10 @@ class Posterior:
             lo, hi = (float(v) for v in np.percentile(x, [tail, 100 - tail]))
             b_lo, b_hi = self.bounds.get(n, (-np.inf, np.inf))
             width = hi - lo
-            if lo - b_lo < AT_BOUND_SHARE * width:
+            edge_lo, edge_hi = np.percentile(x, [PILE_QUANTILE, 100 - PILE_QUANTILE])
+            if edge_lo - b_lo < PILE_SHARE * width:
                 lo, hi = b_lo, float(np.percentile(x, 100 * level))
-            elif b_hi - hi < AT_BOUND_SHARE * width:
+            elif b_hi - edge_hi < PILE_SHARE * width:
                 lo, hi = float(np.percentile(x, 100 * (1 - level))), b_hi
             out[n] = (lo, hi)
         return out
@@ -269,13 +283,17 @@ class Posterior:
             "converged": self.converged,
             "priors": [p.to_dict() for p in self.priors],
             "seed": self.seed,
+            "modes": [dict(m) for m in self.modes],
         }
 
 
-def support(match: MatchResult, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+def support(
+    match: MatchResult, names: Sequence[str], modes: Sequence[np.ndarray] = ()
+) -> tuple[np.ndarray, np.ndarray]:
     """The uniform prior's support: the bounds, a positive parameter's within a factor
     :data:`~balancer_id.identify.intervals.PROFILE_FACTOR` of its fitted value (as the
-    profile is followed; 0 stays reachable where it is the bound).
+    profile is followed; 0 stays reachable where it is the bound), or of any other
+    optimum's value in ``modes``.
 
     The model's bounds hold any balancer (0.01 kg to 1e5 kg, D0 to 1e6 kg/s); flat over
     them, a ridge the data do not close (D0 and A both large) holds most of the prior's
@@ -287,6 +305,8 @@ def support(match: MatchResult, names: Sequence[str]) -> tuple[np.ndarray, np.nd
         The fit.
     names : sequence of str
         Its free parameters.
+    modes : sequence of numpy.ndarray
+        Other optima (values of ``names``) the support must hold too.
 
     Returns
     -------
@@ -295,26 +315,32 @@ def support(match: MatchResult, names: Sequence[str]) -> tuple[np.ndarray, np.nd
     from balancer_id.identify.intervals import PROFILE_FACTOR
 
     lo, hi = [], []
-    for n in names:
+    for j, n in enumerate(names):
         spec = match.model.param(n)
         est = match.parameters[n]
         a, b = spec.min, spec.max
         if a >= 0:
-            scale = max(abs(est.value), est.stderr or 0.0, 1e-12)
+            values = [abs(est.value), *(abs(float(m[j])) for m in modes)]
+            scale = max(max(values), est.stderr or 0.0, 1e-12)
             b = min(b, scale * PROFILE_FACTOR)
             if a > 0:
-                a = max(a, abs(est.value) / PROFILE_FACTOR)
+                a = max(a, min(values) / PROFILE_FACTOR)
         lo.append(a)
         hi.append(b)
     return np.array(lo, float), np.array(hi, float)
 
 
-def _log_posterior_fn(match: MatchResult, names: list[str], priors: Sequence[Prior]):
+def _log_posterior_fn(
+    match: MatchResult,
+    names: list[str],
+    priors: Sequence[Prior],
+    modes: Sequence[np.ndarray] = (),
+):
     """``log p(theta)`` of the free parameters ``names`` (a callable for emcee)."""
     model = match.model
     base = np.asarray(model.vector(match.values()), float)
     idx = [list(model.param_names).index(n) for n in names]
-    lo, hi = support(match, names)
+    lo, hi = support(match, names, modes)
     n = match.y.size
     k = len(names)
     s_min = float(np.sum(match.residual**2))
@@ -380,8 +406,8 @@ def _start_ensemble(
     n_walkers: int,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """Walkers around the optimum: a tenth of the Wald spread (or 1 %), reflected into the
-    bounds."""
+    """Walkers around an optimum: a tenth of the Wald spread (or 1 %; at most 5 % of a
+    positive parameter's value there), reflected into the bounds."""
     k = center.size
     if cov is not None and np.all(np.isfinite(cov)) and np.all(np.diag(cov) > 0):
         sd = np.sqrt(np.diag(cov))
@@ -389,6 +415,8 @@ def _start_ensemble(
         sd = 0.01 * np.maximum(np.abs(center), 1e-6)
     span = np.where(np.isfinite(hi - lo), hi - lo, np.inf)
     sd = np.minimum(0.1 * sd, 0.01 * span)
+    # another optimum than the fit's may sit at a smaller scale than the fit's errors
+    sd = np.where((lo >= 0) & (center > 0), np.minimum(sd, 0.05 * center), sd)
     sd = np.where(sd > 0, sd, 0.01 * np.maximum(np.abs(center), 1e-6))
     pos = center + rng.normal(size=(n_walkers, k)) * sd
     # reflected at the bounds (an optimum on a bound gets walkers on its inner side)
@@ -437,7 +465,6 @@ def sample_posterior(
     UsageError
         A prior on a parameter the fit did not vary.
     """
-    import emcee
 
     names = [n for n, p in match.parameters.items() if p.vary]
     for pr in priors:
@@ -449,24 +476,98 @@ def sample_posterior(
     if not names:
         raise UsageError("--posterior: the fit has no free parameter to sample")
     k = len(names)
+    modes = posterior_modes(match, names)
     walkers = n_walkers or max(16, 4 * k)
     walkers += walkers % 2
     rng = np.random.default_rng(seed)
-    log_p, lo, hi = _log_posterior_fn(match, names, priors)
+    log_p, lo, hi = _log_posterior_fn(match, names, priors, modes)
     center = np.array([match.parameters[n].value for n in names], float)
     cov = covariance_of(match)
-    start = _start_ensemble(center, cov[1] if cov else None, lo, hi, walkers, rng)
+    margin = 1e-6 * np.where(np.isfinite(hi - lo), hi - lo, np.maximum(np.abs(center), 1.0))
+    centres = np.clip(np.array([center, *modes], float), lo + margin, hi - margin)
     # a positive parameter is sampled as its logarithm (the prior stays flat in the
     # parameter: the Jacobian is added): the curved valley of D0 exp(-A h) is nearly
     # straight in (log D0, A), and a scale spanning decades is one line
-    logged = _logged(match, names, lo)
+    logged = _logged(match, names, lo, centres)
 
     def log_pu(u: np.ndarray) -> float:
         theta = _from_log(u, logged)
         lp = log_p(theta)
         return lp + float(np.sum(u[logged])) if np.isfinite(lp) else -np.inf
 
-    start = np.where(logged, np.log(np.maximum(start, 1e-300)), start)
+    u_centres = np.where(logged, np.log(np.maximum(centres, 1e-300)), centres)
+    nearest = region_of(u_centres)
+    began = time.monotonic()
+    runs = []
+    for j, c in enumerate(centres):
+        # each valley on its own: the posterior restricted to the points nearest it
+        def log_pk(u: np.ndarray, j: int = j) -> float:
+            if len(centres) > 1 and int(nearest(u)[0]) != j:
+                return -np.inf
+            return log_pu(u)
+
+        start = _start_ensemble(c, cov[1] if cov else None, lo, hi, walkers, rng)
+        start = np.where(logged, np.log(np.maximum(start, 1e-300)), start)
+        budget = (max_seconds - (time.monotonic() - began)) / (len(centres) - j)
+        runs.append(_run_chain(log_pk, start, rng, min_steps, max_steps, budget))
+    weights = bridge_weights([r.chain for r in runs], log_pu, nearest, rng)
+    # the valleys' samples in proportion to their weights, none drawn twice
+    total = min(len(r.chain) / w for r, w in zip(runs, weights, strict=True) if w > 0)
+    pooled = [
+        r.chain[rng.choice(len(r.chain), size=int(w * total), replace=False)]
+        for r, w in zip(runs, weights, strict=True)
+        if int(w * total) > 0
+    ]
+    samples = _from_log(np.concatenate(pooled), logged)
+    # the diagnostics of the valley whose chain is shortest against its autocorrelation
+    worst = min(runs, key=lambda r: r.steps / _longest(r.tau) if np.any(np.isfinite(r.tau)) else 0)
+    tau, steps, burn, thin = worst.tau, worst.steps, worst.burn, worst.thin
+    post = Posterior(
+        names=names,
+        samples=np.asarray(samples, float),
+        fitted={n: float(match.parameters[n].value) for n in names},
+        wald={n: match.parameters[n].wald_ci95 for n in names},
+        profile={
+            n: match.parameters[n].profile  # type: ignore[misc]
+            for n in names
+            if match.parameters[n].profile is not None
+        },
+        tau={n: float(t) for n, t in zip(names, tau, strict=True)},
+        acceptance=float(min(r.acceptance for r in runs)),
+        n_walkers=walkers,
+        n_steps=steps,
+        burn=burn,
+        thin=thin,
+        priors=list(priors),
+        seed=seed,
+        bounds={n: (float(a), float(b)) for n, a, b in zip(names, lo, hi, strict=True)},
+        modes=[
+            {"values": dict(zip(names, map(float, c), strict=True)), "weight": float(w)}
+            for c, w in zip(centres, weights, strict=True)
+        ],
+    )
+    post.notes.extend(posterior_notes(post))
+    return post
+
+
+@dataclass(frozen=True)
+class _Chain:
+    """One ensemble's run: samples after burn-in, thinned (the sampler's coordinates)."""
+
+    chain: np.ndarray
+    tau: np.ndarray
+    acceptance: float
+    steps: int
+    burn: int
+    thin: int
+
+
+def _run_chain(log_pu, start: np.ndarray, rng, min_steps: int, max_steps: int, seconds: float):
+    """An emcee ensemble from ``start`` until :data:`CHAIN_TAUS` autocorrelation times
+    long, ``max_steps`` or ``seconds`` (past ``min_steps``)."""
+    import emcee
+
+    walkers, k = start.shape
     # differential-evolution moves: about 2.5x shorter autocorrelation than the stretch
     # move on these fits (15 steps against 40, paper balancer, 16 walkers)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
@@ -482,7 +583,7 @@ def sample_posterior(
         while (
             steps < max_steps
             and steps < CHAIN_TAUS * _longest(tau)
-            and time.monotonic() - began < max_seconds
+            and time.monotonic() - began < seconds
         ):
             more = int(min(max_steps - steps, max(200, CHAIN_TAUS * _longest(tau) - steps)))
             state = sampler.run_mcmc(state, more, progress=False)
@@ -491,29 +592,14 @@ def sample_posterior(
     longest = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else steps / 10
     burn = min(int(2 * longest), steps // 2)
     thin = max(1, int(0.5 * float(np.nanmin(tau)))) if np.all(np.isfinite(tau)) else 1
-    samples = _from_log(sampler.get_chain(discard=burn, thin=thin, flat=True), logged)
-    post = Posterior(
-        names=names,
-        samples=np.asarray(samples, float),
-        fitted={n: float(match.parameters[n].value) for n in names},
-        wald={n: match.parameters[n].wald_ci95 for n in names},
-        profile={
-            n: match.parameters[n].profile  # type: ignore[misc]
-            for n in names
-            if match.parameters[n].profile is not None
-        },
-        tau={n: float(t) for n, t in zip(names, tau, strict=True)},
-        acceptance=float(np.mean(sampler.acceptance_fraction)),
-        n_walkers=walkers,
-        n_steps=steps,
-        burn=burn,
-        thin=thin,
-        priors=list(priors),
-        seed=seed,
-        bounds={n: (float(a), float(b)) for n, a, b in zip(names, lo, hi, strict=True)},
+    return _Chain(
+        sampler.get_chain(discard=burn, thin=thin, flat=True),
+        np.asarray(tau, float),
+        float(np.mean(sampler.acceptance_fraction)),
+        steps,
+        burn,
+        thin,
     )
-    post.notes.extend(posterior_notes(post))
-    return post
 
 
 #: A parameter that cannot be negative is sampled as its logarithm when its fitted value
@@ -529,14 +615,25 @@ LOG_AWAY = 3.0
 SPANS_DECADE = 10.0
 
 
-def _logged(match: MatchResult, names: Sequence[str], lo: np.ndarray) -> np.ndarray:
-    """Which parameters are sampled as their logarithm (see :data:`LOG_AWAY`)."""
+def _logged(
+    match: MatchResult, names: Sequence[str], lo: np.ndarray, centres: np.ndarray | None = None
+) -> np.ndarray:
+    """Which parameters are sampled as their logarithm (see :data:`LOG_AWAY`; also one
+    whose modes, ``centres``' rows, lie above 0 and span more than :data:`SPANS_DECADE`)."""
     out = []
-    for n, a in zip(names, lo, strict=True):
+    for j, (n, a) in enumerate(zip(names, lo, strict=True)):
         p = match.parameters[n]
         se = p.stderr if p.stderr is not None and math.isfinite(p.stderr) else math.inf
         ci = p.ci95
         decades = ci is not None and a >= 0 and ci[0] > 0 and ci[1] > SPANS_DECADE * ci[0]
+        # or its interval reaches more than a factor 10 above its fitted value (a ridge
+        # the profile follows to the support's top: D0 and A both large on a short log)
+        decades = decades or bool(
+            ci is not None and a >= 0 and p.value > 0 and ci[1] > SPANS_DECADE * p.value
+        )
+        if centres is not None and len(centres) > 1 and a >= 0:
+            c = centres[:, j]
+            decades = decades or bool(np.all(c > 0) and c.max() > SPANS_DECADE * c.min())
         out.append(bool(a > 0 or (a >= 0 and p.value > LOG_AWAY * se) or decades))
     return np.array(out, bool)
 
@@ -594,6 +691,23 @@ def posterior_notes(post: Posterior) -> list[Note]:
                 "fit.posterior_not_converged",
                 "the posterior chain's autocorrelation time could not be estimated: read its "
                 "intervals as rough",
+            )
+        )
+    held = [m for m in post.modes[1:] if float(m["weight"]) >= MODE_NOTE_WEIGHT]  # type: ignore[arg-type]
+    if held:
+        where = "; ".join(
+            ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())  # type: ignore[attr-defined]
+            + f" ({float(m['weight']):.0%})"  # type: ignore[arg-type]
+            for m in held
+        )
+        notes.append(
+            Note(
+                "fit.posterior_modes",
+                f"the posterior holds {len(held)} valley(s) besides the fit's optimum "
+                f"({float(post.modes[0]['weight']):.0%}; other optima that fit about alike): "
+                f"{where}; the credible intervals span them: the trials do not decide "
+                "between them",
+                severity="info",
             )
         )
     cred = post.credible()

@@ -25,7 +25,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
-from balancer_id.records import FitRecord
+from balancer_id.records import FitRecord, FrozenDict
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
@@ -51,19 +51,19 @@ class FitResult(Displayable):
     trial_set : TrialSet
         The trials fitted, the logs they came from, the reading options and the
         reference move.
-    fixed : dict of str to float
+    fixed : Mapping of str to float
         Parameters held at known values (``--fix``).
-    effects_files : list of str
+    effects_files : tuple of str
         User effect files the model was resolved with (``--effects-file``).
     coupling : Coupling or None
         Robot-balancer loop figures when the model needs a reference move (``servo``).
-    per_trial : list of PerTrialFit
+    per_trial : tuple of PerTrialFit
         Per-trial refits, once computed (:meth:`per_trial_fits`).
     include_per_trial : bool
         Whether :meth:`to_dict` shows :attr:`per_trial` (``--per-trial``).
     tracking : Tracking or None
         Parameters tracked in time within the session (``fit --track``, issue 33).
-    warnings : list of Note
+    warnings : tuple of Note
         What the user should know from the identification around the fit (the start,
         the move start, the profile intervals); strings given become ``fit.other`` notes.
         The fit's own notes are in ``match.warnings``; :attr:`all_notes` holds both.
@@ -75,7 +75,9 @@ class FitResult(Displayable):
     -----
     A result is complete when returned (:func:`~balancer_id.identify.api.fit` and
     :func:`fit_match` compute the notes and the per-trial fits before returning it) and
-    immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`.
+    immutable afterwards: setting any field raises :class:`dataclasses.FrozenInstanceError`,
+    its tables and lists are read-only (:class:`~balancer_id.records.FrozenDict`,
+    tuples) and its match is sealed (:meth:`~balancer_id.identify.matching.MatchResult.seal`).
     What follows from it alone is derived on first use and cached: the per-trial fits of
     a result made without them (:meth:`per_trial_fits`) and a robot pair's settings
     advice (:attr:`advice`).
@@ -84,12 +86,12 @@ class FitResult(Displayable):
     match: MatchResult
     classic: ClassicResult
     trial_set: TrialSet = field(default_factory=TrialSet)
-    fixed: dict[str, float] = field(default_factory=dict)
-    effects_files: list[str] = field(default_factory=list)
+    fixed: Mapping[str, float] = field(default_factory=dict)
+    effects_files: Sequence[str] = ()
     coupling: Coupling | None = None
-    per_trial: list[PerTrialFit] = field(default_factory=list)
+    per_trial: Sequence[PerTrialFit] = ()
     include_per_trial: bool = False
-    warnings: list[Note | str] = field(default_factory=list)
+    warnings: Sequence[Note | str] = ()
     tracking: Any = None
     posterior: Posterior | None = None
     _per_trial_done: bool = field(default=False, init=False, repr=False)
@@ -98,7 +100,12 @@ class FitResult(Displayable):
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.warnings = [as_note(w) for w in self.warnings]
+        # complete when made: the tables and lists read-only, the match sealed
+        self.fixed = FrozenDict(self.fixed)
+        self.effects_files = tuple(self.effects_files)
+        self.per_trial = tuple(self.per_trial)
+        self.warnings = tuple(as_note(w) for w in self.warnings)
+        self.match.seal()
         self._frozen = True
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -300,19 +307,19 @@ class FitResult(Displayable):
             object.__setattr__(self, "_servo_delay", found)  # a cache, not a change
         return self._servo_delay
 
-    def per_trial_fits(self) -> list[PerTrialFit]:
+    def per_trial_fits(self) -> Sequence[PerTrialFit]:
         """Each trial fitted alone from the joint fit; computed once, then reused.
 
         Returns
         -------
-        list of PerTrialFit
+        tuple of PerTrialFit
             One per trial whose fit succeeded.
         """
         if not self._per_trial_done:
             fits = fit_each_trial(
                 self.match.model, self.match.data.trials, self.values, self.fixed or None
             )
-            object.__setattr__(self, "per_trial", fits)  # a cache, not a change
+            object.__setattr__(self, "per_trial", tuple(fits))  # a cache, not a change
             object.__setattr__(self, "_per_trial_done", True)
         return self.per_trial
 
@@ -337,7 +344,7 @@ class FitResult(Displayable):
         if isinstance(model, Model):
             spec, fixed = model.spec, self.held(model)
         else:
-            spec, fixed = model or self.model, self.fixed
+            spec, fixed = model or self.model, dict(self.fixed)
         args = ["balancer-id", subcommand, *self.sources]
         args += ["--start" if subcommand == "improve" else "--model", spec]
         for name, value in fixed.items():

@@ -7,8 +7,6 @@ renderer draws (:class:`Paragraph`, :class:`Subheading`, :class:`Preformatted`,
 
 from __future__ import annotations
 
-import html
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,15 +93,3 @@ class Section:
         """The blocks followed by the figures (as :class:`Plot`)."""
         plots = [f if isinstance(f, Plot) else Plot(f) for f in self.figures]
         return [*self.blocks, *plots]
-
-
-# --------------------------------------------------------------------------------------
-# number formatting shared by the tables
-# --------------------------------------------------------------------------------------
-def _e(text: object) -> str:
-    """Escape text for HTML."""
-    return html.escape(str(text), quote=True)
-
-
-def _anchor(title: str) -> str:
-    return "s-" + (re.sub(r"[^a-z0-9]+", "-", title.lower()).strip("-") or "section")

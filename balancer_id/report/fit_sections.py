@@ -26,9 +26,9 @@ from balancer_id.report.blocks import (
     Section,
     Subheading,
     Table,
-    _anchor,
-    _e,
 )
+from balancer_id.report.html import anchor as _anchor
+from balancer_id.report.html import escape as _e
 from balancer_id.report.plots import (
     model_curves,
     plot_corner,

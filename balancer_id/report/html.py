@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import html
 import re
 from collections.abc import Sequence
 from html.parser import HTMLParser
@@ -16,10 +17,40 @@ from balancer_id.report.blocks import (
     Section,
     Subheading,
     Table,
-    _anchor,
-    _e,
 )
 from balancer_id.report.plots import figure_png
+
+
+def escape(text: object) -> str:
+    """Text made safe inside HTML (quotes too).
+
+    Parameters
+    ----------
+    text : object
+        Shown as ``str(text)``.
+
+    Returns
+    -------
+    str
+    """
+    return html.escape(str(text), quote=True)
+
+
+def anchor(title: str) -> str:
+    """The ``id`` of a section's heading (``s-`` and the title's lowercase words).
+
+    Parameters
+    ----------
+    title : str
+
+    Returns
+    -------
+    str
+    """
+    return "s-" + (re.sub(r"[^a-z0-9]+", "-", title.lower()).strip("-") or "section")
+
+
+_e, _anchor = escape, anchor
 
 CSS = """
 :root { --ink:#1d2330; --mute:#5b6474; --line:#d9dee7; --head:#eef2f7; --accent:#0b5cad; }

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from balancer_id.diagnosis_fields import fact_lines
 from balancer_id.numbers import format_number
 from balancer_id.report.blocks import (
     Cell,
@@ -79,6 +80,7 @@ def diagnosis_section(diagnosis: Diagnosis) -> Section:
             ],
         ),
         Paragraph(d["summary"]),
+        *(Paragraph(line) for line in fact_lines(d)),
     ]
     blocks += _residual_test_blocks(tests)
     if not d["suggestions"]:  # a table of headers only says nothing

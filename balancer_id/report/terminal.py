@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from balancer_id.diagnosis_fields import fact_lines
 from balancer_id.metric_fields import FIT_METRICS, metric_line
 from balancer_id.numbers import format_number
 from balancer_id.param_fields import PARAM_FIELDS, parameter_cells
@@ -370,6 +371,8 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
         f"above the floor {_fmt(m['excess_rmse'])} m/s²)"
     )
     console.print(result["summary"])
+    for line in fact_lines(result):
+        console.print(line, markup=False, highlight=False)
     tests = result["residual_tests"]
     groups = tests.get("parameter_groups")
     if groups:

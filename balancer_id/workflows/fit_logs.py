@@ -192,17 +192,18 @@ class FitJob:
         tuned = bool(self.start or self.bounds or self.posterior or priors)
         key = (replace(self.request, fixed=held).cache_key()
                if self.use_cache and not tuned else None)
-        out = cache.load(key) if self.report is None and self.series is None else None
+        loaded = self.report is None and self.series is None
+        result = cache.load(key, FitRecord) if loaded else None
         written: list[Path] = []
-        if out is None:
-            out = self._fit(held, priors, written)
-            cache.store(key, out)
+        if result is None:
+            result = FitRecord.from_dict(self._fit(held, priors, written))
+            cache.store(key, result)
         if self.save is not None:
-            atomic_write_text(self.save, json.dumps(out, indent=2, allow_nan=False,
+            atomic_write_text(self.save, json.dumps(result.to_dict(), indent=2, allow_nan=False,
                                                     default=str) + "\n")
             written.append(self.save)
         shape = "per_log" if self.request.per_log else "fit"
-        return FitRun(FitRecord.from_dict(out), shape, tuple(written))
+        return FitRun(result, shape, tuple(written))
 
     def _priors(self) -> list[Any]:
         if not self.priors:
