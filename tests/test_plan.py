@@ -75,6 +75,36 @@ def test_one_thrust_level_gets_another_level():
     assert any("A was held" in n for n in p.notes)
 
 
+def test_a_speed_limit_not_reached_gets_the_trial_that_reaches_it():
+    # a winding-speed limit at 1.05 m/s; the recorded steps (3 and 6 N, 4 s at 200 Hz)
+    # went 0.83 m/s at most, so the fit gives v_max only as a bound. The plan's trial must
+    # pass that bound in the balancer without the limit (simulated with it at its open
+    # bound, no trial went faster: "none of the trials tried adds information" before), and
+    # recording it on the true balancer turns the bound into a value
+    truth = {"m_a": 15.0, "T_a": 0.3, "D0": 3.0, "v_max": 1.05}
+    spec = "viscous+speed_limit"
+    rng = np.random.default_rng(11)
+    trials = step_trials(spec, truth, [3.0, -6.0], 0.03, rng, seconds=5.0)
+    first = fit(trials, model=spec)
+    v_max = first.match.parameters["v_max"]
+    assert v_max.not_reached == "above" and v_max.ci95[0] < truth["v_max"]
+    p = plan(first, count=1, separate=False)
+    (q,) = p.design.proposals
+    assert q.reaches == "v_max"
+    assert q.peak_speed >= 1.2 * max(v_max.ci95[0], p.fastest)
+    assert "reaches the bound" in p.proposal_text(1, q)
+    model = parse_model(spec)
+    inp = q.candidate.trial_input()
+    (sim,) = simulate_many(model, truth, [inp])
+    new = TrialData(
+        2, q.candidate.thrust_N, q.candidate.direction, q.candidate.rest_s, inp,
+        sim.accel + rng.normal(0, 0.03, inp.time.size),
+    )  # fmt: skip
+    both = fit([*trials, new], model=spec, profile=False).match.parameters["v_max"]
+    assert both.not_reached is None
+    assert abs(both.value - truth["v_max"]) < max(4 * both.stderr, 0.02)
+
+
 def test_d_optimal_and_bad_param(first):
     _, result = first
     p = plan(result, separate=False, param="all", count=1)

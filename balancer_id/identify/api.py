@@ -178,6 +178,51 @@ def fit_groups(trials: Sources, by: str, **kwargs: Any) -> GroupFits:
     return GroupFits(by, tuple(fits))
 
 
+#: Another optimum this many noise variances from the best fits as well at 95 %.
+AS_GOOD_SIGMA2 = 4.0
+#: A mass within this factor of a bound is pressed against it.
+PRESSED = 1.05
+
+
+def _on_a_bound(mdl, mass) -> bool:
+    """Whether a mass (an estimate or a value) lies on m_a's bound or within
+    :data:`PRESSED` of it."""
+    value = float(getattr(mass, "value", mass))
+    lo, hi = mdl.param("m_a").min, mdl.param("m_a").max
+    return bool(getattr(mass, "at_bound", None)) or not (PRESSED * lo < value < hi / PRESSED)
+
+
+def _inside_optimum(mdl, data, match, fixed, max_nfev, bounds):
+    """The fit from another optimum about as good whose mass lies inside its bounds, when
+    the best ended with m_a on one (else ``match``).
+
+    A step through a drive lag into a viscous mass answers alike with the lag and
+    ``m_a / D`` swapped (the mirror); a light cart's mirror ``m_a' = D T_a`` can sit on
+    m_a's lower bound (0.2 kg, 0.04 s, 0.25 kg/s: 0.01 kg), and the fit, ending there (or pressed
+    against it) as often as in the cart's own valley, said "nothing identified" or gave
+    the mirror. The refit keeps the
+    other optima and the note that the starts disagree (the trials do not decide).
+    """
+    for other in match.optima[1:]:
+        values = other.values
+        if other.delta_sigma2 > AS_GOOD_SIGMA2 or "m_a" not in values:
+            continue
+        if _on_a_bound(mdl, values["m_a"]):
+            continue
+        refit = match_trials(
+            mdl, data, start={**match.values(), **values}, fixed=fixed, n_starts=1,
+            max_nfev=max_nfev, bounds=bounds,
+        )  # fmt: skip
+        if refit.success and not _on_a_bound(mdl, refit.parameters["m_a"]):
+            refit.optima = match.optima
+            refit.warnings[:0] = [
+                w for w in match.warnings
+                if getattr(w, "code", None) in ("fit.starts_disagree", "fit.optima")
+            ]  # fmt: skip
+            return refit
+    return match
+
+
 def fit(
     trials: Sources,
     *,
@@ -352,6 +397,9 @@ def fit(
             "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
         )
     mass = match.parameters.get("m_a")
+    if mass is not None and mass.vary and _on_a_bound(mdl, mass) and "m_a" not in (bounds or {}):
+        match = _inside_optimum(mdl, data, match, fixed, max_nfev, bounds)
+        mass = match.parameters["m_a"]
     if mass is not None and mass.vary and mass.at_bound and "m_a" not in (bounds or {}):
         raise IdentificationError(
             f"nothing identified: m_a ended at its {mass.at_bound}imum bound "
@@ -367,17 +415,29 @@ def fit(
     notes.extend(widen_by_trial_scatter(match))  # errors shared by a whole trial
     notes.extend(check_timing(match))  # a drive late or early against the acceleration
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
-        from balancer_id.identify.intervals import attach_profile_intervals
+        from balancer_id.identify.intervals import (
+            CLOSE_TRADE,
+            attach_profile_intervals,
+            wald_crosses_bound,
+        )
 
         for name in attach_profile_intervals(match):
             ci = match.parameters[name].ci95
             if ci is None:
                 continue
             lo, hi = ci
-            note = (
-                f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
-                f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
-            )
+            if wald_crosses_bound(match, name):
+                note = (
+                    f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
+                    f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
+                )
+            else:
+                note = (
+                    f"{name}: the Wald 95 % interval does not hold where the parameter "
+                    f"trades with another beyond a correlation of {CLOSE_TRADE}; the "
+                    f"profile-likelihood interval, each end no narrower than Wald's, "
+                    f"{lo:.4g} .. {hi:.4g} is given instead"
+                )
             wald = match.parameters[name].wald_ci95
             if wald is not None and (hi - lo) < (wald[1] - wald[0]) / NON_QUADRATIC_RATIO:
                 note += (

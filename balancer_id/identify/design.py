@@ -489,6 +489,19 @@ def design_trials(
         adds_at.append(adds_p)
         if point is values:
             peak_arr, moved_arr = np.array(peaks), np.array(moves)
+    # a speed limit the data do not reach limits the simulation at its open bound: how
+    # fast a trial goes, and how far it moves, are those of the balancer without it (the
+    # limit may lie anywhere above; a trial that reaches it must pass the bound)
+    lifted = {
+        nm: model.param(nm).max
+        for nm in unreached
+        if match.parameters[nm].not_reached == "above" and match.parameters[nm].unit == "m/s"
+    }
+    if lifted:
+        _, peaks_free, moves_free = _candidate_information(
+            match, grid, {**values, **lifted}, names, s2
+        )
+        peak_arr, moved_arr = np.array(peaks_free), np.array(moves_free)
     # too far a move adds nothing: it cannot be recorded on this hoist
     far = moved_arr > travel
     for adds_p in adds_at:
