@@ -87,11 +87,13 @@ def main() -> None:
     print(f"seed {seed0} (repeat with --seed {seed0}); {args.seeds} seeds per case")
     print(
         "| recording | parameter | Wald holds truth | reported (profile where Wald "
-        "crosses a bound) | credible holds truth | credible / Wald width | converged |"
+        "crosses a bound) | credible holds truth (misses below / above) "
+        "| credible / Wald width | converged |"
     )
     print("|---|---|---:|---:|---:|---:|---:|")
     for case, (spec, truth, thrusts, seconds, noise) in CASES.items():
         hits = {k: np.zeros(3) for k in truth}
+        below = {k: 0 for k in truth}  # credible misses with the truth below the interval
         widths: dict[str, list[float]] = {k: [] for k in truth}
         conv = 0
         took = 0.0
@@ -111,6 +113,7 @@ def main() -> None:
                     inside(est.ci95, value),
                     inside(cred.get(k), value),
                 ]
+                below[k] += bool(k in cred and value < cred[k][0])
                 if est.wald_ci95 is not None:
                     w = est.wald_ci95[1] - est.wald_ci95[0]
                     widths[k].append((cred[k][1] - cred[k][0]) / w)
@@ -118,9 +121,10 @@ def main() -> None:
         for k in truth:
             w, r, c = 100 * hits[k] / n
             ratio = np.median(widths[k]) if widths[k] else float("nan")
+            misses = n - int(hits[k][2])
             print(
-                f"| {case} | {k} | {w:.0f} % | {r:.0f} % | {c:.0f} % | {ratio:.2f} "
-                f"| {100 * conv / n:.0f} % |"
+                f"| {case} | {k} | {w:.0f} % | {r:.0f} % | {c:.0f} % "
+                f"({below[k]} / {misses - below[k]}) | {ratio:.2f} | {100 * conv / n:.0f} % |"
             )
         print(f"<!-- {case}: {took / n:.1f} s per fit with posterior -->")
 
