@@ -14,8 +14,9 @@ Wald interval, the interval the fit reports (profile where Wald crosses a bound)
 posterior's credible interval (``fit(..., posterior=True)``); the median width of the
 credible interval over the Wald one; the share of chains that converged.
 
-Run: ``python benchmarks/bench_posterior.py [--seeds N] [--seed S]`` (a fresh seed is
-drawn and printed unless ``--seed`` repeats one).
+Run: ``python benchmarks/bench_posterior.py [--seeds N] [--seed S] [--case TEXT]`` (a
+fresh seed is drawn and printed unless ``--seed`` repeats one; ``--case "2 levels"`` runs
+only the cases whose name holds the text).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--seed", type=int, default=None, help="repeat a run (default: fresh)")
+    ap.add_argument("--case", default="", help="only the cases whose name holds this text")
     args = ap.parse_args()
     seed0 = int(args.seed if args.seed is not None else np.random.SeedSequence().entropy % 10**6)
     print(f"seed {seed0} (repeat with --seed {seed0}); {args.seeds} seeds per case")
@@ -92,6 +94,8 @@ def main() -> None:
     )
     print("|---|---|---:|---:|---:|---:|---:|")
     for case, (spec, truth, thrusts, seconds, noise) in CASES.items():
+        if args.case not in case:
+            continue
         hits = {k: np.zeros(3) for k in truth}
         below = {k: 0 for k in truth}  # credible misses with the truth below the interval
         widths: dict[str, list[float]] = {k: [] for k in truth}
