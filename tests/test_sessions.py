@@ -118,13 +118,19 @@ def test_measured_force_drives_the_model(model):
     _check_truth(match_trials(model, data, start=START))
 
 
-def test_measured_thrust_is_not_shifted_and_drops_spikes():
+def test_measured_thrust_changes_halfway_between_samples_and_drops_spikes():
+    # a change recorded first at one sample happened, on average, half a sample before it
+    # (issue 31: holding each sample's value put every step half a sample late)
     t = np.arange(0, 2, 0.005)
     f = np.where(t >= 1.0, 3.0, 0.0)
     f[50] = 40.0  # a spike
-    th = measured_thrust(t, f)
-    assert th.at(np.array([0.995, 1.0]))[0] == 0.0 and th.at(np.array([1.0]))[0] == 3.0
-    assert np.max(np.abs(th.values[:195])) == 0.0
+    th = measured_thrust(t, f)  # a smooth force: each interval holds the mean of its ends
+    assert th.at(np.array([0.99, 0.995, 1.0])).tolist() == [0.0, 1.5, 3.0]
+    assert np.max(np.abs(th.values[:199])) == 0.0
+    rng = np.random.default_rng(0)
+    held = measured_thrust(t, f + rng.normal(0.0, 0.01, t.size), held=True)
+    assert held.at(np.array([0.9974]))[0] == pytest.approx(0.0, abs=0.01)
+    assert held.at(np.array([0.9976]))[0] == pytest.approx(3.0, abs=0.01)  # at 0.9975 s
 
 
 @pytest.mark.slow

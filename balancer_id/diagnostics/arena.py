@@ -449,6 +449,83 @@ def is_null(refit: MatchResult, effect: str) -> bool:
     return True
 
 
+#: An added offset of the measured acceleration is no finding within this many standard
+#: errors of the zero it is measured against (its own and the resting level's).
+ZERO_Z = 3.0
+
+
+def zero_stderr(match: MatchResult) -> float:
+    """The standard error of the acceleration's zero: the level removed at rest.
+
+    Gravity (or the local level at rest) is removed as read over the log's first
+    stretch of rest; its error stays in every sample as an offset. Estimated from the
+    residual at rest before each run's first step: its spread over the resting samples
+    (widened by the fit's residual correlation time), the runs' levels averaged.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    float
+        0 when no trial starts from rest.
+    """
+    residual = match.residual
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    seen: dict[str, float] = {}
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        if td.continues or td.input.x0 is not None or td.source in seen:
+            continue
+        r = residual[sl]
+        t = np.asarray(td.time, dtype=float)
+        if t.size != r.size:
+            continue
+        rest = r[t < td.t_step]
+        if rest.size >= 5:
+            seen[td.source] = float(np.var(rest)) * tau / rest.size
+    if not seen:
+        return 0.0
+    return float(np.sqrt(sum(seen.values())) / len(seen))
+
+
+def within_sensor_zero(refit: MatchResult, effect: str, se_zero: float) -> bool:
+    """Whether an added effect is an offset of the measured acceleration (its parameters
+    in m/s^2) that stays within :data:`ZERO_Z` standard errors of the zero: the
+    resting level's error, not a finding (a clean log's local gravity read over a
+    second of rest is off by about 0.001 m/s^2, which a long precise log's refit
+    separates from 0 by 7 of its own standard errors).
+
+    Parameters
+    ----------
+    refit : MatchResult
+        The fit with the effect.
+    effect : str
+        The effect's name.
+    se_zero : float
+        The zero's standard error (:func:`zero_stderr`).
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        own = list(refit.model.registry[effect].parameters)
+    except Exception:
+        return False
+    if not own or any(p.unit != "m/s^2" for p in own):
+        return False
+    for p in own:
+        est = refit.parameters.get(p.name)
+        if est is None:
+            return False
+        se = est.stderr if est.stderr is not None and np.isfinite(est.stderr) else 0.0
+        if abs(est.value) > ZERO_Z * float(np.hypot(se, se_zero)):
+            return False
+    return True
+
+
 def fit_in_threads(
     jobs: Sequence[Job], fit_one: Callable[[Job], Explanation], threads: int | None
 ) -> list[Explanation]:

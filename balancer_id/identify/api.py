@@ -415,17 +415,29 @@ def fit(
     notes.extend(widen_by_trial_scatter(match))  # errors shared by a whole trial
     notes.extend(check_timing(match))  # a drive late or early against the acceleration
     if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
-        from balancer_id.identify.intervals import attach_profile_intervals
+        from balancer_id.identify.intervals import (
+            CLOSE_TRADE,
+            attach_profile_intervals,
+            wald_crosses_bound,
+        )
 
         for name in attach_profile_intervals(match):
             ci = match.parameters[name].ci95
             if ci is None:
                 continue
             lo, hi = ci
-            note = (
-                f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
-                f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
-            )
+            if wald_crosses_bound(match, name):
+                note = (
+                    f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
+                    f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
+                )
+            else:
+                note = (
+                    f"{name}: the Wald 95 % interval does not hold where the parameter "
+                    f"trades with another beyond a correlation of {CLOSE_TRADE}; the "
+                    f"profile-likelihood interval, each end no narrower than Wald's, "
+                    f"{lo:.4g} .. {hi:.4g} is given instead"
+                )
             wald = match.parameters[name].wald_ci95
             if wald is not None and (hi - lo) < (wald[1] - wald[0]) / NON_QUADRATIC_RATIO:
                 note += (

@@ -128,12 +128,22 @@ class TrialData:
         return from_trials([trial], trajectory=trajectory, chain=False, index=index)[0]
 
 
-def measured_thrust(time: np.ndarray, force: np.ndarray, held: bool = False) -> Thrust:
+def measured_thrust(
+    time: np.ndarray,
+    force: np.ndarray,
+    held: bool = False,
+    fine: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Thrust:
     """The measured operating force as the model's input ``u(t)``, never shifted in time.
 
     A centred median over :data:`FORCE_MEDIAN_S` removes spikes and flicker and keeps
-    step edges in place; each sample is held until the next (the sample at a step's onset
-    carries the new level, as the ideal step at the detected onset does).
+    step edges in place. A held force (a step trial's) changes halfway between the two
+    samples that bracket each change (:func:`centred_changes`): the step happened
+    somewhere between them, on average halfway. A smooth force is held over each
+    interval at the mean of its two ends (:func:`interval_means`), the linear
+    interpolation's mean. Holding each sample's value until the next put every change
+    half a sample late: the acceleration led its force by half a sample on every log,
+    which the timing test called a late force channel on clean logs (issue 31).
 
     Parameters
     ----------
@@ -146,6 +156,10 @@ def measured_thrust(time: np.ndarray, force: np.ndarray, held: bool = False) -> 
         between the changes it shows
         (:func:`~balancer_id.identify.input_noise.piecewise_constant`, errors in
         variables).
+    fine : tuple of numpy.ndarray, optional
+        The trial's time and force before decimation: a held force's changes are found
+        and placed at that rate (an anti-aliased step spreads over several decimated
+        samples, and its pieces would each be held).
 
     Returns
     -------
@@ -160,21 +174,80 @@ def measured_thrust(time: np.ndarray, force: np.ndarray, held: bool = False) -> 
     dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
     width = max(1, round(FORCE_MEDIAN_S / dt))
     width += 1 - width % 2
+    if held and fine is not None and fine[0].size > time.size:
+        ft, fu = fine
+        hu_fine = measured_thrust(ft, fu, held=True)
+        return _on_coarse(time, hu_fine)
     if held:  # issue 31: the held force the noise hides, not the noise
-        return Thrust(
-            time,
-            piecewise_constant(
-                median_filter(u, size=width, mode="nearest")
-                if width >= 3 and u.size > width
-                else u,
-                noise_sigma(u),
-            ),
+        held_u = piecewise_constant(
+            median_filter(u, size=width, mode="nearest") if width >= 3 and u.size > width else u,
+            noise_sigma(u),
         )
+        return Thrust(centred_changes(time, held_u), held_u)
     if width >= 3 and u.size > width:
         u = median_filter(u, size=width, mode="nearest")
-    elif u is force:
-        u = u.copy()
-    return Thrust(time, u)  # the trial's own times, not a copy (a long log is held once)
+    # the trial's own times, not a copy (a long log is held once)
+    return Thrust(time, interval_means(u))
+
+
+def _on_coarse(time: np.ndarray, fine: Thrust) -> Thrust:
+    """A held thrust found at a fine rate, given one breakpoint per coarse sample: each
+    coarse sample's held value, the breakpoint moved to the fine change before it."""
+    idx = np.clip(np.searchsorted(fine.times, time, side="right") - 1, 0, fine.times.size - 1)
+    values = fine.values[idx]
+    bt = np.array(time, dtype=float, copy=True)
+    changed = np.flatnonzero(np.diff(values)) + 1
+    fine_changes = np.flatnonzero(np.diff(fine.values)) + 1
+    if changed.size and fine_changes.size:
+        pos = np.searchsorted(fine_changes, idx[changed], side="right") - 1
+        moved = fine.times[fine_changes[np.clip(pos, 0, None)]]
+        ok = (pos >= 0) & (moved > time[changed - 1]) & (moved <= time[changed])
+        bt[changed[ok]] = moved[ok]
+    return Thrust(bt, values)
+
+
+def centred_changes(time: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Breakpoints of a held series: each sample's time, but halfway back to the previous
+    sample where the value changes there.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times (s), increasing.
+    u : numpy.ndarray
+        The held values at those times.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``time`` itself when nothing changes, else a copy with the changes moved.
+    """
+    changed = np.flatnonzero(u[1:] != u[:-1]) + 1 if u.size > 1 else np.zeros(0, dtype=int)
+    if changed.size == 0:
+        return time
+    out = np.array(time, dtype=float, copy=True)
+    out[changed] = 0.5 * (time[changed] + time[changed - 1])
+    return out
+
+
+def interval_means(u: np.ndarray) -> np.ndarray:
+    """The value to hold over each sample interval: the mean of its two ends.
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        Samples of a force (N).
+
+    Returns
+    -------
+    numpy.ndarray
+        A new array; element ``k`` is ``(u[k] + u[k+1]) / 2``, the last one ``u[-1]``.
+    """
+    out = np.array(u, dtype=float, copy=True)
+    if out.size > 1:
+        out[:-1] += u[1:]
+        out[:-1] *= 0.5
+    return out
 
 
 def _kept(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -234,6 +307,11 @@ def from_trials(
             and out[-1].time[-1] < trial.time[-1]
         )
         after = out[-1].time[-1] if continues else -np.inf
+        fine = (
+            (np.asarray(trial.time, float), np.asarray(trial.force, float))
+            if trial.force is not None
+            else None
+        )
         trial, decimation = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
@@ -255,9 +333,14 @@ def from_trials(
             )
         reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
         if trial.force is not None and not trial.thrust_given and reference is None:
-            thrust = measured_thrust(time, trial.force, held=trial.kind == "step")
+            thrust = measured_thrust(
+                time,
+                trial.force,
+                held=trial.kind == "step",
+                fine=fine if decimation.factor > 1 else None,
+            )
             if continues:
-                first = np.searchsorted(thrust.times, time[keep][0])
+                first = np.searchsorted(time, time[keep][0])  # by sample, not by time
                 thrust = Thrust(thrust.times[first:], thrust.values[first:])
         elif continues:
             before = out[-1].thrust_N
@@ -401,6 +484,21 @@ def join_inputs(inputs: Sequence[TrialInput]) -> TrialInput:
         times.append(first.thrust.times[:cut])
         values.append(first.thrust.values[:cut])
     times.append(inputs[-1].thrust.times)
+    for k, (first, second) in enumerate(itertools.pairwise(inputs)):
+        # a held force that changes right at the next input's first sample changes
+        # halfway back to the sample before it, as within a series (centred_changes)
+        nxt = second.thrust
+        if (
+            values[k].size >= 2
+            and nxt.values.size >= 2
+            and nxt.times[0] == second.time[0]
+            and values[k][-1] == values[k][-2]
+            and nxt.values[0] == nxt.values[1]
+            and nxt.values[0] != values[k][-1]
+        ):
+            moved = times[k + 1].copy()
+            moved[0] = 0.5 * (second.time[0] + first.time[-1])
+            times[k + 1] = moved
     values.append(inputs[-1].thrust.values)
     with_refs = all(i.z_ref is not None and i.v_ref is not None for i in inputs)
     return TrialInput(

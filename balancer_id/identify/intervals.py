@@ -245,8 +245,42 @@ def _crossing(
     return float(found)
 
 
+#: A parameter correlated with another beyond this trades with it so closely that the
+#: cost is no quadratic bowl along their valley: its Wald interval does not hold (issue 31).
+CLOSE_TRADE = 0.98
+
+
+def trades_closely(match: MatchResult, name: str) -> bool:
+    """Whether a fitted parameter's correlation with another fitted one exceeds
+    :data:`CLOSE_TRADE` (its interval is then its profile's).
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    name : str
+        The parameter.
+
+    Returns
+    -------
+    bool
+    """
+    if not match.parameters[name].vary:
+        return False
+    row = match.correlations.get(name) or {}
+    return any(
+        other != name
+        and other in match.parameters
+        and match.parameters[other].vary
+        and np.isfinite(c)
+        and abs(c) > CLOSE_TRADE
+        for other, c in row.items()
+    )
+
+
 def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[str]:
-    """Replace each Wald interval that crosses a bound by the profile interval.
+    """Replace each Wald interval that crosses a bound, or of a parameter that trades with
+    another beyond :data:`CLOSE_TRADE`, by the profile interval.
 
     Parameters
     ----------
@@ -264,9 +298,17 @@ def attach_profile_intervals(match: MatchResult, level: float = 0.95) -> list[st
     """
     done = []
     for name, est in match.parameters.items():
-        if est.not_reached or not wald_crosses_bound(match, name):  # a bound has its own
+        if est.not_reached:  # a bound has its own
+            continue
+        if not (wald_crosses_bound(match, name) or trades_closely(match, name)):
             continue
         iv = profile_interval(match, name, level)
         est.profile = (iv.low, iv.high)
+        wald = est.wald_ci95
+        if wald is not None and not wald_crosses_bound(match, name):
+            # a close trade's valley: the profile's threshold knows the residual's
+            # correlation time, not the trials' scatter the standard error was widened
+            # to, so the wider of the two ends is kept on each side
+            est.profile = (min(iv.low, wald[0]), max(iv.high, wald[1]))
         done.append(name)
     return done

@@ -239,7 +239,7 @@ def _cholesky_of_gram(gram: np.ndarray) -> np.ndarray | None:
     """Upper ``R`` with ``R^T R = gram`` (equilibrated), or None where ``gram`` is too
     ill-conditioned for it (its factor would lose the small directions)."""
     d = np.sqrt(np.diag(gram))
-    if not np.all(d > 0):
+    if not (np.all(d > 0) and np.all(np.isfinite(gram))):  # an overflowed column: QR says
         return None
     try:
         chol = np.linalg.cholesky(gram / np.outer(d, d))

@@ -25,7 +25,7 @@ longer trusted: its interval does not account for the shift. The others keep the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,12 +58,16 @@ class TimingCheck:
     moved : tuple of str
         Parameters moved by more than :data:`SHIFT_SE` of their standard error, when the
         lead is clear (:attr:`clear`); empty otherwise.
+    phase_se : dict of str to float
+        Each value's error from where each step lies between its samples
+        (:func:`sampling_variance`), added to its standard error.
     """
 
     lead_s: float
     stderr_s: float
     shift: dict[str, float]
     moved: tuple[str, ...]
+    phase_se: dict[str, float] = field(default_factory=dict)
 
     @property
     def z(self) -> float:
@@ -116,6 +120,38 @@ def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return g
 
 
+def sampling_variance(match: MatchResult) -> float:
+    """The variance of the drive's timing that the force's sampling leaves (s^2).
+
+    A step is seen first at one sample; it happened somewhere since the sample before,
+    and the model places it halfway (:func:`~balancer_id.identify.data.centred_changes`).
+    The true instant lies anywhere in that interval: a spread of ``dt^2 / 12``. The
+    steps may share their place between samples (a programmed schedule whose period is
+    a whole number of samples), so the spread is not divided by their number: a mean
+    over them is no better known than one of them.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    float
+        0 when every trial's force is a smooth measured series (held at each interval's
+        mean: no step to place).
+    """
+    spreads = []
+    for td in match.data.trials:
+        times = np.asarray(td.input.thrust.times, dtype=float)
+        t = np.asarray(td.time, dtype=float)
+        if t.size < 2 or (times.size == t.size and np.array_equal(times, t)):
+            continue  # a smooth series on the samples' own times
+        dt = float(np.median(np.diff(t)))
+        spreads.append(dt * dt / 12.0)
+    return float(np.median(spreads)) if spreads else 0.0
+
+
 def timing_check(match: MatchResult) -> TimingCheck | None:
     """Regress the fit's residual on its sensitivities and on ``dy_model/dt``.
 
@@ -160,11 +196,23 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     rss = max(float(rtr - coef @ xtr), 0.0)
     tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     s2 = rss / max(n - k - 1, 1) * tau
-    var_d = float(inv[k, k]) * s2
+    phase = sampling_variance(match)
+    var_d = float(inv[k, k]) * s2 + phase
     if not (np.isfinite(var_d) and var_d > 0):
         return None
     shift = {name: float(coef[j]) for j, name in enumerate(names)}
-    check = TimingCheck(float(coef[k]), float(np.sqrt(var_d)), shift, ())
+    # how far each value moves per second of the drive's timing, times the timing's
+    # spread the sampling leaves: an error of every value the fit's own does not hold
+    try:
+        per_s = -np.linalg.solve(gram[:k, :k], gram[:k, k])
+    except np.linalg.LinAlgError:
+        per_s = np.zeros(k)
+    phase_se = {
+        name: float(abs(per_s[j]) * np.sqrt(phase))
+        for j, name in enumerate(names)
+        if np.isfinite(per_s[j])
+    }
+    check = TimingCheck(float(coef[k]), float(np.sqrt(var_d)), shift, (), phase_se)
     if not check.clear:
         return check
     moved = tuple(
@@ -172,9 +220,9 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         for name in names
         if (se := match.parameters[name].stderr) is not None
         and np.isfinite(se)
-        and abs(shift[name]) > SHIFT_SE * se
+        and abs(shift[name]) > SHIFT_SE * float(np.hypot(se, phase_se.get(name, 0.0)))
     )
-    return TimingCheck(check.lead_s, check.stderr_s, shift, moved)
+    return TimingCheck(check.lead_s, check.stderr_s, shift, moved, phase_se)
 
 
 def timing_note(check: TimingCheck) -> Note:
@@ -221,7 +269,9 @@ def check_timing(match: MatchResult) -> list[Note]:
     """Run :func:`timing_check` on a fit and mark what it finds on the fit itself.
 
     The lead and its standard error go into ``match.metrics`` (``timing_lead_s``,
-    ``timing_lead_stderr_s``); each parameter a clear lead moves gets a reason in its
+    ``timing_lead_stderr_s``); each parameter's standard error takes in the error the
+    steps' places between samples leave in it (:attr:`TimingCheck.phase_se`); each
+    parameter a clear lead moves gets a reason in its
     :attr:`~balancer_id.identify.matching.ParameterEstimate.distrust`.
 
     Parameters
@@ -237,6 +287,10 @@ def check_timing(match: MatchResult) -> list[Note]:
     check = timing_check(match)
     if check is None:
         return []
+    for name, extra in check.phase_se.items():
+        est = match.parameters[name]
+        if extra > 0 and est.stderr is not None and np.isfinite(est.stderr):
+            est.stderr = float(np.hypot(est.stderr, extra))
     match.metrics["timing_lead_s"] = check.lead_s
     match.metrics["timing_lead_stderr_s"] = check.stderr_s
     if not check.clear:

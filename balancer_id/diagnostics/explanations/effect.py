@@ -47,6 +47,7 @@ class LibraryEffect(ExplanationKind):
         """
         out = []
         _, _, k0 = arena.current(inp)
+        se_zero = arena.zero_stderr(inp.match)
         for name, refit in inp.effect_fits:
             r = refit.residual
             k = len([n for n in refit.model.param_names if n not in arena.held(refit)])
@@ -58,7 +59,8 @@ class LibraryEffect(ExplanationKind):
                     rmse,
                     effects=[name],
                     detail={"values": refit.values()},
-                    null=arena.is_null(refit, name),
+                    null=arena.is_null(refit, name)
+                    or arena.within_sensor_zero(refit, name, se_zero),
                 )
             )
         return out
