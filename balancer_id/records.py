@@ -41,6 +41,18 @@ class FrozenDict(dict[Any, Any]):
     """
 
     def _refuse(self, *args: Any, **kwargs: Any) -> Any:
+        """Refused: a FrozenDict is read-only (copy it with ``dict(...)`` to change it).
+
+        Parameters
+        ----------
+        *args, **kwargs
+            What ``dict``'s method of the same name takes.
+
+        Raises
+        ------
+        TypeError
+            Always.
+        """
         raise TypeError("a FrozenDict is read-only: copy it with dict(...) to change it")
 
     __setitem__ = __delitem__ = __ior__ = _refuse
@@ -129,7 +141,19 @@ class ResultRecord:
         return self.data[key]
 
     def get(self, key: str, default: Any = None) -> Any:
-        """The JSON's ``key``, or ``default``."""
+        """The JSON's ``key``, or ``default``.
+
+        Parameters
+        ----------
+        key : str
+            A key of the JSON object.
+        default : object
+            What a missing key gives.
+
+        Returns
+        -------
+        object
+        """
         return self.data.get(key, default)
 
     @property

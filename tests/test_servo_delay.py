@@ -124,3 +124,46 @@ def test_advice_for_a_late_servo_holds_over_the_delays_interval():
     k_r = next(s for s in plain.settings if s.parameter == "k_r").advised
     assert k_r is not None
     assert delayed_coupling(15.1, 0.33, 0.9, k_r, 100.0, 0.03).damping_ratio < 0.27
+
+
+def test_advice_for_an_ambiguous_delay_holds_on_the_stiffer_servo_too():
+    # the data allow a late servo (150 N/m, 30 ms) or a stiffer one acting at once
+    late = {**PAPER, **ROBOT}
+    stiffer = {**PAPER, "k_r": 205.0, "c_r": 97.0}
+    got = advise(late, viscosity_factor=0.15, delays=(0.03, 0.025, 0.035), also=[stiffer])
+    for s in got.settings:
+        if s.advised is None:
+            continue
+        alt = s.over_delay["also_damping_ratio"]
+        assert alt and alt[0] is not None and alt[0] >= 0.3 - 1e-6
+        factor = s.advised / s.current
+        v = {**stiffer, s.parameter: stiffer[s.parameter] * factor}
+        c = coupling(v["m_a"], v["T_a"], 0.15 * v["D0"], v["k_r"], v["c_r"])
+        assert c.stable and c.damping_ratio >= 0.3 - 1e-6
+
+
+def test_diagnose_names_a_late_servo_from_the_fits_examination():
+    from balancer_id.diagnostics.explanations import kind_of
+    from balancer_id.identify.servo_delay import Explanation, ServoDelay
+
+    late = ServoDelay(
+        True, "servo_delay", 0.031, (0.029, 0.033),
+        [
+            Explanation("servo_delay", {**PAPER, "k_r": 148.0, "c_r": 100.0, "tau_r": 0.031},
+                        0.0, -2000.0, "late", 0.0302, 0.03),
+            Explanation("no_delay", {**PAPER, "k_r": 206.0, "c_r": 97.0}, 0.0, -1200.0,
+                        "at once", 0.0303, 0.07),
+        ],
+        has_force=True,
+    )  # fmt: skip
+    kind = kind_of("servo_delay")
+    got = kind.propose(SimpleNamespace(fit=SimpleNamespace(servo_delay=late)))
+    assert len(got) == 1 and got[0].label == "robot servo 31 ms late"
+    assert got[0].delta_bic == 800.0
+    assert got[0].detail["ci95_s"] == [0.029, 0.033]
+    # the acceleration's excess error is nil: it stands on its BIC fall
+    got[0].excess_drop = 0.0
+    assert kind.valid(got[0], False, 10.0, 0.05)
+    # not named: not proposed
+    late.verdict = "none"
+    assert kind.propose(SimpleNamespace(fit=SimpleNamespace(servo_delay=late))) == []

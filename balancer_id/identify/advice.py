@@ -235,6 +235,9 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
                 f"; at least {over['damping_ratio_min']:.3g} for a servo delay of "
                 f"{1e3 * lo:.0f} .. {1e3 * hi:.0f} ms"
             )
+            alt = [z for z in over.get("also_damping_ratio") or [] if z is not None]
+            if alt:
+                text += f", {min(alt):.3g} with a servo acting at once"
         if p.get("delay_margin_s") is not None and np.isfinite(p["delay_margin_s"]):
             text += f"; unstable beyond a {1e3 * p['delay_margin_s']:.0f} ms servo delay"
         sim = s.get("simulated")
@@ -278,6 +281,7 @@ def advise_setting(
     bounds: tuple[float, float] | None = None,
     viscosity_factor: float | FactorOf = 1.0,
     delays: Sequence[float] = (),
+    also: Sequence[Mapping[str, float]] = (),
 ) -> Setting:
     """The value of one parameter nearest to today's that reaches the target damping.
 
@@ -302,6 +306,10 @@ def advise_setting(
     delays : sequence of float
         The servo's delay (s): its estimate first, then the ends of its interval. The
         target must hold at every one (the loop of the late servo); empty: no delay.
+    also : sequence of mapping
+        Other parameter sets the data allow as well (an explanation not told apart: a
+        stiffer servo acting at once); the setting, changed by the same factor, must
+        reach the target on each too (at the same viscosity share).
 
     Returns
     -------
@@ -318,10 +326,15 @@ def advise_setting(
     worst_first = sorted({float(d) for d in delays}, reverse=True) or [0.0]
     at = float(delays[0]) if len(delays) else 0.0
 
+    def _alt(alt: Mapping[str, float], x: float) -> dict[str, float]:
+        now = float(alt.get(parameter, current))
+        scaled = now * x / current if current > 0 else x
+        return {**{k: float(v) for k, v in alt.items()}, parameter: scaled}
+
     def _ok_at(x: float) -> bool:
         return all(
             _ok({**base, parameter: x, "tau_r": d}, target, factor_of(x)) for d in worst_first
-        )
+        ) and all(_ok(_alt(alt, x), target, factor_of(x)) for alt in also)
 
     def _figures_at(x: float) -> ModeFigures:
         return _figures({**base, parameter: x, "tau_r": at}, factor_of(x))
@@ -337,12 +350,14 @@ def advise_setting(
                 _coupling({**base, parameter: advised, "tau_r": d}, factor_of(advised))
                 for d in taus
             ]
+            others = [_coupling(_alt(alt, advised), factor_of(advised)) for alt in also]
             out.over_delay = {
                 "tau_r_s": taus,
                 "damping_ratio": [c.damping_ratio if c.stable else None for c in zetas],
                 "damping_ratio_min": min(
                     (c.damping_ratio if c.stable else float("-inf")) for c in zetas
                 ),
+                "also_damping_ratio": [c.damping_ratio if c.stable else None for c in others],
             }
         return out
 
@@ -386,6 +401,7 @@ def advise(
     viscosity_factor: float = 1.0,
     along: Mapping[str, FactorOf] | None = None,
     delays: Sequence[float] = (),
+    also: Sequence[Mapping[str, float]] = (),
 ) -> Advice:
     """Settings of ``D0``, ``c_r`` and ``k_r`` (each alone) that reach the target damping.
 
@@ -407,6 +423,9 @@ def advise(
     delays : sequence of float
         A late servo's delay (s), estimate first, then its interval's ends: every
         setting must reach the target at each (see :func:`advise_setting`).
+    also : sequence of mapping
+        Other parameter sets the setting must reach the target on (see
+        :func:`advise_setting`).
 
     Returns
     -------
@@ -419,7 +438,7 @@ def advise(
     today = float(viscosity_factor)
     per = dict(along or {})
     settings = [
-        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today), delays)
+        advise_setting(base, p, target, (bounds or {}).get(p), per.get(p, today), delays, also)
         for p in SETTINGS
     ]
     now = {**base, "tau_r": float(delays[0]) if len(delays) else 0.0}
@@ -545,7 +564,10 @@ def simulate_mode(
         return None
     grid, sim, t_end = run
     after = grid > t_end
-    return mode_from_response(grid[after], sim.accel[after], expected_hz)
+    settling = np.asarray(sim.accel[after], dtype=float)
+    if not np.all(np.isfinite(settling)) or np.max(np.abs(settling), initial=0.0) > 1e6:
+        return ModeFigures(0.0, -1.0)  # the simulated loop diverged: unstable
+    return mode_from_response(grid[after], settling, expected_hz)
 
 
 def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput) -> float:
@@ -568,7 +590,7 @@ def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput
     Returns
     -------
     float
-        In (0, 1].
+        In (0, 1]; 0 when the simulated settling diverges (an unstable loop).
     """
     A = float(values.get("A", 0.0)) if "A" in model.param_names else 0.0
     if A <= 0:
@@ -578,10 +600,14 @@ def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput
         return 1.0
     grid, sim, t_end = run
     after = grid > t_end
-    w = sim.velocity[after] ** 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        w = sim.velocity[after] ** 2
+        share = np.sum(np.exp(-A * np.abs(sim.operating_force[after])) * w) / np.sum(w)
+    if not np.isfinite(share):  # the settling diverged: the servo force left no viscosity
+        return 0.0 if not np.all(np.isfinite(w)) else 1.0
     if not np.sum(w) > 0:
         return 1.0
-    return float(np.sum(np.exp(-A * np.abs(sim.operating_force[after])) * w) / np.sum(w))
+    return float(share)
 
 
 #: Candidate values at which the viscosity share is simulated per setting (interpolated
@@ -704,6 +730,7 @@ def advise_fit(
     target: float = TARGET_DAMPING,
     today: float | None = None,
     delays: Sequence[float] = (),
+    also: Sequence[Mapping[str, float]] = (),
 ) -> Advice:
     """The whole advice for an identified robot-balancer pair, checked by simulation.
 
@@ -724,6 +751,8 @@ def advise_fit(
         A late servo's delay (s): the estimate, then its interval's ends. The settings
         are predicted on the delayed loop, must reach the target at every delay given,
         and are simulated with the estimate (:mod:`~balancer_id.simulation.delayed_servo`).
+    also : sequence of mapping
+        Other parameter sets the data allow (see :func:`advise_setting`).
 
     Returns
     -------
@@ -747,5 +776,7 @@ def advise_fit(
                 lo, hi = max(lo, bounds[name][0]), min(hi, bounds[name][1])
             if hi > lo > 0:
                 shares[name] = factor_along(model, values, moves[0], name, (lo, hi))
-    advice = advise(values, target, bounds, viscosity_factor=today, along=shares, delays=delays)
+    advice = advise(
+        values, target, bounds, viscosity_factor=today, along=shares, delays=delays, also=also
+    )
     return check_by_simulation(advice, model, values, moves)

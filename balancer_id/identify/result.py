@@ -272,7 +272,9 @@ class FitResult(Displayable):
                 lo, hi = late.interval or (late.tau_r, late.tau_r)
                 values = {k: late.delayed_values.get(k, v) for k, v in self.values.items()}
                 delays = (float(late.tau_r or 0.0), float(lo), float(hi))
-                advice = advise_fit(self.match.model, values, moves, delays=delays)
+                rival = late.rival_values  # ambiguous: the advice must hold on it too
+                also = [{k: rival.get(k, v) for k, v in self.values.items()}] if rival else []
+                advice = advise_fit(self.match.model, values, moves, delays=delays, also=also)
             else:
                 share = self.coupling.viscosity_factor  # simulated once, for the coupling
                 advice = advise_fit(self.match.model, self.values, moves, today=share)
@@ -289,14 +291,26 @@ class FitResult(Displayable):
         if self.coupling is None:
             return None
         if self._servo_delay is None:
-            from balancer_id.identify.servo_delay import examine_servo_delay, move_forces
+            from balancer_id.identify.servo_delay import ServoDelay as ServoDelayResult
+            from balancer_id.identify.servo_delay import (
+                examine_servo_delay,
+                move_forces,
+                move_references,
+            )
 
             free = [n for n, e in self.match.parameters.items() if e.vary]
             trials = self.match.data.trials
             sources = [*self.trial_set.trials, *self.trial_set.loose]
-            found = examine_servo_delay(
-                self.match.model, self.values, free, trials, move_forces(trials, sources)
-            )
+            try:
+                found = examine_servo_delay(
+                    self.match.model, self.values, free, trials, move_forces(trials, sources),
+                    references=move_references(trials, sources),
+                )  # fmt: skip
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                # a numerical failure of the delayed fits leaves the fit itself standing
+                found = ServoDelayResult(
+                    False, "not_examined", why=f"the delayed fits failed ({exc})"
+                )
             object.__setattr__(self, "_servo_delay", found)  # a cache, not a change
         return self._servo_delay
 

@@ -39,8 +39,17 @@ NAME_DELTA_BIC = 10.0
 TIE_DELTA_BIC = 6.0
 #: Largest delay searched (s): beyond it the loop of any advised robot is unstable.
 MAX_DELAY_S = 0.3
-#: Starts of the delay (s) for the fit (the least-squares cost is not convex in it).
-DELAY_STARTS = (0.01, 0.04, 0.1)
+#: The lags (s) of the coarse profile that starts each lag's fit (the least-squares cost
+#: is not convex in a lag; the move's start trades with it).
+LAG_GRID = (0.0, 0.01, 0.02, 0.035, 0.05, 0.07, 0.1, 0.15)
+#: The same for a sensor's lag (the move's start does not trade with it).
+SENSOR_LAG_GRID = (0.005, 0.02, 0.05)
+#: Most evaluations of one least-squares solve.
+MAX_NFEV = 200
+#: Relative standard deviation of a held balancer value (one identified from step trials
+#: and held for the robot's fit): the examination lets it move within this, as a prior,
+#: so the delay does not soak up a held value's error.
+HELD_RELATIVE_SD = {"m_a": 0.01, "T_a": 0.02, "D0": 0.05, "A": 0.05}
 #: chi-square(1) at 95 %: the profile interval's threshold.
 CHI2_95 = 3.841458820694124
 
@@ -72,7 +81,17 @@ class Explanation:
     force_rmse: float | None = None
 
     def to_dict(self, best_bic: float) -> dict[str, object]:
-        """JSON-ready dict (``delta_bic`` against the best explanation)."""
+        """JSON-ready dict.
+
+        Parameters
+        ----------
+        best_bic : float
+            The best explanation's BIC (``delta_bic`` is against it).
+
+        Returns
+        -------
+        dict
+        """
         return {
             "name": self.name,
             "text": self.text,
@@ -119,6 +138,9 @@ class ServoDelay:
     samples_per_independent: float = 1.0
     has_force: bool = False
     why: str = ""
+    #: With ``ambiguous``: ``stiffer`` (a delay fits, not decisively, and is not ruled
+    #: out: a late servo or a stiffer one) or ``sensor`` (a sensor's lag as good).
+    twin: str = "sensor"
 
     @property
     def named(self) -> bool:
@@ -131,8 +153,32 @@ class ServoDelay:
         return self.verdict in ("servo_delay", "ambiguous")
 
     def explanation(self, name: str) -> Explanation | None:
-        """The fitted explanation ``name`` (None if not fitted)."""
+        """The fitted explanation ``name``.
+
+        Parameters
+        ----------
+        name : str
+            ``no_delay``, ``servo_delay``, ``sensor_lowpass`` or ``force_lowpass``.
+
+        Returns
+        -------
+        Explanation or None
+            None if not fitted.
+        """
         return next((e for e in self.explanations if e.name == name), None)
+
+    @property
+    def rival_values(self) -> dict[str, float] | None:
+        """With ``ambiguous``: the loop of the explanation the delay is not told apart from
+        (a stiffer servo, or the best sensor's lag: a servo acting at once); else None."""
+        if self.verdict != "ambiguous":
+            return None
+        names = ["no_delay"] if self.twin == "stiffer" else list(_SENSOR)
+        found = [e for e in self.explanations if e.name in names]
+        if not found:
+            return None
+        best = min(found, key=lambda e: e.bic)
+        return {k: v for k, v in best.values.items() if k not in ("tau_r", "tau_s", "tau_f")}
 
     @property
     def delayed_values(self) -> dict[str, float] | None:
@@ -166,8 +212,14 @@ class ServoDelay:
             what = (
                 "the robot's servo acts late"
                 if self.verdict == "servo_delay"
-                else "a late servo, or a sensor's lag (these data do not tell them apart; "
-                "the advice is checked on the late servo, the worse case)"
+                else (
+                    "a late servo, or a stiffer one acting at once (a delay fits but not "
+                    f"decisively: BIC {gain:+.1f}, {NAME_DELTA_BIC:g} needed; the advice must "
+                    "hold on both)"
+                    if self.twin == "stiffer"
+                    else "a late servo, or a sensor's lag (these data do not tell them apart; "
+                    "the advice must hold on both)"
+                )
             )
             head = (
                 f"servo delay: {what}: tau_r = {_ms(self.tau_r or 0.0)} "
@@ -208,6 +260,7 @@ class ServoDelay:
             "explanations": [e.to_dict(best) for e in self.explanations],
             "lines": self.lines(),
             "why": self.why,
+            "twin": self.twin if self.verdict == "ambiguous" else None,
         }
 
 
@@ -219,9 +272,17 @@ class _Move:
     x0: tuple[float, float, float] | None
     accel: np.ndarray
     force: np.ndarray | None = None
+    #: The move itself (``evaluate(t) -> (z_ref, v_ref)``) on the log's clock and the
+    #: shift the fit gave it (s); None: the sampled reference, interpolated.
+    reference: Any = None
+    shift0: float = 0.0
 
 
-def _moves(trials: Sequence[Any], forces: Sequence[np.ndarray | None] | None) -> list[_Move]:
+def _moves(
+    trials: Sequence[Any],
+    forces: Sequence[np.ndarray | None] | None,
+    references: Sequence[tuple[Any, float] | None] | None = None,
+) -> list[_Move]:
     out = []
     for k, td in enumerate(trials):
         inp = td.input
@@ -232,9 +293,13 @@ def _moves(trials: Sequence[Any], forces: Sequence[np.ndarray | None] | None) ->
             force = np.asarray(force, dtype=float)
             if force.shape != np.shape(inp.time) or np.isfinite(force).sum() < 10:
                 force = None
+        ref = None if references is None or k >= len(references) else references[k]
         out.append(
-            _Move(inp.time, inp.z_ref, inp.v_ref, inp.x0, np.asarray(td.accel, float), force)
-        )
+            _Move(
+                inp.time, inp.z_ref, inp.v_ref, inp.x0, np.asarray(td.accel, float), force,
+                *(ref if ref is not None else (None, 0.0)),
+            )
+        )  # fmt: skip
     return out
 
 
@@ -274,7 +339,10 @@ class _Problem:
         free: Sequence[str],
         lag: str,
         sigma: tuple[float, float] = (1.0, 1.0),
+        prior: Mapping[str, tuple[float, float]] | None = None,
     ) -> None:
+        self.prior = dict(prior or {})  # name -> (value held, standard deviation)
+        self.fixed: dict[str, float] = {}  # values held over x (a lag on a grid)
         self.moves = moves
         self.base = {n: float(values.get(n, 0.0)) for n in LANE_PARAMS}
         self.base["tau_r"] = float(values.get("tau_r", 0.0))
@@ -289,6 +357,7 @@ class _Problem:
         v["shift"] = float(x[len(self.free)])
         if self.lag:
             v[self.lag] = float(x[-1])
+        v.update(self.fixed)
         return v
 
     def channels(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -297,15 +366,22 @@ class _Problem:
         lane = np.array([v[n] for n in LANE_PARAMS])
         acc, frc = [], []
         for m in self.moves:
-            zr, vr = _shifted(m, v["shift"])
-            a, h, _ = simulate_delayed_servo(m.time, zr, vr, lane, m.x0)
+            if m.reference is not None:
+                move, at = m.reference, m.shift0 + v["shift"]
+                a, h, _ = simulate_delayed_servo(
+                    m.time, m.z_ref, m.v_ref, lane, m.x0,
+                    reference=lambda tq, move=move, at=at: move.evaluate(tq - at),
+                )  # fmt: skip
+            else:
+                zr, vr = _shifted(m, v["shift"])
+                a, h, _ = simulate_delayed_servo(m.time, zr, vr, lane, m.x0)
             y, f = a[0], h[0]
             dt = (m.time[-1] - m.time[0]) / (m.time.size - 1)
-            if self.lag == "tau_s":
+            if v.get("tau_s", 0.0) > 0:
                 y = _lowpass(y, dt, v["tau_s"])
             acc.append(y - m.accel)
             if m.force is not None:
-                if self.lag == "tau_f":
+                if v.get("tau_f", 0.0) > 0:
                     f = _lowpass(f, dt, v["tau_f"])
                 r = f - m.force
                 frc.append(r[np.isfinite(r)])
@@ -313,9 +389,14 @@ class _Problem:
         rf = np.concatenate(frc) if frc else np.zeros(0)
         return np.where(np.isfinite(ra), ra, 1e3), np.where(np.isfinite(rf), rf, 1e4)
 
+    def prior_terms(self, x: np.ndarray) -> np.ndarray:
+        """``(value - held) / sd`` of each held value let free (its prior's residual)."""
+        v = self.values(x)
+        return np.array([(v[n] - x0) / sd for n, (x0, sd) in self.prior.items()])
+
     def residuals(self, x: np.ndarray) -> np.ndarray:
         ra, rf = self.channels(x)
-        return np.concatenate([ra / self.sigma[0], rf / self.sigma[1]])
+        return np.concatenate([ra / self.sigma[0], rf / self.sigma[1], self.prior_terms(x)])
 
 
 def _solve(
@@ -328,7 +409,7 @@ def _solve(
     for _ in range(rounds):
         x = least_squares(
             problem.residuals, x, bounds=(lo, hi), x_scale=scale, method="trf",
-            xtol=1e-6, ftol=1e-8, max_nfev=100,
+            xtol=1e-6, ftol=1e-8, max_nfev=MAX_NFEV,
         ).x  # fmt: skip
         problem.sigma = _sigmas(*problem.channels(x))
     return x
@@ -392,6 +473,8 @@ def examine_servo_delay(
     trials: Sequence[Any],
     forces: Sequence[np.ndarray | None] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
+    references: Sequence[tuple[Any, float] | None] | None = None,
+    held_sd: Mapping[str, float] | None = None,
 ) -> ServoDelay:
     """Fit the robot's log with and without a servo delay, and a sensor's lag instead.
 
@@ -411,6 +494,13 @@ def examine_servo_delay(
         evidence of a late servo.
     bounds : mapping, optional
         Bounds of the free parameters (default: the model's).
+    references : sequence, optional
+        Per trial, ``(move, shift)``: the reference move (``evaluate(t)``) and the shift
+        the fit gave it (s), so the delayed servo reads the move itself, not samples of
+        it; None (or a None entry) interpolates the sampled reference.
+    held_sd : mapping, optional
+        Relative standard deviation of each held balancer value (default
+        :data:`HELD_RELATIVE_SD`): held values move within it in every explanation.
 
     Returns
     -------
@@ -425,12 +515,19 @@ def examine_servo_delay(
             False, "not_examined",
             why=f"the delayed loop is simulated for the servo with a viscosity only, not {extra}",
         )  # fmt: skip
-    moves = _moves(trials, forces)
+    moves = _moves(trials, forces, references)
     if not moves:
         return ServoDelay(False, "not_examined", why="no robot move with its reference")
     vals = {k: float(v) for k, v in values.items()}
     vals["tau_r"] = 0.0
     free = [n for n in free if n in LANE_PARAMS and n != "tau_r"]
+    sds = HELD_RELATIVE_SD if held_sd is None else held_sd
+    prior = {
+        n: (vals[n], sds[n] * vals[n])
+        for n in sds
+        if n in model.param_names and n not in free and vals.get(n, 0.0) > 0 and sds[n] > 0
+    }
+    free = free + list(prior)
     lims = {p.name: (p.min, p.max) for p in model.params}
     lims.update(bounds or {})
     lo = np.array([lims[n][0] for n in free] + [-MAX_SHIFT_S])
@@ -440,7 +537,7 @@ def examine_servo_delay(
     if any(m.force is not None for m in moves):
         lags.append("force_lowpass")
 
-    start = _Problem(moves, vals, free, "")
+    start = _Problem(moves, vals, free, "", prior=prior)
     sigma = _sigmas(*start.channels(x_fit))
     fitted: dict[str, tuple[np.ndarray, _Problem]] = {}
     start.sigma = sigma
@@ -448,26 +545,44 @@ def examine_servo_delay(
     fitted["no_delay"] = (x_none, start)
     for name in lags[1:]:
         best: tuple[np.ndarray, _Problem, float] | None = None
-        starts = DELAY_STARTS if name == "servo_delay" else DELAY_STARTS[:2]
-        for tau0 in starts:
-            prob = _Problem(moves, vals, free, _LAG[name], start.sigma)
-            x = _solve(
-                prob, np.append(x_none, tau0), np.append(lo, 0.0), np.append(hi, MAX_DELAY_S), 1
-            )
-            prob.sigma = start.sigma
-            cost = float(np.sum(prob.residuals(x) ** 2))
-            if best is None or cost < best[2]:
-                best = (x, prob, cost)
+        # from the undelayed fit's servo and start, the held values where they were held
+        # (the undelayed fit may have pulled them to mimic the delay)
+        x_from = np.array(x_none, dtype=float)
+        for k, n in enumerate(free):
+            if n in prior:
+                x_from[k] = prior[n][0]
+        # a coarse profile over the lag (the servo and the move's start fitted, held values
+        # at their holding) finds its basin; the full fit starts there
+        servo = [n for n in free if n not in prior]
+        k_servo = [k for k, n in enumerate(free) if n not in prior]
+        shift_none = float(x_none[len(free)])
+        late = name == "servo_delay"
+        for tau0 in LAG_GRID if late else SENSOR_LAG_GRID:
+            for shift0 in (shift_none, shift_none - tau0) if late else (shift_none,):
+                grid = _Problem(moves, vals, servo, "", start.sigma)
+                grid.fixed = {_LAG[name]: tau0}
+                xg0 = np.append(x_from[k_servo], np.clip(shift0, -MAX_SHIFT_S, MAX_SHIFT_S))
+                lo_g = np.append(lo[k_servo], -MAX_SHIFT_S)
+                hi_g = np.append(hi[k_servo], MAX_SHIFT_S)
+                xg = _solve(grid, xg0, lo_g, hi_g, 1)
+                grid.sigma = start.sigma
+                cost = float(np.sum(grid.residuals(xg) ** 2))
+                if best is None or cost < best[2]:
+                    x0 = np.append(x_from, tau0)
+                    x0[k_servo] = xg[:-1]
+                    x0[len(free)] = xg[-1]
+                    best = (x0, _Problem(moves, vals, free, _LAG[name], start.sigma, prior), cost)
         assert best is not None
         x = _solve(best[1], best[0], np.append(lo, 0.0), np.append(hi, MAX_DELAY_S), 1)
         fitted[name] = (x, best[1])
     chans = {name: prob.channels(x) for name, (x, prob) in fitted.items()}
+    chi2 = {name: float(np.sum(prob.prior_terms(x) ** 2)) for name, (x, prob) in fitted.items()}
     ratios = (
         min(_independent_ratio(c[0]) for c in chans.values()),
         min(_independent_ratio(c[1]) for c in chans.values()) if chans["no_delay"][1].size else 1.0,
     )
     scorer = _Scorer(ratios, (chans["no_delay"][0].size, chans["no_delay"][1].size))
-    k0 = len(free) + 1  # the free parameters and the move's start
+    k0 = len(free) - len(prior) + 1  # the free parameters and the move's start
     explanations = []
     for name, (x, prob) in fitted.items():
         ra, rf = chans[name]
@@ -476,20 +591,22 @@ def examine_servo_delay(
             v.pop("tau_r", None)
         explanations.append(
             Explanation(
-                name, v, float(ra @ ra), scorer.bic(ra, rf, k0 + (1 if _LAG[name] else 0)),
+                name, v, float(ra @ ra),
+                scorer.bic(ra, rf, k0 + (1 if _LAG[name] else 0)) + chi2[name],
                 _TEXT[name], float(np.sqrt(np.mean(ra**2))),
                 float(np.sqrt(np.mean(rf**2))) if rf.size else None,
             )
         )  # fmt: skip
     x_late, late = fitted["servo_delay"]
     tau = float(x_late[-1])
-    dev_late = scorer.deviance(*chans["servo_delay"])
+    dev_late = scorer.deviance(*chans["servo_delay"]) + chi2["servo_delay"]
 
     # the delay's 95 % profile interval: the deviance rises by chi2(1, 95 %)
     def excess(t: float) -> float:
-        held = _Problem(moves, {**vals, "tau_r": t}, free, "", late.sigma)
+        held = _Problem(moves, {**vals, "tau_r": t}, free, "", late.sigma, prior)
         x = _solve(held, x_late[:-1], lo, hi, 1)
-        return scorer.deviance(*held.channels(x)) - dev_late - CHI2_95
+        dev = scorer.deviance(*held.channels(x)) + float(np.sum(held.prior_terms(x) ** 2))
+        return dev - dev_late - CHI2_95
 
     step = max(0.002, 0.25 * tau)
     lower = 0.0
@@ -508,8 +625,16 @@ def examine_servo_delay(
     gain = by["no_delay"].bic - by["servo_delay"].bic
     rivals = [e for e in explanations if e.name not in ("no_delay", "servo_delay")]
     rival = min(rivals, key=lambda e: e.bic)
+    twin = "sensor"  # what an ambiguous delay is not told apart from
     if gain < NAME_DELTA_BIC or lower <= 0.0:
-        verdict = rival.name if by["no_delay"].bic - rival.bic >= NAME_DELTA_BIC else "none"
+        if by["no_delay"].bic - rival.bic >= NAME_DELTA_BIC and (
+            by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC
+        ):
+            verdict = rival.name
+        elif lower > 0.0:  # a delay fits, not decisively: nor is it ruled out
+            verdict, twin = "ambiguous", "stiffer"
+        else:
+            verdict = "none"
     elif by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC:
         verdict = rival.name
     elif rival.bic - by["servo_delay"].bic >= TIE_DELTA_BIC:
@@ -518,7 +643,7 @@ def examine_servo_delay(
         verdict = "ambiguous"
     return ServoDelay(
         True, verdict, tau, (lower, upper), explanations, ratios[0],
-        has_force=any(m.force is not None for m in moves),
+        has_force=any(m.force is not None for m in moves), twin=twin,
     )  # fmt: skip
 
 
@@ -557,4 +682,34 @@ def move_forces(trials: Sequence[Any], sources: Sequence[Any]) -> list[np.ndarra
         f = np.full(t.shape, np.nan)
         f[inside] = np.interp(t[inside], t_src[ok], force[ok])
         out.append(f)
+    return out
+
+
+def move_references(
+    trials: Sequence[Any], sources: Sequence[Any]
+) -> list[tuple[Any, float] | None]:
+    """The reference move of each fitted move and the shift the fit gave its start.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        The fitted moves (``t_step`` moved by the fit's refinement of the start).
+    sources : sequence
+        The segmented trials they came from (``index``, ``t_step``, ``reference``).
+
+    Returns
+    -------
+    list
+        One ``(move, shift)`` per trial, or None where its source holds no move with an
+        ``evaluate`` method.
+    """
+    by_index = {getattr(s, "index", None): s for s in sources}
+    out: list[tuple[Any, float] | None] = []
+    for td in trials:
+        src = by_index.get(td.index)
+        ref = getattr(src, "reference", None)
+        if ref is None or not hasattr(ref, "evaluate"):
+            out.append(None)
+            continue
+        out.append((ref, float(td.t_step) - float(getattr(src, "t_step", td.t_step))))
     return out

@@ -10,15 +10,19 @@ A delay-differential equation, which the generated kernels (ordinary differentia
 equations with forward sensitivities) do not integrate: this module does, for the
 balancer models the robot advice covers (the base with ``viscous`` or
 ``variable_viscosity``; ``A = 0`` is ``viscous``). Fixed RK4 steps of at most
-:data:`MAX_STEP_S`; the delayed state is interpolated linearly in the stored history (and
-inside the current step between its start and the stage, so ``tau_r = 0`` is the
-undelayed loop). Before the first sample the load rests where it starts and the reference
-holds its first value. Several parameter sets ("lanes") are simulated in one call.
+:data:`MAX_STEP_S`; the delayed state is interpolated in the stored history by cubic
+Hermite polynomials (position with the velocity, velocity with the acceleration;
+linearly inside the current step between its start and the stage, so ``tau_r = 0`` is the
+undelayed loop), and the reference is evaluated where the servo reads it, so the
+response moves smoothly with ``tau_r``. Before the first sample the load rests where it
+starts and the reference holds its first value. Several parameter sets ("lanes") are
+simulated in one call.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -35,46 +39,51 @@ LANE_PARAMS = ("m_a", "T_a", "D0", "A", "k_r", "c_r", "tau_r")
 
 
 @jit(cache=True)
-def _at(hist: np.ndarray, n_done: int, h: float, tq: float, t0: float) -> float:
-    """History ``hist`` (sampled every ``h`` from ``t0``, ``n_done + 1`` points) at ``tq``."""
-    x = (tq - t0) / h
-    if x <= 0.0:
-        return hist[0]
-    i = int(x)  # x > 0: truncation is the floor
-    if i >= n_done:
-        return hist[n_done]
-    w = x - i
-    return (1.0 - w) * hist[i] + w * hist[i + 1]
+def _hermite(x0: float, d0: float, x1: float, d1: float, h: float, w: float) -> float:
+    """Cubic Hermite interpolation on ``[0, h]`` at ``w h`` from values and slopes."""
+    w2 = w * w
+    w3 = w2 * w
+    return (
+        (2 * w3 - 3 * w2 + 1) * x0
+        + (w3 - 2 * w2 + w) * h * d0
+        + (-2 * w3 + 3 * w2) * x1
+        + (w3 - w2) * h * d1
+    )
 
 
 @jit(cache=True)
-def _ref(t_s: np.ndarray, r: np.ndarray, tq: float) -> float:
-    """The reference ``r`` (given at the sample times ``t_s``) at ``tq``, held at the ends."""
-    n = t_s.shape[0]
-    if tq <= t_s[0]:
-        return r[0]
-    if tq >= t_s[n - 1]:
-        return r[n - 1]
-    dt = (t_s[n - 1] - t_s[0]) / (n - 1)
-    i = int((tq - t_s[0]) / dt)
-    if i > n - 2:
-        i = n - 2
-    while i > 0 and t_s[i] > tq:
-        i -= 1
-    while i < n - 2 and t_s[i + 1] < tq:
-        i += 1
-    w = (tq - t_s[i]) / (t_s[i + 1] - t_s[i])
-    return (1.0 - w) * r[i] + w * r[i + 1]
+def _past(zh, vh, ah, n_done, h, tq, t0):
+    """Position and velocity at ``tq`` from the history (every ``h`` from ``t0``, points
+    ``0 .. n_done``; accelerations known at ``0 .. n_done - 1``): cubic Hermite in both,
+    the last interval's velocity linear (its end's acceleration is not known yet)."""
+    x = (tq - t0) / h
+    if x <= 0.0:
+        return zh[0], vh[0]
+    i = int(x)  # x > 0: truncation is the floor
+    if i >= n_done:
+        return zh[n_done], vh[n_done]
+    w = x - i
+    z = _hermite(zh[i], vh[i], zh[i + 1], vh[i + 1], h, w)
+    if i + 1 < n_done:
+        v = _hermite(vh[i], ah[i], vh[i + 1], ah[i + 1], h, w)
+    else:
+        v = (1.0 - w) * vh[i] + w * vh[i + 1]
+    return z, v
 
 
 @jit(cache=True)
 def _lane(t_s, zr, vr, m_a, T_a, D0, A, k_r, c_r, tau, f0, v0, z0, n_sub, acc, force, vel):
-    """Integrate one lane; fill ``acc``, ``force`` (the servo's force h) and ``vel``."""
+    """Integrate one lane; fill ``acc``, ``force`` (the servo's force h) and ``vel``.
+
+    ``zr``, ``vr``: the reference the servo acts on (already ``tau`` late) at every half
+    internal step: index ``k`` is the time ``t_s[0] + k h / 2``.
+    """
     n = t_s.shape[0]
     h = (t_s[n - 1] - t_s[0]) / (n - 1) / n_sub
     n_steps = (n - 1) * n_sub
     zh = np.empty(n_steps + 1)
     vh = np.empty(n_steps + 1)
+    ah = np.empty(n_steps + 1)
     zh[0] = z0
     vh[0] = v0
     t0 = t_s[0]
@@ -82,23 +91,11 @@ def _lane(t_s, zr, vr, m_a, T_a, D0, A, k_r, c_r, tau, f0, v0, z0, n_sub, acc, f
     v = v0
     z = z0
     k_out = 0
+    kf = np.zeros(4)
+    kv = np.zeros(4)
+    kz = np.zeros(4)
     for j in range(n_steps + 1):
         t = t0 + j * h
-        # the output at a sample time: the servo force and the acceleration now
-        if j % n_sub == 0:
-            td = t - tau
-            zd = _at(zh, j, h, td, t0)
-            vd = _at(vh, j, h, td, t0)
-            hh = k_r * (_ref(t_s, zr, td) - zd) + c_r * (_ref(t_s, vr, td) - vd)
-            acc[k_out] = (f - D0 * math.exp(-A * abs(hh)) * v) / m_a
-            force[k_out] = hh
-            vel[k_out] = v
-            k_out += 1
-        if j == n_steps:
-            break
-        kf = np.zeros(4)
-        kv = np.zeros(4)
-        kz = np.zeros(4)
         for s in range(4):
             c = 0.0 if s == 0 else (0.5 if s < 3 else 1.0)
             ts = t + c * h
@@ -111,12 +108,23 @@ def _lane(t_s, zr, vr, m_a, T_a, D0, A, k_r, c_r, tau, f0, v0, z0, n_sub, acc, f
                 zd = (1.0 - w) * z + w * zs
                 vd = (1.0 - w) * v + w * vs
             else:
-                zd = _at(zh, j, h, td, t0)
-                vd = _at(vh, j, h, td, t0)
-            hh = k_r * (_ref(t_s, zr, td) - zd) + c_r * (_ref(t_s, vr, td) - vd)
+                zd, vd = _past(zh, vh, ah, j, h, td, t0)
+            kk = 2 * j + (0 if s == 0 else (1 if s < 3 else 2))
+            hh = k_r * (zr[kk] - zd) + c_r * (vr[kk] - vd)
             kf[s] = (hh - fs) / T_a
             kv[s] = (fs - D0 * math.exp(-A * abs(hh)) * vs) / m_a
             kz[s] = vs
+            if s == 0:
+                ah[j] = kv[0]
+                if j % n_sub == 0:  # a sample time: the output
+                    acc[k_out] = kv[0]
+                    force[k_out] = hh
+                    vel[k_out] = v
+                    k_out += 1
+                if j == n_steps:
+                    break
+        if j == n_steps:
+            break
         f += h / 6.0 * (kf[0] + 2.0 * kf[1] + 2.0 * kf[2] + kf[3])
         v += h / 6.0 * (kv[0] + 2.0 * kv[1] + 2.0 * kv[2] + kv[3])
         z += h / 6.0 * (kz[0] + 2.0 * kz[1] + 2.0 * kz[2] + kz[3])
@@ -130,6 +138,7 @@ def simulate_delayed_servo(
     v_ref: np.ndarray,
     lanes: np.ndarray,
     x0: tuple[float, float, float] | None = None,
+    reference: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate a robot move with a late servo for one or more parameter sets.
 
@@ -144,6 +153,10 @@ def simulate_delayed_servo(
         (:data:`LANE_PARAMS`; ``A = 0`` for a constant viscosity, ``tau_r`` in s).
     x0 : tuple of float, optional
         Drive force, velocity and position at ``time[0]`` (rest when None).
+    reference : callable, optional
+        ``t -> (z_ref, v_ref)`` at any times: the move itself, evaluated where the servo
+        needs it (a delay of a fraction of a sample moves it smoothly); None interpolates
+        ``z_ref`` and ``v_ref`` linearly between the samples.
 
     Returns
     -------
@@ -168,12 +181,18 @@ def simulate_delayed_servo(
     dt = (t[-1] - t[0]) / (t.size - 1)
     n_sub = max(math.ceil(dt / MAX_STEP_S - 1e-9), 1)
     f0, v0, z0 = x0 if x0 is not None else (0.0, 0.0, 0.0)
-    zr = np.ascontiguousarray(z_ref, dtype=float)
-    vr = np.ascontiguousarray(v_ref, dtype=float)
+    zs = np.asarray(z_ref, dtype=float)
+    vs = np.asarray(v_ref, dtype=float)
+    half = t[0] + np.arange(2 * (t.size - 1) * n_sub + 1) * (dt / n_sub / 2)
     acc = np.empty((p.shape[0], t.size))
     force = np.empty((p.shape[0], t.size))
     vel = np.empty((p.shape[0], t.size))
     for i, row in enumerate(p):
+        td = half - row[6]
+        if reference is not None:
+            zr, vr = (np.ascontiguousarray(x, dtype=float) for x in reference(td))
+        else:
+            zr, vr = np.interp(td, t, zs), np.interp(td, t, vs)
         _lane(t, zr, vr, *(float(x) for x in row), float(f0), float(v0), float(z0), n_sub,
               acc[i], force[i], vel[i])  # fmt: skip
     return acc, force, vel

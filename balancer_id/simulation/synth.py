@@ -150,7 +150,11 @@ def synthetic_recordings(
     sims = settled_simulation(model, params, inputs, dt)
     if servo_delay_s > 0 and any(float(f) != 0.0 for f in thrusts):
         raise ValueError("a servo delay applies to robot moves, which carry no thrust step")
-    delayed = _delayed_runs(model, params, inputs, servo_delay_s) if servo_delay_s > 0 else None
+    delayed = (
+        _delayed_runs(model, params, inputs, servo_delay_s, trajectory)
+        if servo_delay_s > 0
+        else None
+    )
     recordings = []
     for k, sim in enumerate(sims):
         sim_accel, sim_force = (
@@ -181,7 +185,11 @@ def synthetic_recordings(
 
 
 def _delayed_runs(
-    model: Model, params: Mapping[str, float], inputs: Sequence[TrialInput], tau_r: float
+    model: Model,
+    params: Mapping[str, float],
+    inputs: Sequence[TrialInput],
+    tau_r: float,
+    move: Trapezoid | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Acceleration and servo force of each robot move with the servo ``tau_r`` late."""
     from balancer_id.simulation.delayed_servo import (
@@ -202,7 +210,10 @@ def _delayed_runs(
     for inp in inputs:
         if inp.z_ref is None or inp.v_ref is None:
             raise ValueError("a servo delay needs the robot's reference move (--trajectory)")
-        a, h, _ = simulate_delayed_servo(inp.time, inp.z_ref, inp.v_ref, lane)
+        a, h, _ = simulate_delayed_servo(
+            inp.time, inp.z_ref, inp.v_ref, lane,
+            reference=None if move is None else move.evaluate,
+        )  # fmt: skip
         out.append((a[0], h[0]))
     return out
 
