@@ -146,7 +146,7 @@ def test_failing_user_effects_are_reported_by_name_and_the_rest_go_on():
     registry = Registry()
     registry.add(Explodes)
     registry.add(MakesNaN)
-    trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=13)
+    trials = trials_with("variable_viscosity+karnopp", {"f_s": 0.98}, seed=13, duration_s=5.0)
     diagnosis = diagnose(fit_paper_model(trials, registry))
     failed = " ".join(diagnosis.failures)
     assert "explodes" in failed and "makes_nan" in failed
