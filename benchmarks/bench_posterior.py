@@ -14,8 +14,9 @@ Wald interval, the interval the fit reports (profile where Wald crosses a bound)
 posterior's credible interval (``fit(..., posterior=True)``); the median width of the
 credible interval over the Wald one; the share of chains that converged.
 
-Run: ``python benchmarks/bench_posterior.py [--seeds N] [--seed S]`` (a fresh seed is
-drawn and printed unless ``--seed`` repeats one).
+Run: ``python benchmarks/bench_posterior.py [--seeds N] [--seed S] [--case TEXT]`` (a
+fresh seed is drawn and printed unless ``--seed`` repeats one; ``--case "2 levels"`` runs
+only the cases whose name holds the text).
 """
 
 from __future__ import annotations
@@ -82,16 +83,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--seed", type=int, default=None, help="repeat a run (default: fresh)")
+    ap.add_argument("--case", default="", help="only the cases whose name holds this text")
     args = ap.parse_args()
     seed0 = int(args.seed if args.seed is not None else np.random.SeedSequence().entropy % 10**6)
     print(f"seed {seed0} (repeat with --seed {seed0}); {args.seeds} seeds per case")
     print(
         "| recording | parameter | Wald holds truth | reported (profile where Wald "
-        "crosses a bound) | credible holds truth | credible / Wald width | converged |"
+        "crosses a bound) | credible holds truth (misses below / above) "
+        "| credible / Wald width | converged |"
     )
     print("|---|---|---:|---:|---:|---:|---:|")
     for case, (spec, truth, thrusts, seconds, noise) in CASES.items():
+        if args.case not in case:
+            continue
         hits = {k: np.zeros(3) for k in truth}
+        below = {k: 0 for k in truth}  # credible misses with the truth below the interval
         widths: dict[str, list[float]] = {k: [] for k in truth}
         conv = 0
         took = 0.0
@@ -111,6 +117,7 @@ def main() -> None:
                     inside(est.ci95, value),
                     inside(cred.get(k), value),
                 ]
+                below[k] += bool(k in cred and value < cred[k][0])
                 if est.wald_ci95 is not None:
                     w = est.wald_ci95[1] - est.wald_ci95[0]
                     widths[k].append((cred[k][1] - cred[k][0]) / w)
@@ -118,9 +125,10 @@ def main() -> None:
         for k in truth:
             w, r, c = 100 * hits[k] / n
             ratio = np.median(widths[k]) if widths[k] else float("nan")
+            misses = n - int(hits[k][2])
             print(
-                f"| {case} | {k} | {w:.0f} % | {r:.0f} % | {c:.0f} % | {ratio:.2f} "
-                f"| {100 * conv / n:.0f} % |"
+                f"| {case} | {k} | {w:.0f} % | {r:.0f} % | {c:.0f} % "
+                f"({below[k]} / {misses - below[k]}) | {ratio:.2f} | {100 * conv / n:.0f} % |"
             )
         print(f"<!-- {case}: {took / n:.1f} s per fit with posterior -->")
 

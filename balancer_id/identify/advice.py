@@ -564,7 +564,10 @@ def simulate_mode(
         return None
     grid, sim, t_end = run
     after = grid > t_end
-    return mode_from_response(grid[after], sim.accel[after], expected_hz)
+    settling = np.asarray(sim.accel[after], dtype=float)
+    if not np.all(np.isfinite(settling)) or np.max(np.abs(settling), initial=0.0) > 1e6:
+        return ModeFigures(0.0, -1.0)  # the simulated loop diverged: unstable
+    return mode_from_response(grid[after], settling, expected_hz)
 
 
 def viscosity_factor(model: Model, values: Mapping[str, float], move: TrialInput) -> float:

@@ -291,6 +291,7 @@ class FitResult(Displayable):
         if self.coupling is None:
             return None
         if self._servo_delay is None:
+            from balancer_id.identify.servo_delay import ServoDelay as ServoDelayResult
             from balancer_id.identify.servo_delay import (
                 examine_servo_delay,
                 move_forces,
@@ -300,10 +301,16 @@ class FitResult(Displayable):
             free = [n for n, e in self.match.parameters.items() if e.vary]
             trials = self.match.data.trials
             sources = [*self.trial_set.trials, *self.trial_set.loose]
-            found = examine_servo_delay(
-                self.match.model, self.values, free, trials, move_forces(trials, sources),
-                references=move_references(trials, sources),
-            )  # fmt: skip
+            try:
+                found = examine_servo_delay(
+                    self.match.model, self.values, free, trials, move_forces(trials, sources),
+                    references=move_references(trials, sources),
+                )  # fmt: skip
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                # a numerical failure of the delayed fits leaves the fit itself standing
+                found = ServoDelayResult(
+                    False, "not_examined", why=f"the delayed fits failed ({exc})"
+                )
             object.__setattr__(self, "_servo_delay", found)  # a cache, not a change
         return self._servo_delay
 
