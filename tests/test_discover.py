@@ -31,8 +31,11 @@ from balancer_id.trials import LoadedLog, TrialSet
 NOISE = 0.03
 
 
-def hidden_force(term: str, coefficient: float, seed: int, rho: float = 0.0) -> TrialSet:
-    """Six paper trials with one library term hidden at ``coefficient``, read back."""
+def hidden_force(
+    term: str, coefficient: float, seed: int, rho: float = 0.0, thrusts=PAPER_THRUSTS
+) -> TrialSet:
+    """Paper trials (the six unless ``thrusts``) with one library term hidden at
+    ``coefficient``, read back."""
     terms = discovery.default_terms(0.3, None)
     lib = discovery.library_effect(terms)
     registry = Registry()
@@ -45,7 +48,7 @@ def hidden_force(term: str, coefficient: float, seed: int, rho: float = 0.0) -> 
     sensor = SensorSettings(
         tilt_deg=15.0, accel_noise=NOISE, force_noise=0.03, noise_correlation=rho
     )
-    recs = synthetic_recordings(model, truth, PAPER_THRUSTS, sensor=sensor, seed=seed)
+    recs = synthetic_recordings(model, truth, thrusts, sensor=sensor, seed=seed)
     log = Log(Path(f"hidden_{seed}.csv"), "pasco-capstone", recs)
     return TrialSet([LoadedLog(log, find_trials(log))])
 
@@ -57,8 +60,14 @@ def fit_paper_model(trials: TrialSet) -> FitResult:
 
 @pytest.fixture(scope="module")
 def spring():
-    """A hidden spring ``-4 z`` (the README's hose) and the diagnosis of the paper model."""
-    start = fit_paper_model(hidden_force("z", -4.0, seed=31))
+    """A hidden spring ``-4 z`` (the README's hose) and the diagnosis of the paper model.
+
+    Three trials (a quarter of the six's time): the paper model, bent by the spring it
+    lacks, ends in another basin (m_a 4.0 kg, T_a 0.92 s against 15.1 and 0.33), which
+    the discovery must leave (before its refits also started at the data's own scale, it
+    kept m_a 4.0 and found -1.5 z, leaving 5 times the noise; 2 of 8 seeds did so)."""
+    start = fit_paper_model(hidden_force("z", -4.0, seed=35, thrusts=(2.45, -4.9, 7.35)))
+    assert start.values["m_a"] < 10  # the wrong basin this case is about
     return start, diagnose(start)
 
 
@@ -117,9 +126,10 @@ def test_the_written_effect_loads_as_an_effects_file_and_lowers_the_error(spring
     model = parse_model("variable_viscosity+hose_found", registry)
     # written with 6 significant digits: a rounding of at most 5e-6 of the value
     assert model.param("k_z").value == pytest.approx(d.discovery.terms[0].coefficient, rel=5e-6)
-    match = match_trials(model, trial_data(start.trial_set), start=start.values)
-    assert match.values()["k_z"] == pytest.approx(-4.0, rel=0.05)
-    assert match.metrics["rmse"] < 0.5 * start.match.metrics["rmse"]
+    # as `fit --model variable_viscosity+hose_found --effects-file hose_found.py` fits it
+    refit = identify_fit(start.trial_set, model=model, profile=False, held_out=False)
+    assert refit.values["k_z"] == pytest.approx(-4.0, rel=0.05)
+    assert refit.match.metrics["rmse"] < 0.5 * start.match.metrics["rmse"]
     # never over a file of the user's; a file it wrote only with overwrite
     with pytest.raises(OutputExistsError, match="exists already"):
         discovery.write_effect(d.discovery, path)

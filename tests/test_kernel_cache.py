@@ -175,3 +175,41 @@ def test_a_cache_writable_by_others_is_refused(tmp_path, monkeypatch, capfd):
     assert "kernel cache not used" in err and "writable by others" in err
     assert err.count("\n") == 1
 
+
+
+def test_a_model_whose_hook_raises_is_compiled_once_and_its_error_raised_again(monkeypatch):
+    # a user's force that raises: its kernel was compiled (and "regenerated" as if the
+    # cache were damaged) at every refit of a diagnosis, 12 compiles for two such effects
+    from balancer_id import Effect, Param
+    from balancer_id.errors import EffectError
+    from balancer_id.model import Registry
+
+    class Raises(Effect):
+        """A force that raises."""
+
+        name = "raises_once"
+        summary = "raises"
+        parameters = (Param("k_q", 1.0, 0.0, 2.0, "N", "nothing"),)
+
+        @staticmethod
+        def force(f, v, z, h, k_q):
+            raise RuntimeError("boom")
+
+    registry = Registry()
+    registry.add(Raises)
+    model = parse_model("variable_viscosity+raises_once", registry)
+    compiled: list[str] = []
+    real = K._compile_now
+
+    def counted(m, *a, **k):
+        compiled.append(m.spec)
+        return real(m, *a, **k)
+
+    monkeypatch.setattr(K, "_compile_now", counted)
+    with pytest.raises(EffectError, match="raises_once") as first:
+        K.get_kernel(model, quiet=True)
+    n = len(compiled)
+    assert 1 <= n <= 2  # a fresh compile, or a cached one regenerated once
+    with pytest.raises(EffectError) as again:
+        K.get_kernel(model, quiet=True)
+    assert len(compiled) == n and str(again.value) == str(first.value)

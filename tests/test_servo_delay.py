@@ -140,3 +140,30 @@ def test_advice_for_an_ambiguous_delay_holds_on_the_stiffer_servo_too():
         v = {**stiffer, s.parameter: stiffer[s.parameter] * factor}
         c = coupling(v["m_a"], v["T_a"], 0.15 * v["D0"], v["k_r"], v["c_r"])
         assert c.stable and c.damping_ratio >= 0.3 - 1e-6
+
+
+def test_diagnose_names_a_late_servo_from_the_fits_examination():
+    from balancer_id.diagnostics.explanations import kind_of
+    from balancer_id.identify.servo_delay import Explanation, ServoDelay
+
+    late = ServoDelay(
+        True, "servo_delay", 0.031, (0.029, 0.033),
+        [
+            Explanation("servo_delay", {**PAPER, "k_r": 148.0, "c_r": 100.0, "tau_r": 0.031},
+                        0.0, -2000.0, "late", 0.0302, 0.03),
+            Explanation("no_delay", {**PAPER, "k_r": 206.0, "c_r": 97.0}, 0.0, -1200.0,
+                        "at once", 0.0303, 0.07),
+        ],
+        has_force=True,
+    )  # fmt: skip
+    kind = kind_of("servo_delay")
+    got = kind.propose(SimpleNamespace(fit=SimpleNamespace(servo_delay=late)))
+    assert len(got) == 1 and got[0].label == "robot servo 31 ms late"
+    assert got[0].delta_bic == 800.0
+    assert got[0].detail["ci95_s"] == [0.029, 0.033]
+    # the acceleration's excess error is nil: it stands on its BIC fall
+    got[0].excess_drop = 0.0
+    assert kind.valid(got[0], False, 10.0, 0.05)
+    # not named: not proposed
+    late.verdict = "none"
+    assert kind.propose(SimpleNamespace(fit=SimpleNamespace(servo_delay=late))) == []

@@ -81,7 +81,17 @@ class Explanation:
     force_rmse: float | None = None
 
     def to_dict(self, best_bic: float) -> dict[str, object]:
-        """JSON-ready dict (``delta_bic`` against the best explanation)."""
+        """JSON-ready dict.
+
+        Parameters
+        ----------
+        best_bic : float
+            The best explanation's BIC (``delta_bic`` is against it).
+
+        Returns
+        -------
+        dict
+        """
         return {
             "name": self.name,
             "text": self.text,
@@ -143,7 +153,18 @@ class ServoDelay:
         return self.verdict in ("servo_delay", "ambiguous")
 
     def explanation(self, name: str) -> Explanation | None:
-        """The fitted explanation ``name`` (None if not fitted)."""
+        """The fitted explanation ``name``.
+
+        Parameters
+        ----------
+        name : str
+            ``no_delay``, ``servo_delay``, ``sensor_lowpass`` or ``force_lowpass``.
+
+        Returns
+        -------
+        Explanation or None
+            None if not fitted.
+        """
         return next((e for e in self.explanations if e.name == name), None)
 
     @property

@@ -30,6 +30,13 @@ SIGMAS = 3.0
 #: Fewest resting samples (over all trials) the test needs.
 MIN_REST = 50
 
+#: The residual in motion is structured when its correlation time exceeds the noise's at
+#: rest by this factor plus :data:`TAU_MARGIN` samples (a misfit at a third of the
+#: noise's level, slow against the samples, raises it several-fold; a white noise's
+#: estimate varies by a few tenths).
+TAU_FACTOR = 2.0
+TAU_MARGIN = 1.5
+
 
 def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The residual of each trial that starts from rest: before its step, and after."""
@@ -58,9 +65,33 @@ def _power(parts: Sequence[np.ndarray]) -> tuple[float, float]:
     return float(np.mean(x * x)), x.size / tau
 
 
+def _coloured_in_motion(rest: list[np.ndarray], motion: list[np.ndarray]) -> Note | None:
+    """The whiteness test: a residual in motion correlated over far more samples than the
+    noise at rest is a misfit hidden under the noise's level (a friction, a limit partly
+    reached, a lag that differs up and down), which still bends the values."""
+    rest = [p for p in rest if p.size >= 5]
+    motion = [p for p in motion if p.size >= 5]
+    if not rest or not motion:
+        return None
+    tau_rest = correlation_time(rest, removed=1)
+    tau_motion = correlation_time(motion, removed=1)
+    if tau_motion <= TAU_FACTOR * tau_rest + TAU_MARGIN:
+        return None
+    return Note(
+        "fit.structured_residual",
+        f"the residual in motion is correlated over {tau_motion:.1f} samples against the "
+        f"sensor's {tau_rest:.1f} at rest before the steps: under the noise's level, the "
+        "model misses something the trials show (a force it lacks, a limit partly "
+        "reached, a lag that differs up and down), so the values bend to follow it and "
+        "their intervals do not hold; run 'balancer-id diagnose' on the same logs",
+        severity="error",
+    )
+
+
 def structured_residual(match: MatchResult) -> Note | None:
     """A ``fit.structured_residual`` note (severity ``error``) when the residual in motion
-    carries clearly more power than the sensor's noise at rest, else None.
+    carries clearly more power than the sensor's noise at rest, or is correlated over
+    clearly more samples than that noise (:func:`_coloured_in_motion`), else None.
 
     Parameters
     ----------
@@ -82,7 +113,7 @@ def structured_residual(match: MatchResult) -> Note | None:
     excess = p_motion / p_rest - 1.0
     se = float(np.sqrt(2.0 / max(n_rest, 1.0) + 2.0 / max(n_motion, 1.0)))
     if excess <= max(EXCESS, SIGMAS * se):
-        return None
+        return _coloured_in_motion(rest, motion)
     return Note(
         "fit.structured_residual",
         f"the residual in motion is {np.sqrt(p_motion):.3g} m/s^2 RMS against the sensor's "

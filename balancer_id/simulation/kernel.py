@@ -151,22 +151,40 @@ def get_kernel(model: Model, *, quiet: bool = False) -> Kernel:
         When the model's hooks cannot be compiled or run.
     """
     key = (model.effects, model.param_names)
+    failed = _FAILED.get(key)
+    if failed is not None:  # a model whose hooks fail is not compiled again and again
+        raise failed
     kernel = _KERNELS.get(key)
     if kernel is None:
-        kernel = _build(model)
         try:
-            _compile_now(model, kernel, quiet)
-        except EffectError:
-            if kernel.path is None:
-                raise
-            note(
-                f"the cached kernel of model '{model.spec}' in {kernel.path.parent} failed to "
-                "load; regenerating and compiling it again"
-            )
-            _purge(kernel.path)
-            kernel = _build(model)
-            _compile_now(model, kernel, quiet=True)
+            kernel = _load_or_compile(model, quiet)
+        except EffectError as exc:
+            _FAILED[key] = exc
+            raise
         _KERNELS[key] = kernel
+    return kernel
+
+
+#: The models whose kernel failed in this process, with the error (raised again at once).
+_FAILED: dict[tuple[object, ...], EffectError] = {}
+
+
+def _load_or_compile(model: Model, quiet: bool) -> Kernel:
+    """The kernel of ``model``, from the disk cache or compiled; a cached kernel that fails
+    is regenerated once before the model's effects are blamed."""
+    kernel = _build(model)
+    try:
+        _compile_now(model, kernel, quiet)
+    except EffectError:
+        if kernel.path is None:
+            raise
+        note(
+            f"the cached kernel of model '{model.spec}' in {kernel.path.parent} failed to "
+            "load; regenerating and compiling it again"
+        )
+        _purge(kernel.path)
+        kernel = _build(model)
+        _compile_now(model, kernel, quiet=True)
     return kernel
 
 

@@ -107,7 +107,8 @@ def synthetic_recordings(
     sensor : SensorSettings, optional
         Noise, quantization, tilt, drop-outs.
     rest_s : float
-        Rest before the step (s).
+        Rest before the step (s): the sample at ``rest_s`` is the first to read the step,
+        which happens half a sample before it (between two samples, as a real one does).
     duration_s : float
         Recording after the step (s).
     trajectory : Trapezoid, optional
@@ -142,7 +143,10 @@ def synthetic_recordings(
         z_ref = v_ref = None
         if trajectory is not None:
             z_ref, v_ref = trajectory.evaluate(time)
-        inputs.append(TrialInput(time, Thrust.step(rest_s, float(f_in)), z_ref, v_ref))
+        # the step happens between two samples (halfway: where a real one is on average),
+        # so the sample at rest_s is the first to read it, as a sensor's would
+        onset = rest_s - 0.5 * dt if trajectory is None else rest_s
+        inputs.append(TrialInput(time, Thrust.step(onset, float(f_in)), z_ref, v_ref))
     sims = settled_simulation(model, params, inputs, dt)
     if servo_delay_s > 0 and any(float(f) != 0.0 for f in thrusts):
         raise ValueError("a servo delay applies to robot moves, which carry no thrust step")
@@ -373,7 +377,8 @@ def write_synthetic_log(
     sensor : SensorSettings, optional
         Noise, quantization, tilt, drop-outs; None uses the defaults.
     rest_s : float
-        Rest before the step (s).
+        Rest before the step (s): the sample at ``rest_s`` is the first to read the step,
+        which happens half a sample before it (between two samples, as a real one does).
     duration_s : float
         Recording after the step (s).
     trajectory : Trapezoid, optional

@@ -23,6 +23,7 @@ from balancer_id.diagnostics.discovery.settings import (
     CLOSE,
     CLOSE_BIC,
     COULOMB,
+    LEFT_OVER,
     MAX_TERMS,
     PERIOD_SAMPLES,
     PERIODIC,
@@ -33,6 +34,7 @@ from balancer_id.diagnostics.discovery.settings import (
 from balancer_id.diagnostics.discovery.terms import Term, default_terms, library_effect
 from balancer_id.errors import BalancerIdError
 from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.identify.starts import fit_start
 from balancer_id.model.registry import Registry
 from balancer_id.model.spec import Model
 
@@ -369,14 +371,38 @@ def _try_group(
         **{lib.q_names[k]: float(x) for k, x in zip(group, step, strict=True)},
     }
     support = [*path.support, *group]
+    fitted = _refit_group(inp, lib, start, support)
+    if fitted is not None and _leaves_error(inp, fitted) and inp.fit is not None:
+        # the current fit, bent by the force it lacks, may sit in another basin (a light
+        # mass with a long lag): the group refitted from the data's own scale too
+        fresh, _ = fit_start(inp.match.model, inp.trials, inp.fit.classic)
+        again = _refit_group(inp, lib, {**start, **fresh}, support) if fresh else None
+        if again is not None and again.metrics["rmse"] < fitted.metrics["rmse"]:
+            fitted = again
+    if fitted is None:
+        return None
+    gain, _ = arena.score(inp, [fitted.residual[sl] for sl in fitted.data.slices()], len(support))
+    return gain, group, fitted
+
+
+def _refit_group(
+    inp: ArenaInput, lib: Library, start: dict[str, float], support: list[int]
+) -> MatchResult | None:
+    """The model with the terms ``support`` refitted from ``start`` (None when it fails)."""
     try:
-        fitted = match_trials(
+        return match_trials(
             lib.model, list(inp.trials), start=start, fixed=lib.holding(support), max_nfev=200
         )
     except BalancerIdError:
         return None
-    gain, _ = arena.score(inp, [fitted.residual[sl] for sl in fitted.data.slices()], len(support))
-    return gain, group, fitted
+
+
+def _leaves_error(inp: ArenaInput, fitted: MatchResult) -> bool:
+    """Whether a refit leaves more error above the noise floor than :data:`LEFT_OVER` x
+    the noise (the share discovery is tried for)."""
+    floor = inp.noise_floor
+    left = float(np.sqrt(max(fitted.metrics["rmse"] ** 2 - floor**2, 0.0)))
+    return floor > 0 and left > LEFT_OVER * floor
 
 
 def _take(

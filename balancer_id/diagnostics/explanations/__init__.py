@@ -25,6 +25,7 @@ from balancer_id.diagnostics.explanations.pair import Pair
 from balancer_id.diagnostics.explanations.sensor_clipping import SensorClipping
 from balancer_id.diagnostics.explanations.sensor_gain import SensorGain
 from balancer_id.diagnostics.explanations.sensor_lowpass import SensorLowpass
+from balancer_id.diagnostics.explanations.servo_delay import ServoDelay
 from balancer_id.diagnostics.explanations.split import Split
 from balancer_id.diagnostics.explanations.time_trend import TimeTrend
 
@@ -38,6 +39,7 @@ KINDS: tuple[ExplanationKind, ...] = (
     SensorClipping(),
     SensorGain(),
     ForceDelay(),
+    ServoDelay(),
     Pair(),
     Discovered(),
 )
