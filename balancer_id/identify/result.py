@@ -277,7 +277,13 @@ class FitResult(Displayable):
                 advice = advise_fit(self.match.model, values, moves, delays=delays, also=also)
             else:
                 share = self.coupling.viscosity_factor  # simulated once, for the coupling
-                advice = advise_fit(self.match.model, self.values, moves, today=share)
+                # no delay named, but one up to the interval's end is not ruled out: the
+                # promise must hold over it too
+                hi = late.interval[1] if late is not None and late.interval else 0.0
+                advice = advise_fit(
+                    self.match.model, self.values, moves, today=share,
+                    delays=(0.0, 0.0, float(hi)) if hi > 0 else (),
+                )  # fmt: skip
             object.__setattr__(self, "_advice", advice)  # a cache, not a change
         return self._advice
 
