@@ -158,3 +158,12 @@ def test_a_comparison_reads_back_and_renders_as_it_did():
     assert isinstance(back, ComparisonRecord) and back.models == ["viscous"]
     assert back.to_dict() == data
     assert _terminal(back.printer, back.to_dict()) == _terminal("print_compare", run.to_dict())
+
+
+def test_a_sealed_fit_s_estimates_cannot_be_changed(fitted):
+    name, estimate = next(iter(fitted.match.parameters.items()))
+    with pytest.raises(dataclasses.FrozenInstanceError, match="stderr"):
+        estimate.stderr = 0.0
+    with pytest.raises(AttributeError):
+        estimate.distrust.append("added")  # a tuple once sealed
+    assert fitted.to_dict()["parameters"][name]["value"] == estimate.value

@@ -203,15 +203,12 @@ def fit(
 
     Example: balancer-id fit sample_logs/paper_balancer.csv --model viscous+karnopp
     """
-    from balancer_id.workflows.fit_logs import FitJob
-    from balancer_id.workflows.request import FitRequest
+    from balancer_id.workflows.fit_logs import FitJob, FitRequest
 
-    request = FitRequest(
-        tuple(str(p) for p in logs), model, assignments(fix, "--fix"), options, per_trial,
-        starts, trajectory_text, _files(effects_file), names(track), names(per_log),
-    )
     job = FitJob(
-        request, params, assignments(start_values, "--start"), bounds(bounds_text), posterior,
+        FitRequest(_files(logs), model, assignments(fix, "--fix"), options, per_trial, starts,
+                   trajectory_text, _files(effects_file), names(track), names(per_log)),
+        params, assignments(start_values, "--start"), bounds(bounds_text), posterior,
         tuple(prior or ()), group_by, report, save, series, overwrite, not no_cache,
     )
     with stage(f"fitting {model or 'variable_viscosity'} ({starts or 'default'} start(s))"):

@@ -203,10 +203,11 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
         else ""
     )
     delays = advice.get("servo_delay_s") or []
-    late = f" with the servo {1e3 * delays[0]:.0f} ms late," if delays else ""
+    late = f" with the servo {1e3 * delays[0]:.0f} ms late," if delays and delays[0] > 0 else ""
+    late_now = bool(delays) and delays[0] > 0
     margin = (
         f"unstable beyond a {1e3 * now['delay_margin_s']:.0f} ms servo delay"
-        if delays and now.get("delay_margin_s") is not None
+        if late_now and now.get("delay_margin_s") is not None
         else f"stability margin {now['stability_margin']:+.3g}"
     )
     out = [
@@ -222,7 +223,7 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
         if s["advised"] is None or p is None:
             out.append(f"  {s['what']} alone: not reachable ({s['note']})")
             continue
-        margin = "" if delays else f", margin {p['stability_margin']:+.3g}"
+        margin = "" if late_now else f", margin {p['stability_margin']:+.3g}"
         text = (
             f"  {s['what']}: {s['current']:.4g} -> {s['advised']:.4g} "
             f"({s['change_percent'] or 0.0:+.0f} %): {p['oscillation_hz']:.3g} Hz, "

@@ -42,6 +42,25 @@ class ParameterEstimate:
     #: Why this parameter alone is not trusted (a check that moves it beyond its
     #: standard error, :mod:`~balancer_id.identify.timing`); empty: nothing against it.
     distrust: list[str] = field(default_factory=list)
+    _sealed: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if getattr(self, "_sealed", False):
+            raise FrozenInstanceError(f"an estimate is sealed in a FitResult; cannot set {name}")
+        object.__setattr__(self, name, value)
+
+    def seal(self) -> ParameterEstimate:
+        """Make the estimate complete: no field can be set, ``distrust`` a tuple (the
+        checks after the optimizer annotate it first; :meth:`MatchResult.seal` seals it).
+
+        Returns
+        -------
+        ParameterEstimate
+            This estimate.
+        """
+        object.__setattr__(self, "distrust", tuple(self.distrust))
+        object.__setattr__(self, "_sealed", True)
+        return self
 
     @property
     def claim(self) -> str | None:
@@ -127,7 +146,7 @@ class MatchResult(Displayable):
         if self._sealed:
             return self
         tables = {
-            "parameters": FrozenDict(self.parameters),
+            "parameters": FrozenDict({k: e.seal() for k, e in self.parameters.items()}),
             "metrics": FrozenDict(self.metrics),
             "correlations": None
             if self.correlations is None

@@ -52,6 +52,8 @@ DISAGREE_SHARE = 0.25
 #: m_a from 0.6 to 15 kg above a support from 0.013 kg, keeps both tails.)
 PILE_QUANTILE = 0.5
 PILE_SHARE = 0.02
+#: A valley with less than this share of the samples does not judge the convergence.
+WEIGHTY = 0.01
 #: Another valley of the posterior with at least this share of the samples is named.
 MODE_NOTE_WEIGHT = 0.05
 #: Acceptance fractions outside this range say the sampler is not mixing well.
@@ -519,8 +521,12 @@ def sample_posterior(
         if int(w * total) > 0
     ]
     samples = _from_log(np.concatenate(pooled), logged)
-    # the diagnostics of the valley whose chain is shortest against its autocorrelation
-    worst = min(runs, key=lambda r: r.steps / _longest(r.tau) if np.any(np.isfinite(r.tau)) else 0)
+    # the diagnostics of the valley whose chain is shortest against its autocorrelation,
+    # of those that hold a share of the samples (a valley of no weight adds none)
+    weighty = [r for r, w in zip(runs, weights, strict=True) if w >= WEIGHTY] or runs
+    worst = min(
+        weighty, key=lambda r: r.steps / _longest(r.tau) if np.any(np.isfinite(r.tau)) else 0
+    )
     tau, steps, burn, thin = worst.tau, worst.steps, worst.burn, worst.thin
     post = Posterior(
         names=names,

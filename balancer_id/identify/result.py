@@ -12,7 +12,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
-from balancer_id.records import FitRecord, FrozenDict
+from balancer_id.records import FitRecord, FrozenDict, ReadsBack
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
@@ -38,7 +38,7 @@ __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
 
 @dataclass(repr=False)
-class FitResult(Displayable):
+class FitResult(Displayable, ReadsBack):
     """Everything ``balancer-id fit`` reports, and what it was computed from.
 
     Attributes
@@ -98,6 +98,8 @@ class FitResult(Displayable):
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _servo_delay: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
+    #: What the JSON reads back as (:meth:`from_dict`).
+    record: ClassVar[type[FitRecord]] = FitRecord
 
     def __post_init__(self) -> None:
         # complete when made: the tables and lists read-only, the match sealed
@@ -277,7 +279,13 @@ class FitResult(Displayable):
                 advice = advise_fit(self.match.model, values, moves, delays=delays, also=also)
             else:
                 share = self.coupling.viscosity_factor  # simulated once, for the coupling
-                advice = advise_fit(self.match.model, self.values, moves, today=share)
+                # no delay named, but one up to the interval's end is not ruled out: the
+                # promise must hold over it too
+                hi = late.interval[1] if late is not None and late.interval else 0.0
+                advice = advise_fit(
+                    self.match.model, self.values, moves, today=share,
+                    delays=(0.0, 0.0, float(hi)) if hi > 0 else (),
+                )  # fmt: skip
             object.__setattr__(self, "_advice", advice)  # a cache, not a change
         return self._advice
 
@@ -394,25 +402,6 @@ class FitResult(Displayable):
                 d["untrusted_because"] = distrust[name]
             out[name] = d
         return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> FitRecord:
-        """A fit read back from its JSON (a cached or saved ``fit --json`` object).
-
-        The JSON does not carry the trials, so what reads back is a
-        :class:`~balancer_id.records.FitRecord`: frozen, its ``to_dict()`` equal to
-        ``data``, rendered as the fit it came from.
-
-        Parameters
-        ----------
-        data : mapping
-            A :meth:`to_dict` object.
-
-        Returns
-        -------
-        FitRecord
-        """
-        return FitRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""

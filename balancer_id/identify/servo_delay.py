@@ -39,9 +39,12 @@ NAME_DELTA_BIC = 10.0
 TIE_DELTA_BIC = 6.0
 #: Largest delay searched (s): beyond it the loop of any advised robot is unstable.
 MAX_DELAY_S = 0.3
-#: The lags (s) of the coarse profile that starts each lag's fit (the least-squares cost
-#: is not convex in a lag; the move's start trades with it).
-LAG_GRID = (0.0, 0.01, 0.02, 0.035, 0.05, 0.07, 0.1, 0.15)
+#: The delays (s) of the profile that starts the late servo's fit (the least-squares cost
+#: is not convex in it, and its basin is a few ms wide where the force is precise: 15 ms
+#: steps missed a 41 ms delay); the move's start moved back by each (the found start
+#: soaks the delay up), and a few with the start as found.
+LAG_GRID = (*(0.005 * k for k in range(21)), 0.125, 0.15)
+LAG_GRID_UNSHIFTED = (0.0, 0.02, 0.05, 0.1)
 #: The same for a sensor's lag (the move's start does not trade with it).
 SENSOR_LAG_GRID = (0.005, 0.02, 0.05)
 #: Most evaluations of one least-squares solve.
@@ -557,8 +560,13 @@ def examine_servo_delay(
         k_servo = [k for k, n in enumerate(free) if n not in prior]
         shift_none = float(x_none[len(free)])
         late = name == "servo_delay"
-        for tau0 in LAG_GRID if late else SENSOR_LAG_GRID:
-            for shift0 in (shift_none, shift_none - tau0) if late else (shift_none,):
+        if late:  # the delay's basin is narrow: a fine grid, the start moved back by it
+            tries = [(t, shift_none - t) for t in LAG_GRID]
+            tries += [(t, shift_none) for t in LAG_GRID_UNSHIFTED]
+        else:
+            tries = [(t, shift_none) for t in SENSOR_LAG_GRID]
+        for tau0, shift0 in tries:
+            if True:
                 grid = _Problem(moves, vals, servo, "", start.sigma)
                 grid.fixed = {_LAG[name]: tau0}
                 xg0 = np.append(x_from[k_servo], np.clip(shift0, -MAX_SHIFT_S, MAX_SHIFT_S))

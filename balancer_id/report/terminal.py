@@ -376,15 +376,7 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
     tests = result["residual_tests"]
     groups = tests.get("parameter_groups")
     if groups:
-        title = f"{groups['parameter']} per run (split test p = {groups['p_value']:.1e})"
-        runs = Table(title=title)
-        for col in ("#", "run", "value", "stderr", "|thrust| (N)"):
-            runs.add_column(col)
-        for k, r in enumerate(groups["runs"], start=1):
-            runs.add_row(
-                str(k), r["run"], f"{r['value']:.4g}", f"{r['stderr']:.2g}", f"{r['thrust_N']:.3g}"
-            )
-        console.print(runs)
+        console.print(_groups_table(groups))
     w = tests["whiteness"]
     if w.get("ljung_box_p") is not None:
         console.print(
@@ -443,6 +435,19 @@ def print_diagnosis(console: Console, result: dict[str, Any]) -> None:
         _print_discovery(console, result["discovery"])
     for f in result.get("failed_candidates", []):
         _stderr(console).print(f"[yellow]candidate failed:[/yellow] {f}")
+
+
+def _groups_table(groups: dict[str, Any]) -> Table:
+    """A parameter's value run by run (the split test's groups)."""
+    title = f"{groups['parameter']} per run (split test p = {groups['p_value']:.1e})"
+    runs = Table(title=title)
+    for col in ("#", "run", "value", "stderr", "|thrust| (N)"):
+        runs.add_column(col)
+    for k, r in enumerate(groups["runs"], start=1):
+        runs.add_row(
+            str(k), r["run"], f"{r['value']:.4g}", f"{r['stderr']:.2g}", f"{r['thrust_N']:.3g}"
+        )
+    return runs
 
 
 def _print_discovery(console: Console, d: dict[str, Any]) -> None:

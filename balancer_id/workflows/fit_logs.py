@@ -23,7 +23,7 @@ from balancer_id.status import tell
 from balancer_id.trials import load_trials
 from balancer_id.workflows.request import FitRequest
 
-__all__ = ["MAX_STARTS", "FitJob", "FitRun", "track_series_path"]
+__all__ = ["MAX_STARTS", "FitJob", "FitRequest", "FitRun", "track_series_path"]
 
 #: More optimizer starts than this is a mistake (each start is a whole fit).
 MAX_STARTS = 1000
