@@ -381,7 +381,9 @@ def _widening(match: MatchResult, info: np.ndarray, names: list[str]) -> np.ndar
     except np.linalg.LinAlgError:
         return out
     for v, j in zip(var, fitted, strict=True):
-        se = match.parameters[names[j]].stderr
+        est = match.parameters[names[j]]
+        # the steps' places between samples are no information a new trial adds
+        se = math.sqrt(max(est.stderr**2 - est.phase_se**2, 0.0)) if est.stderr else None
         if se and math.isfinite(se) and v > 0:
             out[j] = max(1.0, se / math.sqrt(v))
     return out

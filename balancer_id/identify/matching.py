@@ -42,6 +42,9 @@ class ParameterEstimate:
     #: Why this parameter alone is not trusted (a check that moves it beyond its
     #: standard error, :mod:`~balancer_id.identify.timing`); empty: nothing against it.
     distrust: list[str] = field(default_factory=list)
+    #: The part of ``stderr`` from where the steps lie between their samples
+    #: (:func:`~balancer_id.identify.timing.sampling_variance`): no new trial reduces it.
+    phase_se: float = 0.0
     _sealed: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __setattr__(self, name: str, value: object) -> None:

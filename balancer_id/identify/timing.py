@@ -291,6 +291,7 @@ def check_timing(match: MatchResult) -> list[Note]:
         est = match.parameters[name]
         if extra > 0 and est.stderr is not None and np.isfinite(est.stderr):
             est.stderr = float(np.hypot(est.stderr, extra))
+            est.phase_se = float(extra)
     match.metrics["timing_lead_s"] = check.lead_s
     match.metrics["timing_lead_stderr_s"] = check.stderr_s
     if not check.clear:
