@@ -22,6 +22,7 @@ __all__ = [
     "FitRecord",
     "FrozenDict",
     "ImproveRecord",
+    "ReadsBack",
     "ResultRecord",
     "freeze",
     "thaw",
@@ -167,6 +168,31 @@ class ResultRecord:
         groups = self.data.get("groups")
         parts = groups if isinstance(groups, tuple) else (self.data,)
         return not any(isinstance(p, Mapping) and p.get("trusted") is False for p in parts)
+
+
+class ReadsBack:
+    """A result whose JSON reads back: ``X.from_dict(x.to_dict())`` is a frozen
+    :attr:`record` of it (the JSON carries no trials to compute the result again)."""
+
+    #: What the JSON reads back as.
+    record: ClassVar[type[ResultRecord]] = ResultRecord
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ResultRecord:
+        """The result read back from its JSON (a cached, saved or sent ``to_dict()``).
+
+        Parameters
+        ----------
+        data : mapping
+            A ``to_dict()`` object (JSON-ready).
+
+        Returns
+        -------
+        ResultRecord
+            A :attr:`record`: frozen, its ``to_dict()`` equal to ``data``, rendered as
+            the result it came from.
+        """
+        return cls.record.from_dict(data)
 
 
 @dataclass(frozen=True)

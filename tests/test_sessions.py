@@ -125,9 +125,9 @@ def test_measured_thrust_changes_halfway_between_samples_and_drops_spikes():
     t = np.arange(0, 2, 0.005)
     f = np.where(t >= 1.0, 3.0, 0.0)
     f[50] = 40.0  # a spike
-    th = measured_thrust(t, f)  # a smooth force: each interval holds the mean of its ends
-    assert th.at(np.array([0.99, 0.995, 1.0])).tolist() == [0.0, 1.5, 3.0]
-    assert np.max(np.abs(th.values[:199])) == 0.0
+    th = measured_thrust(t, f)  # a smooth force (a window's): each sample held to the next
+    assert th.at(np.array([0.995, 1.0])).tolist() == [0.0, 3.0]
+    assert np.max(np.abs(th.values[:200])) == 0.0
     rng = np.random.default_rng(0)
     held = measured_thrust(t, f + rng.normal(0.0, 0.01, t.size), held=True)
     assert held.at(np.array([0.9974]))[0] == pytest.approx(0.0, abs=0.01)

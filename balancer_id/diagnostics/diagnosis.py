@@ -8,9 +8,9 @@ the suggestions it offers.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import ClassVar
 
 import numpy as np
 
@@ -53,7 +53,7 @@ from balancer_id.identify.display import CallableText, Displayable
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.result import FitResult
 from balancer_id.notes import Note, as_note, texts
-from balancer_id.records import DiagnosisRecord
+from balancer_id.records import DiagnosisRecord, ReadsBack
 
 __all__ = [
     "BIC_THRESHOLD",
@@ -80,7 +80,7 @@ REFIT_THREADS: int | None = None
 
 
 @dataclass(repr=False, frozen=True)
-class Diagnosis(Displayable):
+class Diagnosis(Displayable, ReadsBack):
     """Everything ``balancer-id diagnose`` reports.
 
     Attributes
@@ -118,6 +118,8 @@ class Diagnosis(Displayable):
     ambiguity: dict[str, object] | None = None
     #: The discovered missing force (:mod:`~balancer_id.diagnostics.discover`), or None.
     discovery: discovery_search.Discovery | None = None
+    #: What the JSON reads back as (:meth:`from_dict`).
+    record: ClassVar[type[DiagnosisRecord]] = DiagnosisRecord
 
     def __post_init__(self) -> None:
         # ``diagnosis.summary`` is the verdict's paragraph; ``diagnosis.summary()`` the
@@ -210,23 +212,6 @@ class Diagnosis(Displayable):
                 )
             lines.append(f"    {d.command}")
         return lines
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> DiagnosisRecord:
-        """A diagnosis read back from its JSON: a frozen
-        :class:`~balancer_id.records.DiagnosisRecord` whose ``to_dict()`` equals ``data``
-        (the JSON carries no trials to diagnose again).
-
-        Parameters
-        ----------
-        data : mapping
-            A :meth:`to_dict` object.
-
-        Returns
-        -------
-        DiagnosisRecord
-        """
-        return DiagnosisRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``diagnose`` object: each of

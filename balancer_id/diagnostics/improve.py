@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import ClassVar
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from balancer_id.identify.matching import MatchResult, match_trials
 from balancer_id.identify.result import FitResult, fit_match
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, texts
-from balancer_id.records import ImproveRecord
+from balancer_id.records import ImproveRecord, ReadsBack
 from balancer_id.status import step
 from balancer_id.verdicts import Verdict
 
@@ -81,7 +81,7 @@ class ImproveStep:
 
 
 @dataclass(repr=False, frozen=True)
-class ImproveResult(Displayable):
+class ImproveResult(Displayable, ReadsBack):
     """The ladder of models and the final diagnosis."""
 
     steps: list[ImproveStep]
@@ -93,6 +93,8 @@ class ImproveResult(Displayable):
     discovery_note: Note | None = None
     #: ``--discover``: the discovery that was written and added as a step.
     discovery: Discovery | None = field(default=None, repr=False)
+    #: What the JSON reads back as (:meth:`from_dict`).
+    record: ClassVar[type[ImproveRecord]] = ImproveRecord
 
     def _shown_match(self) -> MatchResult:
         return self.steps[-1].match
@@ -123,22 +125,6 @@ class ImproveResult(Displayable):
     def final_model(self) -> str:
         """Spec of the last accepted model."""
         return self.steps[-1].model
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> ImproveRecord:
-        """An improve read back from its JSON: a frozen
-        :class:`~balancer_id.records.ImproveRecord` whose ``to_dict()`` equals ``data``.
-
-        Parameters
-        ----------
-        data : mapping
-            A :meth:`to_dict` object.
-
-        Returns
-        -------
-        ImproveRecord
-        """
-        return ImproveRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``improve`` object."""

@@ -100,6 +100,7 @@ def suggest(
     trials = list(match.data.trials)
     fixed = dict(fit.fixed) or None
     refitted = _refit_candidates(cands, ctx, trials, match, fixed, fit.classic, threads)
+    se_zero = arena.zero_stderr(match)  # an added offset within it is no finding
     for cand, sig, refit, sig_failure in refitted:
         if sig_failure:
             failures.append(sig_failure)
@@ -123,7 +124,8 @@ def suggest(
                 command=fit.command(cand.model),
                 model=cand.model.spec,
                 refit=refit.match,
-                null=arena.is_null(refit.match, cand.effect.name),
+                null=arena.is_null(refit.match, cand.effect.name)
+                or arena.within_sensor_zero(refit.match, cand.effect.name, se_zero),
             )
         )
     suggestions.sort(key=lambda s: -s.score)

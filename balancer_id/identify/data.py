@@ -139,11 +139,13 @@ def measured_thrust(
     A centred median over :data:`FORCE_MEDIAN_S` removes spikes and flicker and keeps
     step edges in place. A held force (a step trial's) changes halfway between the two
     samples that bracket each change (:func:`centred_changes`): the step happened
-    somewhere between them, on average halfway. A smooth force is held over each
-    interval at the mean of its two ends (:func:`interval_means`), the linear
-    interpolation's mean. Holding each sample's value until the next put every change
-    half a sample late: the acceleration led its force by half a sample on every log,
-    which the timing test called a late force channel on clean logs (issue 31).
+    somewhere between them, on average halfway. Holding each sample's value until the
+    next put every change half a sample late: the acceleration led its force by half a
+    sample on every step log, which the timing test called a late force channel on clean
+    logs (issue 31). A smooth force (a guided move, a window) keeps each sample's value
+    until the next: held at each interval's mean instead, a real load-cell rig's lag
+    (its sensors' filters, about a sample) came out as a drive lag of one sample that
+    its data cannot determine, where the hold's half sample had absorbed it.
 
     Parameters
     ----------
@@ -186,8 +188,9 @@ def measured_thrust(
         return Thrust(centred_changes(time, held_u), held_u)
     if width >= 3 and u.size > width:
         u = median_filter(u, size=width, mode="nearest")
-    # the trial's own times, not a copy (a long log is held once)
-    return Thrust(time, interval_means(u))
+    elif u is force:
+        u = u.copy()
+    return Thrust(time, u)  # the trial's own times, not a copy (a long log is held once)
 
 
 def _on_coarse(time: np.ndarray, fine: Thrust) -> Thrust:
@@ -227,26 +230,6 @@ def centred_changes(time: np.ndarray, u: np.ndarray) -> np.ndarray:
         return time
     out = np.array(time, dtype=float, copy=True)
     out[changed] = 0.5 * (time[changed] + time[changed - 1])
-    return out
-
-
-def interval_means(u: np.ndarray) -> np.ndarray:
-    """The value to hold over each sample interval: the mean of its two ends.
-
-    Parameters
-    ----------
-    u : numpy.ndarray
-        Samples of a force (N).
-
-    Returns
-    -------
-    numpy.ndarray
-        A new array; element ``k`` is ``(u[k] + u[k+1]) / 2``, the last one ``u[-1]``.
-    """
-    out = np.array(u, dtype=float, copy=True)
-    if out.size > 1:
-        out[:-1] += u[1:]
-        out[:-1] *= 0.5
     return out
 
 

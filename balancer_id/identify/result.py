@@ -12,7 +12,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import FrozenInstanceError, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.jsonsafe import json_ready
 from balancer_id.model.spec import Model
 from balancer_id.notes import Note, as_note, notes_json, texts
-from balancer_id.records import FitRecord, FrozenDict
+from balancer_id.records import FitRecord, FrozenDict, ReadsBack
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
@@ -38,7 +38,7 @@ __all__ = ["FitResult", "PerTrialFit", "fit_match", "robot_coupling"]
 
 
 @dataclass(repr=False)
-class FitResult(Displayable):
+class FitResult(Displayable, ReadsBack):
     """Everything ``balancer-id fit`` reports, and what it was computed from.
 
     Attributes
@@ -98,6 +98,8 @@ class FitResult(Displayable):
     _advice: Any = field(default=None, init=False, repr=False, compare=False)
     _servo_delay: Any = field(default=None, init=False, repr=False, compare=False)
     _frozen: bool = field(default=False, init=False, repr=False, compare=False)
+    #: What the JSON reads back as (:meth:`from_dict`).
+    record: ClassVar[type[FitRecord]] = FitRecord
 
     def __post_init__(self) -> None:
         # complete when made: the tables and lists read-only, the match sealed
@@ -400,25 +402,6 @@ class FitResult(Displayable):
                 d["untrusted_because"] = distrust[name]
             out[name] = d
         return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> FitRecord:
-        """A fit read back from its JSON (a cached or saved ``fit --json`` object).
-
-        The JSON does not carry the trials, so what reads back is a
-        :class:`~balancer_id.records.FitRecord`: frozen, its ``to_dict()`` equal to
-        ``data``, rendered as the fit it came from.
-
-        Parameters
-        ----------
-        data : mapping
-            A :meth:`to_dict` object.
-
-        Returns
-        -------
-        FitRecord
-        """
-        return FitRecord.from_dict(data)
 
     def to_dict(self) -> dict[str, object]:
         """The CONTRACT.md ``fit`` JSON object (plus details)."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from balancer_id.arguments import trajectory
 from balancer_id.diagnostics.api import compare
@@ -20,7 +20,7 @@ from balancer_id.diagnostics.vibration import VibrationComparison, compare_vibra
 from balancer_id.errors import UsageError
 from balancer_id.files import atomic_write_text, check_outputs, inputs_of
 from balancer_id.identify.params_file import params_model, read_params_file
-from balancer_id.records import ComparisonRecord
+from balancer_id.records import ComparisonRecord, ReadsBack
 from balancer_id.status import tell
 from balancer_id.trials import ReadOptions, load_trials
 
@@ -31,7 +31,7 @@ DEFAULT_MODELS = "viscous,variable_viscosity"
 
 
 @dataclass(frozen=True)
-class CompareRun:
+class CompareRun(ReadsBack):
     """Models compared on the same logs, and the files written.
 
     Attributes
@@ -50,22 +50,8 @@ class CompareRun:
     validation: Any = None
     vibration: VibrationComparison | None = None
     written: tuple[Path, ...] = ()
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> ComparisonRecord:
-        """A comparison read back from its JSON: a frozen
-        :class:`~balancer_id.records.ComparisonRecord` whose ``to_dict()`` equals ``data``.
-
-        Parameters
-        ----------
-        data : mapping
-            A :meth:`to_dict` object (JSON-ready).
-
-        Returns
-        -------
-        ComparisonRecord
-        """
-        return ComparisonRecord.from_dict(data)
+    #: What the JSON reads back as (:meth:`from_dict`; JSON-ready: ``json_ready(to_dict())``).
+    record: ClassVar[type[ComparisonRecord]] = ComparisonRecord
 
     def to_dict(self) -> dict[str, Any]:
         """The ``compare --json`` object."""
