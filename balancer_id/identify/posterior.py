@@ -710,7 +710,7 @@ def posterior_notes(post: Posterior) -> list[Note]:
             Note(
                 "fit.posterior_modes",
                 f"the posterior holds {len(held)} valley(s) besides the fit's optimum "
-                f"({float(post.modes[0]['weight']):.0%}; other optima that fit about alike): "
+                f"({float(post.modes[0]['weight']):.0%}; other optima that fit about alike): "  # type: ignore[arg-type]
                 f"{where}; the credible intervals span them: the trials do not decide "
                 "between them",
                 severity="info",
