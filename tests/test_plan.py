@@ -175,6 +175,8 @@ def test_one_level_plan_holds_for_the_other_values_of_the_guess():
     _, _, moves = design._candidate_information(match, fills, values, ["m_a"], 1.0)
     assert max(moves) <= travel and min(moves) > 0.6 * travel
     q = plan(result, separate=False, count=1).design.proposals[0]
-    assert q.target == "A" and abs(abs(q.candidate.thrust_N) - 4.9) > 0.5
+    # on one level A and D0 trade (only D0 exp(-A |F|) is fixed): either is the widest
+    # (their relative widths differ by 0.1 %), and either is narrowed by another level
+    assert q.target in ("A", "D0") and abs(abs(q.candidate.thrust_N) - 4.9) > 0.5
     got = 1.96 * _record(trials, q.candidate, 5).match.parameters["A"].stderr
     assert got == pytest.approx(q.after["A"], rel=0.15)

@@ -151,13 +151,13 @@ class Posterior:
     n_walkers, n_steps, burn, thin : int
         The ensemble's size, the steps taken, dropped and the thinning.
     priors : list of Prior
-        The normal priors given (the rest: uniform within the bounds).
+        The normal priors given (the rest: Jeffreys' prior within the bounds).
     seed : int
         The sampler's seed.
     notes : list of Note
         Convergence and disagreement with the Wald intervals.
     bounds : dict of str to (float, float)
-        Each parameter's bounds (the uniform prior's support).
+        Each parameter's bounds (the prior's support).
     modes : list of dict
         The valleys sampled (the fit's optimum first, then its other optima that fit
         about alike): each one's ``values`` and ``weight`` (its share of the samples).
@@ -247,7 +247,7 @@ class Posterior:
         out = ["[[Posterior]]", f"    {self.diagnostics_text()}"]
         if self.priors:
             given = ", ".join(f"{p.name} ~ N({p.mu:g}, {p.sd:g})" for p in self.priors)
-            out.append(f"    priors: {given}; the others uniform within their bounds")
+            out.append(f"    priors: {given}; the others Jeffreys' within their bounds")
         width = max(len(n) for n in self.names)
 
         def span(iv: tuple[float, float] | None) -> str:
@@ -292,7 +292,7 @@ class Posterior:
 def support(
     match: MatchResult, names: Sequence[str], modes: Sequence[np.ndarray] = ()
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The uniform prior's support: the bounds, a positive parameter's within a factor
+    """The prior's support: the bounds, a positive parameter's within a factor
     :data:`~balancer_id.identify.intervals.PROFILE_FACTOR` of its fitted value (as the
     profile is followed; 0 stays reachable where it is the bound), or of any other
     optimum's value in ``modes``.
@@ -445,7 +445,7 @@ def sample_posterior(
     match : MatchResult
         The fit (its model, trials, optimum, noise variance and correlation time).
     priors : sequence of Prior
-        Normal priors; a parameter without one has a uniform prior inside its bounds.
+        Normal priors; the parameters without one have Jeffreys' prior inside their bounds.
     n_walkers : int, optional
         Ensemble size (default ``max(16, 4 k)``, even).
     max_steps : int
@@ -710,7 +710,7 @@ def posterior_notes(post: Posterior) -> list[Note]:
             Note(
                 "fit.posterior_modes",
                 f"the posterior holds {len(held)} valley(s) besides the fit's optimum "
-                f"({float(post.modes[0]['weight']):.0%}; other optima that fit about alike): "
+                f"({float(post.modes[0]['weight']):.0%}; other optima that fit about alike): "  # type: ignore[arg-type]
                 f"{where}; the credible intervals span them: the trials do not decide "
                 "between them",
                 severity="info",

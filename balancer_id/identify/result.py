@@ -271,9 +271,10 @@ class FitResult(Displayable, ReadsBack):
             late = self.servo_delay
             if late is not None and late.use_delay and late.delayed_values is not None:
                 # checked on the loop of the late servo, over the delay's interval
-                lo, hi = late.interval or (late.tau_r, late.tau_r)
+                tau = float(late.tau_r or 0.0)
+                lo, hi = late.interval or (tau, tau)
                 values = {k: late.delayed_values.get(k, v) for k, v in self.values.items()}
-                delays = (float(late.tau_r or 0.0), float(lo), float(hi))
+                delays = (tau, float(lo), float(hi))
                 rival = late.rival_values  # ambiguous: the advice must hold on it too
                 also = [{k: rival.get(k, v) for k, v in self.values.items()}] if rival else []
                 advice = advise_fit(self.match.model, values, moves, delays=delays, also=also)

@@ -19,7 +19,7 @@ low-pass explains the data as well (within :data:`TIE_DELTA_BIC`) the verdict is
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -238,8 +238,8 @@ class ServoDelay:
         for e in self.explanations:
             if e.name == chosen:
                 continue
-            lag = _LAG[e.name]
-            extra = f" {_ms(e.values.get(lag, 0.0))}," if lag else ""
+            lag_name = _LAG[e.name]
+            extra = f" {_ms(e.values.get(lag_name, 0.0))}," if lag_name else ""
             out.append(
                 f"  or {e.text}:{extra} k_r {e.values.get('k_r', 0.0):.4g} N/m: BIC "
                 f"{e.bic - ref.bic:+.1f}"
@@ -322,6 +322,15 @@ def _lowpass(y: np.ndarray, dt: float, tau: float) -> np.ndarray:
 MAX_SHIFT_S = 0.25
 
 
+def _shifted_move(move: Any, at: float) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The reference move started ``at`` seconds later, as a function of time."""
+
+    def reference(tq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return move.evaluate(tq - at)  # type: ignore[no-any-return]
+
+    return reference
+
+
 def _shifted(m: _Move, shift: float) -> tuple[np.ndarray, np.ndarray]:
     """The reference move ``shift`` seconds later (held at its ends)."""
     if shift == 0.0:
@@ -370,10 +379,9 @@ class _Problem:
         acc, frc = [], []
         for m in self.moves:
             if m.reference is not None:
-                move, at = m.reference, m.shift0 + v["shift"]
                 a, h, _ = simulate_delayed_servo(
                     m.time, m.z_ref, m.v_ref, lane, m.x0,
-                    reference=lambda tq, move=move, at=at: move.evaluate(tq - at),
+                    reference=_shifted_move(m.reference, m.shift0 + v["shift"]),
                 )  # fmt: skip
             else:
                 zr, vr = _shifted(m, v["shift"])
@@ -605,13 +613,13 @@ def examine_servo_delay(
                 float(np.sqrt(np.mean(rf**2))) if rf.size else None,
             )
         )  # fmt: skip
-    x_late, late = fitted["servo_delay"]
+    x_late, late_problem = fitted["servo_delay"]
     tau = float(x_late[-1])
     dev_late = scorer.deviance(*chans["servo_delay"]) + chi2["servo_delay"]
 
     # the delay's 95 % profile interval: the deviance rises by chi2(1, 95 %)
     def excess(t: float) -> float:
-        held = _Problem(moves, {**vals, "tau_r": t}, free, "", late.sigma, prior)
+        held = _Problem(moves, {**vals, "tau_r": t}, free, "", late_problem.sigma, prior)
         x = _solve(held, x_late[:-1], lo, hi, 1)
         dev = scorer.deviance(*held.channels(x)) + float(np.sum(held.prior_terms(x) ** 2))
         return dev - dev_late - CHI2_95

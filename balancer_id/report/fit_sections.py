@@ -430,9 +430,16 @@ def _posterior_section(result: FitResult) -> Section:
         ],
         rows,
         "The posterior sampled with emcee (likelihood of the fit's own noise variance and "
-        "residual correlation; uniform priors inside the bounds"
+        "residual correlation; Jeffreys' prior inside the bounds"
         + (", normal priors as given" if post.priors else "")
-        + "). A credible interval marked differs from the Wald one by more than a quarter "
+        + ")"
+        + (
+            f", each of {len(post.modes)} valleys the fit's starts ended in sampled on its "
+            "own and weighed by bridge sampling"
+            if len(post.modes) > 1
+            else ""
+        )
+        + ". A credible interval marked differs from the Wald one by more than a quarter "
         "of its width: the uncertainty is not Gaussian there.",
     )
     blocks: list[Block] = [table, Paragraph(post.diagnostics_text())]
