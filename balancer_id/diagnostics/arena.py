@@ -24,6 +24,7 @@ from scipy.optimize import least_squares
 from balancer_id.diagnostics.explanations.base import Explanation, Stage, Verdict
 from balancer_id.identify.data import FitData, TrialData
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.structure import residual_around_steps
 from balancer_id.model.spec import Model
 
 if TYPE_CHECKING:
@@ -472,17 +473,11 @@ def zero_stderr(match: MatchResult) -> float:
     float
         0 when no trial starts from rest.
     """
-    residual = match.residual
     tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
     seen: dict[str, float] = {}
-    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
-        if td.continues or td.input.x0 is not None or td.source in seen:
+    for td, rest, _ in residual_around_steps(match):
+        if td.source in seen:
             continue
-        r = residual[sl]
-        t = np.asarray(td.time, dtype=float)
-        if t.size != r.size:
-            continue
-        rest = r[t < td.t_step]
         if rest.size >= 5:
             seen[td.source] = float(np.var(rest)) * tau / rest.size
     if not seen:

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.metrics import correlation_time
 from balancer_id.notes import Note
@@ -38,9 +39,20 @@ TAU_FACTOR = 2.0
 TAU_MARGIN = 1.5
 
 
-def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """The residual of each trial that starts from rest: before its step, and after."""
-    rest, motion = [], []
+def residual_around_steps(match: MatchResult) -> list[tuple[TrialData, np.ndarray, np.ndarray]]:
+    """Each trial that starts from rest, with its residual before its step and after.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    list of (TrialData, numpy.ndarray, numpy.ndarray)
+        The trial, its residual at rest and its residual in motion, in the fit's order.
+    """
+    out = []
     residual = match.residual
     for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
         if td.continues or td.input.x0 is not None:
@@ -50,9 +62,14 @@ def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
         if t.size != r.size:
             continue
         before = t < td.t_step
-        rest.append(r[before])
-        motion.append(r[~before])
-    return rest, motion
+        out.append((td, r[before], r[~before]))
+    return out
+
+
+def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The residual of each trial that starts from rest: before its step, and after."""
+    parts = residual_around_steps(match)
+    return [rest for _, rest, _ in parts], [motion for _, _, motion in parts]
 
 
 def _power(parts: Sequence[np.ndarray]) -> tuple[float, float]:
