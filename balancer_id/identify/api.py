@@ -17,6 +17,7 @@ from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
 from balancer_id.identify.timing import check_timing
@@ -446,6 +447,8 @@ def fit(
                     "the model misfits; its standard error is no uncertainty)"
                 )
             notes.append(Note("fit.other", note, subject=name, severity="info"))
+    if not any(getattr(n, "severity", None) == "error" for n in [*notes, *match.warnings]):
+        notes.extend(check_rivals(match, fixed))  # a rival that fits as well moves a value
     tracking = None
     if track:
         from balancer_id.identify.tracking import track_parameters

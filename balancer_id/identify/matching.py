@@ -45,6 +45,10 @@ class ParameterEstimate:
     #: The part of ``stderr`` from where the steps lie between their samples
     #: (:func:`~balancer_id.identify.timing.sampling_variance`): no new trial reduces it.
     phase_se: float = 0.0
+    #: How many times the trials' scatter widened ``stderr``
+    #: (:func:`~balancer_id.identify.trial_scatter.widen_by_trial_scatter`; 1: not at all):
+    #: a profile interval's threshold is widened alike.
+    scatter_ratio: float = 1.0
     _sealed: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __setattr__(self, name: str, value: object) -> None:
@@ -126,6 +130,10 @@ class MatchResult(Displayable):
     warnings: list[Note | str] = field(default_factory=list)
     #: The distinct optima of a multi-start fit, best first (empty for one start).
     optima: list[basins.Optimum] = field(default_factory=list)
+    #: Rival explanations that fit as well and move a trusted value
+    #: (:class:`~balancer_id.identify.rivals.Rival`, from
+    #: :func:`~balancer_id.identify.rivals.check_rivals`).
+    rivals: list[Any] = field(default_factory=list)
     _sealed: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __setattr__(self, name: str, value: object) -> None:
@@ -156,6 +164,7 @@ class MatchResult(Displayable):
             else FrozenDict({k: FrozenDict(row) for k, row in self.correlations.items()}),
             "warnings": tuple(self.warnings),
             "optima": tuple(self.optima),
+            "rivals": tuple(self.rivals),
             "trial_rmse": tuple(self.trial_rmse),
             "_sealed": True,
         }
