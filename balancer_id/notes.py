@@ -53,6 +53,7 @@ CODES: dict[str, str] = {
     "fit.held_at_limit": "a parameter held at its physical limit (0) against the data",
     "fit.structured_residual": "the residual in motion carries more than the noise at rest",
     "fit.timing": "the acceleration is early or late against its drive (late channel, dead time)",
+    "fit.rival": "a model with one more library effect fits as well and moves a trusted value",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
     "fit.posterior_not_converged": "the posterior chain is short against its autocorrelation time",

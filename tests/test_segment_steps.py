@@ -9,6 +9,8 @@ noise, 0.03 N quantization and drift of a few mN/s: within 0.05 N + 1 %.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from test_segment_synth import make_log, make_recording, synth_run
@@ -214,3 +216,20 @@ def test_linear_acceleration_sign_is_fixed_by_the_force_sign():
     assert all(
         np.sign(np.mean(t.accel[t.time > t.t_step + 0.5])) == np.sign(t.thrust_N) for t in trials
     )
+
+
+@pytest.mark.parametrize("rate", [50.0, 200.0])
+def test_a_log_starting_just_before_its_step_says_the_rest_is_too_short(rate):
+    """A log that starts 50 ms before its only step has no rest to read the zeros from:
+    the refusal says so, with how long the rest is and how long it needs to be."""
+    rec, _ = synth_run(46, [[4.9]], first_rest=0.05, rate=rate)
+    with pytest.raises(NoTrialError, match="starts too soon before its steps") as err:
+        find_trials(make_log(rec, path="late_start.csv"))
+    text = str(err.value)
+    assert "late_start.csv" in text and err.value.exit_code == 4
+    # the onset lands on a sample 0.05-0.08 s in (the synthetic clock jitters)
+    assert re.search(r"rest before the step 0\.0[5-8]\d* s long \(from the run's start\)", text)
+    assert "under the 0.12 s a step needs" in text
+    # with that much rest the same step is a trial
+    rec, _ = synth_run(46, [[4.9]], first_rest=0.2, rate=rate)
+    assert len(find_trials(make_log(rec))) == 1

@@ -17,6 +17,7 @@ from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
 from balancer_id.identify.timing import check_timing
@@ -223,6 +224,199 @@ def _inside_optimum(mdl, data, match, fixed, max_nfev, bounds):
     return match
 
 
+def _given_values(
+    params: Any,
+    mdl: Model,
+    fixed: Mapping[str, float] | None,
+    start: Mapping[str, float] | None,
+    bounds: Mapping[str, tuple[float, float]] | None,
+) -> tuple[Any, Any, Any]:
+    """``fixed``, ``start`` and ``bounds`` with an earlier fit's or ``lmfit.Parameters``'
+    values under them (the explicit ones win)."""
+    if isinstance(params, str | Path | FitResult):
+        # an earlier fit (its file or the result): its values are held, as the CLI's
+        # --params holds them (one meaning, issue 29); --fix (fixed) wins
+        fixed = {**_held_from_fit(params, mdl), **(fixed or {})}
+    elif params is not None:
+        held, starts, spans = from_parameters(params, mdl)
+        fixed = {**held, **(fixed or {})}
+        start = {**starts, **(start or {})}
+        bounds = {**spans, **(bounds or {})}
+    return fixed, start, bounds
+
+
+def _check_followed(
+    mdl: Model, track: Sequence[str], per_log: Sequence[str], fixed: Mapping[str, float] | None
+) -> None:
+    """Refuse ``--track`` with ``--per-log``, and names that are not parameters to follow
+    (before any log is read)."""
+    if per_log and track:
+        raise UsageError("--per-log and --track: give one of them")
+    if track:
+        from balancer_id.identify.tracking import check_tracked
+
+        check_tracked(mdl, track, dict(fixed or {}))
+    for name in per_log:
+        if name not in mdl.param_names:
+            raise UsageError(
+                f"--per-log {name}: not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
+
+
+def _start_values(
+    mdl: Model,
+    data: list[TrialData],
+    classic: Any,
+    start: Mapping[str, float] | None,
+    bounds: Mapping[str, tuple[float, float]] | None,
+) -> tuple[dict[str, float], list[Note | str]]:
+    """The fit's start (the scaled defaults, the data's, then the user's) and its notes;
+    refuses a start or a bound of a name that is no parameter."""
+    user_start = dict(start or {})
+    auto_start, start_notes = fit_start(mdl, data, classic)
+    for name in [*user_start, *(bounds or {})]:
+        if name not in mdl.param_names:
+            raise UsageError(
+                f"{name} is not a parameter of '{mdl.spec}' "
+                f"(its parameters: {', '.join(mdl.param_names)})"
+            )
+    return {**scaled_starts(mdl, data), **auto_start, **user_start}, [*start_notes]
+
+
+def _with_move_start(
+    mdl: Model,
+    ts: TrialSet,
+    data: list[TrialData],
+    start: Mapping[str, float],
+    fixed: Mapping[str, float] | None,
+    notes: list[Note | str],
+) -> list[TrialData]:
+    """The trials with the robot's move start refined by the fit, where the move's start
+    was not given (a note says by how much)."""
+    if not (mdl.needs_reference_move and ts.trajectory is not None):
+        return data
+    from balancer_id.segment.move import start_given
+
+    if start_given(ts.trajectory):
+        return data
+    data, shift = refine_move_start(mdl, data, start, fixed)
+    notes.append(
+        Note(
+            "fit.other",
+            f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)",
+            severity="info",
+        )
+    )
+    return data
+
+
+def _settled_match(
+    mdl: Model,
+    data: list[TrialData],
+    start: Mapping[str, float],
+    fixed: Mapping[str, float] | None,
+    n_starts: int | None,
+    seed: int,
+    max_nfev: int,
+    bounds: Mapping[str, tuple[float, float]] | None,
+) -> Any:
+    """Match the simulation to the trials; refuse a fit that did not converge or whose
+    mass ends on a bound the data did not choose (after looking for an optimum inside);
+    limits not reached become bounds."""
+    match = match_trials(
+        mdl, data, start=start, fixed=fixed, n_starts=n_starts, seed=seed,
+        max_nfev=max_nfev, bounds=bounds,
+    )  # fmt: skip
+    if not match.success:
+        raise IdentificationError(
+            f"the fit of '{mdl.spec}' did not converge: {match.message} "
+            f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
+            "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
+        )
+    mass = match.parameters.get("m_a")
+    if mass is None or not mass.vary or "m_a" in (bounds or {}):
+        return settle_unreached(match, bounds or {})[0]  # a limit not reached is a bound
+    if _on_a_bound(mdl, mass):
+        match = _inside_optimum(mdl, data, match, fixed, max_nfev, bounds)
+        mass = match.parameters["m_a"]
+    if mass.vary and mass.at_bound:
+        raise IdentificationError(
+            f"nothing identified: m_a ended at its {mass.at_bound}imum bound "
+            f"({mass.value:.4g} kg), a limit the data did not choose; the model '{mdl.spec}' "
+            "does not describe these trials (check them with 'balancer-id inspect --plot', "
+            "give the stretches where only the measured force acts with --window, or hold "
+            "known values with --fix)"
+        )
+    match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
+    return match
+
+
+def _fit_checks(match: Any) -> list[Note | str]:
+    """The notes of the checks on a settled fit: a misfit beyond the noise seen at rest,
+    errors shared by a whole trial, a drive late or early against the acceleration."""
+    notes: list[Note | str] = []
+    structured = structured_residual(match)
+    if structured is not None:
+        notes.append(structured)
+    notes.extend(widen_by_trial_scatter(match))
+    notes.extend(check_timing(match))
+    return notes
+
+
+def _profile_notes(match: Any) -> list[Note | str]:
+    """Profile-likelihood intervals where Wald's do not hold (issue 11), each with its note."""
+    from balancer_id.identify.intervals import (
+        CLOSE_TRADE,
+        attach_profile_intervals,
+        wald_crosses_bound,
+    )
+
+    notes: list[Note | str] = []
+    for name in attach_profile_intervals(match):
+        ci = match.parameters[name].ci95
+        if ci is None:
+            continue
+        lo, hi = ci
+        if wald_crosses_bound(match, name):
+            note = (
+                f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
+                f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
+            )
+        else:
+            note = (
+                f"{name}: the Wald 95 % interval does not hold where the parameter "
+                f"trades with another beyond a correlation of {CLOSE_TRADE}; the "
+                f"profile-likelihood interval, each end no narrower than Wald's, "
+                f"{lo:.4g} .. {hi:.4g} is given instead"
+            )
+        wald = match.parameters[name].wald_ci95
+        if wald is not None and (hi - lo) < (wald[1] - wald[0]) / NON_QUADRATIC_RATIO:
+            note += (
+                f" ({(hi - lo) / (wald[1] - wald[0]):.0%} of the Wald width: the cost is "
+                "far from quadratic here, as where parameters trade at first order and "
+                "the model misfits; its standard error is no uncertainty)"
+            )
+        notes.append(Note("fit.other", note, subject=name, severity="info"))
+    return notes
+
+
+def _rival_notes(match: Any, notes: Sequence[Note | str], fixed: Any) -> list[Note]:
+    """A trusted fit checked against rival models that fit as well (issue 31,
+    :mod:`~balancer_id.identify.rivals`); an untrusted one is not (nothing to keep)."""
+    if any(getattr(n, "severity", None) == "error" for n in [*notes, *match.warnings]):
+        return []
+    return check_rivals(match, fixed)
+
+
+def _posterior(match: Any, priors: Sequence[Any], seed: int) -> Any:
+    """The posterior sampled with the given priors (issue 34.2: tens of seconds)."""
+    from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
+
+    given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
+    return sample_posterior(match, priors=given, seed=seed)
+
+
 def fit(
     trials: Sources,
     *,
@@ -322,31 +516,10 @@ def fit(
         No trial, or no convergence (with the optimizer's reason and a hint).
     """
     mdl = resolve_model(model, effects_files, registry)
-    if isinstance(params, str | Path | FitResult):
-        # an earlier fit (its file or the result): its values are held, as the CLI's
-        # --params holds them (one meaning, issue 29); --fix (fixed) wins
-        fixed = {**_held_from_fit(params, mdl), **(fixed or {})}
-    elif params is not None:
-        held, starts, spans = from_parameters(params, mdl)
-        fixed = {**held, **(fixed or {})}
-        start = {**starts, **(start or {})}
-        bounds = {**spans, **(bounds or {})}
-    if isinstance(track, str):
-        track = [track]
-    if isinstance(per_log, str):
-        per_log = [per_log]
-    if per_log and track:
-        raise UsageError("--per-log and --track: give one of them")
-    if track:
-        from balancer_id.identify.tracking import check_tracked
-
-        check_tracked(mdl, track, dict(fixed or {}))  # before any log is read
-    for name in per_log:
-        if name not in mdl.param_names:
-            raise UsageError(
-                f"--per-log {name}: not a parameter of '{mdl.spec}' "
-                f"(its parameters: {', '.join(mdl.param_names)})"
-            )
+    fixed, start, bounds = _given_values(params, mdl, fixed, start, bounds)
+    track = [track] if isinstance(track, str) else track
+    per_log = [per_log] if isinstance(per_log, str) else per_log
+    _check_followed(mdl, track, per_log, fixed)
     given = trials.trajectory if isinstance(trials, TrialSet) else trajectory
     mdl.require_reference_move(given)  # before any log is read
     ts = as_trial_set(trials, options, trajectory)
@@ -354,98 +527,17 @@ def fit(
     if not data:
         raise IdentificationError("no step trial found in the given logs; nothing to fit")
     classic = paper_method([t for t in data if t.thrust_N != 0])  # moves: no step
-    user_start = dict(start or {})
-    auto_start, start_notes = fit_start(mdl, data, classic)
-    notes: list[Note | str] = [*start_notes]
-    start = {**scaled_starts(mdl, data), **auto_start, **user_start}
-    for name in [*user_start, *(bounds or {})]:
-        if name not in mdl.param_names:
-            raise UsageError(
-                f"{name} is not a parameter of '{mdl.spec}' "
-                f"(its parameters: {', '.join(mdl.param_names)})"
-            )
+    start, notes = _start_values(mdl, data, classic, start, bounds)
     if per_log:
         from balancer_id.identify.per_log import fit_per_log
 
         return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
-    if mdl.needs_reference_move and ts.trajectory is not None:
-        from balancer_id.segment.move import start_given
-
-        if not start_given(ts.trajectory):  # the move's start, refined by the fit
-            data, shift = refine_move_start(mdl, data, start, fixed)
-            notes.append(
-                Note(
-                    "fit.other",
-                    f"move start found in the log, refined by the fit ({shift * 1e3:+.0f} ms)",
-                    severity="info",
-                )
-            )
-    match = match_trials(
-        mdl,
-        data,
-        start=start,
-        fixed=fixed,
-        n_starts=n_starts,
-        seed=seed,
-        max_nfev=max_nfev,
-        bounds=bounds,
-    )
-    if not match.success:
-        raise IdentificationError(
-            f"the fit of '{mdl.spec}' did not converge: {match.message} "
-            f"(after {match.nfev} evaluations); hold known parameters with --fix NAME=VALUE, "
-            "try --starts 4, or check the trials with 'balancer-id inspect --plot'"
-        )
-    mass = match.parameters.get("m_a")
-    if mass is not None and mass.vary and _on_a_bound(mdl, mass) and "m_a" not in (bounds or {}):
-        match = _inside_optimum(mdl, data, match, fixed, max_nfev, bounds)
-        mass = match.parameters["m_a"]
-    if mass is not None and mass.vary and mass.at_bound and "m_a" not in (bounds or {}):
-        raise IdentificationError(
-            f"nothing identified: m_a ended at its {mass.at_bound}imum bound "
-            f"({mass.value:.4g} kg), a limit the data did not choose; the model '{mdl.spec}' "
-            "does not describe these trials (check them with 'balancer-id inspect --plot', "
-            "give the stretches where only the measured force acts with --window, or hold "
-            "known values with --fix)"
-        )
-    match, _ = settle_unreached(match, bounds or {})  # a limit not reached is a bound
-    structured = structured_residual(match)  # a misfit beyond the noise seen at rest
-    if structured is not None:
-        notes.append(structured)
-    notes.extend(widen_by_trial_scatter(match))  # errors shared by a whole trial
-    notes.extend(check_timing(match))  # a drive late or early against the acceleration
-    if profile:  # issue 11: intervals that respect the bounds, where Wald's do not
-        from balancer_id.identify.intervals import (
-            CLOSE_TRADE,
-            attach_profile_intervals,
-            wald_crosses_bound,
-        )
-
-        for name in attach_profile_intervals(match):
-            ci = match.parameters[name].ci95
-            if ci is None:
-                continue
-            lo, hi = ci
-            if wald_crosses_bound(match, name):
-                note = (
-                    f"{name}: the Wald 95 % interval crosses the parameter's bounds; "
-                    f"the profile-likelihood interval {lo:.4g} .. {hi:.4g} is given instead"
-                )
-            else:
-                note = (
-                    f"{name}: the Wald 95 % interval does not hold where the parameter "
-                    f"trades with another beyond a correlation of {CLOSE_TRADE}; the "
-                    f"profile-likelihood interval, each end no narrower than Wald's, "
-                    f"{lo:.4g} .. {hi:.4g} is given instead"
-                )
-            wald = match.parameters[name].wald_ci95
-            if wald is not None and (hi - lo) < (wald[1] - wald[0]) / NON_QUADRATIC_RATIO:
-                note += (
-                    f" ({(hi - lo) / (wald[1] - wald[0]):.0%} of the Wald width: the cost is "
-                    "far from quadratic here, as where parameters trade at first order and "
-                    "the model misfits; its standard error is no uncertainty)"
-                )
-            notes.append(Note("fit.other", note, subject=name, severity="info"))
+    data = _with_move_start(mdl, ts, data, start, fixed, notes)
+    match = _settled_match(mdl, data, start, fixed, n_starts, seed, max_nfev, bounds)
+    notes.extend(_fit_checks(match))
+    if profile:
+        notes.extend(_profile_notes(match))
+    notes.extend(_rival_notes(match, notes, fixed))
     tracking = None
     if track:
         from balancer_id.identify.tracking import track_parameters
@@ -453,19 +545,9 @@ def fit(
         tracking = track_parameters(mdl, match.data.trials, track, match.values(), fixed)
     post = None
     if posterior or priors:  # issue 34.2: only on request (tens of seconds)
-        from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
-
-        given = [p if isinstance(p, Prior) else parse_prior(str(p)) for p in priors]
-        post = sample_posterior(match, priors=given, seed=seed)
+        post = _posterior(match, priors, seed)
         notes.extend(post.notes)
     return fit_match(
-        match,
-        ts,
-        classic=classic,
-        fixed=fixed,
-        effects_files=effects_files,
-        warnings=notes,
-        per_trial=per_trial,
-        tracking=tracking,
-        posterior=post,
-    )
+        match, ts, classic=classic, fixed=fixed, effects_files=effects_files,
+        warnings=notes, per_trial=per_trial, tracking=tracking, posterior=post,
+    )  # fmt: skip

@@ -477,6 +477,223 @@ _SENSOR = {
 _LAG = {"no_delay": "", "servo_delay": "tau_r", "sensor_lowpass": "tau_s", "force_lowpass": "tau_f"}
 
 
+def _why_not_examined(model: Model) -> str | None:
+    """Why the model's servo delay cannot be examined (None when it can)."""
+    names = {e.name for e in model.effects}
+    if "servo" not in names:
+        return "no robot servo in the model"
+    if not names <= SUPPORTED_EFFECTS:
+        extra = ", ".join(sorted(names - SUPPORTED_EFFECTS))
+        return f"the delayed loop is simulated for the servo with a viscosity only, not {extra}"
+    return None
+
+
+@dataclass
+class _Setup:
+    """What every explanation is fitted over.
+
+    ``free`` is the fit's free servo parameters, then the held balancer values let move
+    within their ``prior`` (name -> (value held, standard deviation)); ``lo``/``hi`` bound
+    them and the move's shift (the last entry)."""
+
+    moves: list[_Move]
+    vals: dict[str, float]
+    free: list[str]
+    prior: dict[str, tuple[float, float]]
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @property
+    def servo(self) -> list[str]:
+        """The free parameters that are not held values let move."""
+        return [n for n in self.free if n not in self.prior]
+
+    @property
+    def k_servo(self) -> list[int]:
+        """Their places in ``free``."""
+        return [k for k, n in enumerate(self.free) if n not in self.prior]
+
+
+def _setup(
+    model: Model,
+    values: Mapping[str, float],
+    free: Sequence[str],
+    moves: list[_Move],
+    bounds: Mapping[str, tuple[float, float]] | None,
+    held_sd: Mapping[str, float] | None,
+) -> _Setup:
+    """The values (``tau_r`` 0), the free parameters with the held ones' prior, and bounds."""
+    vals = {k: float(v) for k, v in values.items()}
+    vals["tau_r"] = 0.0
+    own = [n for n in free if n in LANE_PARAMS and n != "tau_r"]
+    sds = HELD_RELATIVE_SD if held_sd is None else held_sd
+    prior = {
+        n: (vals[n], sds[n] * vals[n])
+        for n in sds
+        if n in model.param_names and n not in own and vals.get(n, 0.0) > 0 and sds[n] > 0
+    }
+    names = own + list(prior)
+    lims = {p.name: (p.min, p.max) for p in model.params}
+    lims.update(bounds or {})
+    lo = np.array([lims[n][0] for n in names] + [-MAX_SHIFT_S])
+    hi = np.array([lims[n][1] for n in names] + [MAX_SHIFT_S])
+    return _Setup(moves, vals, names, prior, lo, hi)
+
+
+def _lag_starts(name: str, shift_none: float) -> list[tuple[float, float]]:
+    """The (lag, move's shift) pairs of the coarse profile that finds the lag's basin."""
+    if name == "servo_delay":  # the delay's basin is narrow: a fine grid, the start moved back
+        tries = [(t, shift_none - t) for t in LAG_GRID]
+        return tries + [(t, shift_none) for t in LAG_GRID_UNSHIFTED]
+    return [(t, shift_none) for t in SENSOR_LAG_GRID]
+
+
+def _fit_lag(
+    setup: _Setup, name: str, x_none: np.ndarray, sigma: tuple[float, float]
+) -> tuple[np.ndarray, _Problem]:
+    """Fit the explanation ``name`` (a lag): a coarse profile over the lag (the servo and
+    the move's start fitted, held values at their holding) finds its basin; the full fit
+    starts there, from the undelayed fit's servo and the held values where they were held
+    (the undelayed fit may have pulled them to mimic the delay)."""
+    free, k_servo = setup.free, setup.k_servo
+    x_from = np.array(x_none, dtype=float)
+    for k, n in enumerate(free):
+        if n in setup.prior:
+            x_from[k] = setup.prior[n][0]
+    lo_g = np.append(setup.lo[k_servo], -MAX_SHIFT_S)
+    hi_g = np.append(setup.hi[k_servo], MAX_SHIFT_S)
+    best: tuple[np.ndarray, float] | None = None
+    for tau0, shift0 in _lag_starts(name, float(x_none[len(free)])):
+        grid = _Problem(setup.moves, setup.vals, setup.servo, "", sigma)
+        grid.fixed = {_LAG[name]: tau0}
+        xg0 = np.append(x_from[k_servo], np.clip(shift0, -MAX_SHIFT_S, MAX_SHIFT_S))
+        xg = _solve(grid, xg0, lo_g, hi_g, 1)
+        grid.sigma = sigma
+        cost = float(np.sum(grid.residuals(xg) ** 2))
+        if best is None or cost < best[1]:
+            x0 = np.append(x_from, tau0)
+            x0[k_servo] = xg[:-1]
+            x0[len(free)] = xg[-1]
+            best = (x0, cost)
+    assert best is not None
+    problem = _Problem(setup.moves, setup.vals, free, _LAG[name], sigma, setup.prior)
+    x = _solve(problem, best[0], np.append(setup.lo, 0.0), np.append(setup.hi, MAX_DELAY_S), 1)
+    return x, problem
+
+
+def _fit_explanations(setup: _Setup) -> dict[str, tuple[np.ndarray, _Problem]]:
+    """Each explanation's fitted vector and problem: no delay first, then each lag."""
+    lags = ["servo_delay", "sensor_lowpass"]
+    if any(m.force is not None for m in setup.moves):
+        lags.append("force_lowpass")
+    x_fit = np.array([setup.vals[n] for n in setup.free] + [0.0])
+    start = _Problem(setup.moves, setup.vals, setup.free, "", prior=setup.prior)
+    start.sigma = _sigmas(*start.channels(x_fit))
+    x_none = _solve(start, x_fit, setup.lo, setup.hi)
+    fitted = {"no_delay": (x_none, start)}
+    for name in lags:
+        fitted[name] = _fit_lag(setup, name, x_none, start.sigma)
+    return fitted
+
+
+@dataclass
+class _Scored:
+    """The explanations scored: each one's channels and prior chi-square, the scorer."""
+
+    chans: dict[str, tuple[np.ndarray, np.ndarray]]
+    chi2: dict[str, float]
+    ratios: tuple[float, float]
+    scorer: _Scorer
+
+
+def _score(fitted: dict[str, tuple[np.ndarray, _Problem]]) -> _Scored:
+    """Channels, prior terms and the scorer, its samples per independent one the least of
+    the explanations' (the acceleration's and the force's)."""
+    chans = {name: prob.channels(x) for name, (x, prob) in fitted.items()}
+    chi2 = {name: float(np.sum(prob.prior_terms(x) ** 2)) for name, (x, prob) in fitted.items()}
+    ratios = (
+        min(_independent_ratio(c[0]) for c in chans.values()),
+        min(_independent_ratio(c[1]) for c in chans.values()) if chans["no_delay"][1].size else 1.0,
+    )
+    scorer = _Scorer(ratios, (chans["no_delay"][0].size, chans["no_delay"][1].size))
+    return _Scored(chans, chi2, ratios, scorer)
+
+
+def _explanations(
+    setup: _Setup, fitted: dict[str, tuple[np.ndarray, _Problem]], scored: _Scored
+) -> list[Explanation]:
+    """Each fit as an :class:`Explanation`, best (lowest BIC) first."""
+    k0 = len(setup.free) - len(setup.prior) + 1  # the free parameters and the move's start
+    out = []
+    for name, (x, prob) in fitted.items():
+        ra, rf = scored.chans[name]
+        v = prob.values(x)
+        if name != "servo_delay":
+            v.pop("tau_r", None)
+        out.append(
+            Explanation(
+                name, v, float(ra @ ra),
+                scored.scorer.bic(ra, rf, k0 + (1 if _LAG[name] else 0)) + scored.chi2[name],
+                _TEXT[name], float(np.sqrt(np.mean(ra**2))),
+                float(np.sqrt(np.mean(rf**2))) if rf.size else None,
+            )
+        )  # fmt: skip
+    out.sort(key=lambda e: e.bic)
+    return out
+
+
+def _delay_interval(
+    setup: _Setup, late: tuple[np.ndarray, _Problem], scored: _Scored
+) -> tuple[float, float]:
+    """The delay's 95 % profile interval: where the deviance rises by chi2(1, 95 %)."""
+    x_late, late_problem = late
+    tau = float(x_late[-1])
+    dev_late = scored.scorer.deviance(*scored.chans["servo_delay"]) + scored.chi2["servo_delay"]
+
+    def excess(t: float) -> float:
+        held = _Problem(
+            setup.moves, {**setup.vals, "tau_r": t}, setup.free, "", late_problem.sigma,
+            setup.prior,
+        )  # fmt: skip
+        x = _solve(held, x_late[:-1], setup.lo, setup.hi, 1)
+        dev = scored.scorer.deviance(*held.channels(x)) + float(np.sum(held.prior_terms(x) ** 2))
+        return dev - dev_late - CHI2_95
+
+    step = max(0.002, 0.25 * tau)
+    lower = 0.0
+    if tau > 0 and excess(0.0) > 0:
+        lower = float(brentq(excess, 0.0, tau, xtol=2e-4))
+    upper = tau + step
+    while upper < MAX_DELAY_S and excess(upper) < 0:
+        upper += step
+        step *= 1.5
+    upper = min(upper, MAX_DELAY_S)
+    if upper < MAX_DELAY_S:
+        upper = float(brentq(excess, tau, upper, xtol=2e-4))
+    return lower, upper
+
+
+def _verdict(explanations: Sequence[Explanation], lower: float) -> tuple[str, str]:
+    """The verdict and what an ambiguous delay is not told apart from (``twin``)."""
+    by = {e.name: e for e in explanations}
+    gain = by["no_delay"].bic - by["servo_delay"].bic
+    rivals = [e for e in explanations if e.name not in ("no_delay", "servo_delay")]
+    rival = min(rivals, key=lambda e: e.bic)
+    if gain < NAME_DELTA_BIC or lower <= 0.0:
+        if by["no_delay"].bic - rival.bic >= NAME_DELTA_BIC and (
+            by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC
+        ):
+            return rival.name, "sensor"
+        if lower > 0.0:  # a delay fits, not decisively: nor is it ruled out
+            return "ambiguous", "stiffer"
+        return "none", "sensor"
+    if by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC:
+        return rival.name, "sensor"
+    if rival.bic - by["servo_delay"].bic >= TIE_DELTA_BIC:
+        return "servo_delay", "sensor"
+    return "ambiguous", "sensor"
+
+
 def examine_servo_delay(
     model: Model,
     values: Mapping[str, float],
@@ -517,149 +734,21 @@ def examine_servo_delay(
     -------
     ServoDelay
     """
-    names = {e.name for e in model.effects}
-    if "servo" not in names:
-        return ServoDelay(False, "not_examined", why="no robot servo in the model")
-    if not names <= SUPPORTED_EFFECTS:
-        extra = ", ".join(sorted(names - SUPPORTED_EFFECTS))
-        return ServoDelay(
-            False, "not_examined",
-            why=f"the delayed loop is simulated for the servo with a viscosity only, not {extra}",
-        )  # fmt: skip
+    why = _why_not_examined(model)
+    if why is not None:
+        return ServoDelay(False, "not_examined", why=why)
     moves = _moves(trials, forces, references)
     if not moves:
         return ServoDelay(False, "not_examined", why="no robot move with its reference")
-    vals = {k: float(v) for k, v in values.items()}
-    vals["tau_r"] = 0.0
-    free = [n for n in free if n in LANE_PARAMS and n != "tau_r"]
-    sds = HELD_RELATIVE_SD if held_sd is None else held_sd
-    prior = {
-        n: (vals[n], sds[n] * vals[n])
-        for n in sds
-        if n in model.param_names and n not in free and vals.get(n, 0.0) > 0 and sds[n] > 0
-    }
-    free = free + list(prior)
-    lims = {p.name: (p.min, p.max) for p in model.params}
-    lims.update(bounds or {})
-    lo = np.array([lims[n][0] for n in free] + [-MAX_SHIFT_S])
-    hi = np.array([lims[n][1] for n in free] + [MAX_SHIFT_S])
-    x_fit = np.array([vals[n] for n in free] + [0.0])
-    lags = ["no_delay", "servo_delay", "sensor_lowpass"]
-    if any(m.force is not None for m in moves):
-        lags.append("force_lowpass")
-
-    start = _Problem(moves, vals, free, "", prior=prior)
-    sigma = _sigmas(*start.channels(x_fit))
-    fitted: dict[str, tuple[np.ndarray, _Problem]] = {}
-    start.sigma = sigma
-    x_none = _solve(start, x_fit, lo, hi)
-    fitted["no_delay"] = (x_none, start)
-    for name in lags[1:]:
-        best: tuple[np.ndarray, _Problem, float] | None = None
-        # from the undelayed fit's servo and start, the held values where they were held
-        # (the undelayed fit may have pulled them to mimic the delay)
-        x_from = np.array(x_none, dtype=float)
-        for k, n in enumerate(free):
-            if n in prior:
-                x_from[k] = prior[n][0]
-        # a coarse profile over the lag (the servo and the move's start fitted, held values
-        # at their holding) finds its basin; the full fit starts there
-        servo = [n for n in free if n not in prior]
-        k_servo = [k for k, n in enumerate(free) if n not in prior]
-        shift_none = float(x_none[len(free)])
-        late = name == "servo_delay"
-        if late:  # the delay's basin is narrow: a fine grid, the start moved back by it
-            tries = [(t, shift_none - t) for t in LAG_GRID]
-            tries += [(t, shift_none) for t in LAG_GRID_UNSHIFTED]
-        else:
-            tries = [(t, shift_none) for t in SENSOR_LAG_GRID]
-        for tau0, shift0 in tries:
-            if True:
-                grid = _Problem(moves, vals, servo, "", start.sigma)
-                grid.fixed = {_LAG[name]: tau0}
-                xg0 = np.append(x_from[k_servo], np.clip(shift0, -MAX_SHIFT_S, MAX_SHIFT_S))
-                lo_g = np.append(lo[k_servo], -MAX_SHIFT_S)
-                hi_g = np.append(hi[k_servo], MAX_SHIFT_S)
-                xg = _solve(grid, xg0, lo_g, hi_g, 1)
-                grid.sigma = start.sigma
-                cost = float(np.sum(grid.residuals(xg) ** 2))
-                if best is None or cost < best[2]:
-                    x0 = np.append(x_from, tau0)
-                    x0[k_servo] = xg[:-1]
-                    x0[len(free)] = xg[-1]
-                    best = (x0, _Problem(moves, vals, free, _LAG[name], start.sigma, prior), cost)
-        assert best is not None
-        x = _solve(best[1], best[0], np.append(lo, 0.0), np.append(hi, MAX_DELAY_S), 1)
-        fitted[name] = (x, best[1])
-    chans = {name: prob.channels(x) for name, (x, prob) in fitted.items()}
-    chi2 = {name: float(np.sum(prob.prior_terms(x) ** 2)) for name, (x, prob) in fitted.items()}
-    ratios = (
-        min(_independent_ratio(c[0]) for c in chans.values()),
-        min(_independent_ratio(c[1]) for c in chans.values()) if chans["no_delay"][1].size else 1.0,
-    )
-    scorer = _Scorer(ratios, (chans["no_delay"][0].size, chans["no_delay"][1].size))
-    k0 = len(free) - len(prior) + 1  # the free parameters and the move's start
-    explanations = []
-    for name, (x, prob) in fitted.items():
-        ra, rf = chans[name]
-        v = prob.values(x)
-        if name != "servo_delay":
-            v.pop("tau_r", None)
-        explanations.append(
-            Explanation(
-                name, v, float(ra @ ra),
-                scorer.bic(ra, rf, k0 + (1 if _LAG[name] else 0)) + chi2[name],
-                _TEXT[name], float(np.sqrt(np.mean(ra**2))),
-                float(np.sqrt(np.mean(rf**2))) if rf.size else None,
-            )
-        )  # fmt: skip
-    x_late, late_problem = fitted["servo_delay"]
-    tau = float(x_late[-1])
-    dev_late = scorer.deviance(*chans["servo_delay"]) + chi2["servo_delay"]
-
-    # the delay's 95 % profile interval: the deviance rises by chi2(1, 95 %)
-    def excess(t: float) -> float:
-        held = _Problem(moves, {**vals, "tau_r": t}, free, "", late_problem.sigma, prior)
-        x = _solve(held, x_late[:-1], lo, hi, 1)
-        dev = scorer.deviance(*held.channels(x)) + float(np.sum(held.prior_terms(x) ** 2))
-        return dev - dev_late - CHI2_95
-
-    step = max(0.002, 0.25 * tau)
-    lower = 0.0
-    if tau > 0 and excess(0.0) > 0:
-        lower = float(brentq(excess, 0.0, tau, xtol=2e-4))
-    upper = tau + step
-    while upper < MAX_DELAY_S and excess(upper) < 0:
-        upper += step
-        step *= 1.5
-    upper = min(upper, MAX_DELAY_S)
-    if upper < MAX_DELAY_S:
-        upper = float(brentq(excess, tau, upper, xtol=2e-4))
-
-    explanations.sort(key=lambda e: e.bic)
-    by = {e.name: e for e in explanations}
-    gain = by["no_delay"].bic - by["servo_delay"].bic
-    rivals = [e for e in explanations if e.name not in ("no_delay", "servo_delay")]
-    rival = min(rivals, key=lambda e: e.bic)
-    twin = "sensor"  # what an ambiguous delay is not told apart from
-    if gain < NAME_DELTA_BIC or lower <= 0.0:
-        if by["no_delay"].bic - rival.bic >= NAME_DELTA_BIC and (
-            by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC
-        ):
-            verdict = rival.name
-        elif lower > 0.0:  # a delay fits, not decisively: nor is it ruled out
-            verdict, twin = "ambiguous", "stiffer"
-        else:
-            verdict = "none"
-    elif by["servo_delay"].bic - rival.bic >= TIE_DELTA_BIC:
-        verdict = rival.name
-    elif rival.bic - by["servo_delay"].bic >= TIE_DELTA_BIC:
-        verdict = "servo_delay"
-    else:
-        verdict = "ambiguous"
+    setup = _setup(model, values, free, moves, bounds, held_sd)
+    fitted = _fit_explanations(setup)
+    scored = _score(fitted)
+    explanations = _explanations(setup, fitted, scored)
+    lower, upper = _delay_interval(setup, fitted["servo_delay"], scored)
+    verdict, twin = _verdict(explanations, lower)
     return ServoDelay(
-        True, verdict, tau, (lower, upper), explanations, ratios[0],
-        has_force=any(m.force is not None for m in moves), twin=twin,
+        True, verdict, float(fitted["servo_delay"][0][-1]), (lower, upper), explanations,
+        scored.ratios[0], has_force=any(m.force is not None for m in moves), twin=twin,
     )  # fmt: skip
 
 

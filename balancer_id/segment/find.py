@@ -19,6 +19,7 @@ from balancer_id.segment.gravity import check_vertical, vertical_motion
 from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
 from balancer_id.segment.steps import (
+    SHORT_REST,
     Detection,
     Step,
     StepSettings,
@@ -142,7 +143,14 @@ def _refuse_unusable(log: Log, runs: list[Run], total: int, given: list[float] |
     """No trial, thrusts that do not match the trials, or onsets no thrust belongs to."""
     if total == 0:
         why = "; ".join(f"{r.rec.name}: {r.why}" for r in runs) or "the log holds no run"
-        raise NoTrialError(f"{log.path}: no step trial found ({why})")
+        lead = ""
+        if any(SHORT_REST in r.why for r in runs):
+            lead = (
+                ": the log starts too soon before its steps (the force's and the "
+                "acceleration's zero are read in the rest before each step); record longer "
+                "before the first step"
+            )
+        raise NoTrialError(f"{log.path}: no step trial found{lead} ({why})")
     if given is not None and len(given) != total:  # the option's value is wrong: exit 2
         raise UsageError(
             f"--thrust: {len(given)} thrust(s) given but {log.path} holds {total} step "

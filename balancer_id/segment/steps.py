@@ -273,6 +273,9 @@ def detect_force_steps(
         k = a0 + changepoint(f[a0:b0])
         pre = f[max(lo, k - win, prev + ga) : k - gb]
         post = f[k + ga : min(hi, k + ga + win)]
+        if pre.size < short and max(lo, k - win, prev + ga) == lo and post.size >= short:
+            det.reject(short_rest_reason(time, lo, k, short + gb))
+            continue
         if pre.size < short or post.size < short:
             det.reject("too close to a gap, the run's edge or another step")
             continue
@@ -302,7 +305,65 @@ def detect_force_steps(
             continue
         det.steps.append(Step(int(k), float(size), float("nan"), float("nan"), "force"))
         prev = int(k)
+    _steps_at_starts(det, time, fm, breaks, w, short + gb, sigma)
     return det
+
+
+def _steps_at_starts(
+    det: Detection,
+    time: np.ndarray,
+    fm: np.ndarray,
+    breaks: np.ndarray,
+    w: int,
+    need: int,
+    sigma: float,
+) -> None:
+    """A step within ``need`` samples of the run's start or of a gap is dropped too.
+
+    The difference of means needs a full window before a sample, so such a step is no
+    candidate at all; it is counted here (its rest too short) so that a refusal says so.
+    """
+    n = fm.size
+    for lo in [0, *(int(b) for b in breaks)]:
+        hi = min(n, lo + 2 * w, *(int(b) for b in breaks if b > lo))
+        if hi - lo < 2 * need or any(lo <= st.onset < hi for st in det.steps):
+            continue
+        seg = fm[lo:hi]
+        k = changepoint(seg)
+        mag = abs(level(seg[k:]) - level(seg[:k]))
+        if k < need and mag >= det.threshold and spread(seg[k:]) <= 0.3 * mag + 3 * sigma:
+            det.reject(short_rest_reason(time, lo, lo + k, need))
+
+
+#: The start of the reason a step too close after the run's start or a gap is dropped.
+SHORT_REST = "rest before the step"
+
+
+def short_rest_reason(time: np.ndarray, lo: int, k: int, need: int) -> str:
+    """Why a step right after the run's start (or a gap) is no trial: its rest is too short.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times (s).
+    lo : int
+        First sample of the gap-free stretch holding the step.
+    k : int
+        The step's sample.
+    need : int
+        Resting samples a step needs before it (the level's shortest stretch and the
+        guard before the change).
+
+    Returns
+    -------
+    str
+        The reason, with how long the rest is and how long it needs to be (s).
+    """
+    dt = float(np.median(np.diff(time))) if time.size > 1 else 0.0
+    have = float(time[k] - time[lo])
+    where = "the run's start" if lo == 0 else "a gap"
+    need_s = need * dt
+    return f"{SHORT_REST} {have:.2g} s long (from {where}), under the {need_s:.2g} s a step needs"
 
 
 def rest_start(k: int, lo: int, prev_onset: int | None, rate: float, lookback_s: float) -> int:
