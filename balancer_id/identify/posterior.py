@@ -369,13 +369,20 @@ def _log_posterior_fn(
     ref_cols = [idx[j] for j, nm in enumerate(names) if nm not in by_name]
     ref_at = [j for j, nm in enumerate(names) if nm not in by_name]
     # each reference parameter's support's width in the sampler's coordinate
-    width = np.array(
-        [
-            math.log(hi[j] / lo[j]) if logged[j] and lo[j] > 0 else hi[j] - lo[j]
-            for j in ref_at
-        ],
-        float,
-    )
+    # (a logged one's from its bound, or, where that is 0, from a factor PROFILE_FACTOR
+    # below its smallest optimum: flat in the logarithm down to 0 is a volume without end,
+    # the corner with no viscosity where a short log's D0 sank)
+    from balancer_id.identify.intervals import PROFILE_FACTOR
+
+    def log_width(j: int) -> float:
+        least = min(
+            (v for v in (abs(match.parameters[names[j]].value), *(abs(m[j]) for m in modes))
+             if v > 0),
+            default=hi[j] / PROFILE_FACTOR**2,
+        )
+        return math.log(hi[j] / max(lo[j], least / PROFILE_FACTOR))
+
+    width = np.array([log_width(j) if logged[j] else hi[j] - lo[j] for j in ref_at], float)
     ref_logged = logged[ref_at]
     sigma = math.sqrt(s_min / max(n - k, 1) * tau)
 
