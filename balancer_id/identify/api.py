@@ -16,7 +16,7 @@ from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
-from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.result import PARAMETER_NOTES, FitResult, fit_match, robot_coupling
 from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
@@ -402,10 +402,11 @@ def _profile_notes(match: Any) -> list[Note | str]:
 
 
 def _rival_notes(match: Any, notes: Sequence[Note | str], fixed: Any) -> list[Note]:
-    """A trusted fit checked against rival models that fit as well (issue 31,
-    :mod:`~balancer_id.identify.rivals`); an untrusted one is not (nothing to keep)."""
-    if any(getattr(n, "severity", None) == "error" for n in [*notes, *match.warnings]):
-        return []
+    """A fit's trusted values checked against rival models that fit as well (issue 31,
+    :mod:`~balancer_id.identify.rivals`); not when a note takes every value's trust."""
+    for n in [*notes, *match.warnings]:
+        if getattr(n, "severity", None) == "error" and n.code not in PARAMETER_NOTES:
+            return []
     return check_rivals(match, fixed)
 
 

@@ -41,6 +41,9 @@ __all__ = ["RIVAL_BIC", "Rival", "check_rivals", "rival_effects", "rival_start"]
 #: worth more than a bare mention"). On a log without the effect its BIC is about
 #: ``ln(n / tau)`` (8-12) worse; docs/DECISIONS.md.
 RIVAL_BIC = 2.0
+#: A speed limit starts at this share of the fastest the fit's model goes: it clips the
+#: peaks only, so one Gauss-Newton step from there says which way the data pull it.
+SPEED_SHARE = 0.98
 #: Model evaluations of one rival's refit (it starts at the fit: a few steps suffice).
 RIVAL_NFEV = 150
 #: Effects tried as rivals whose kernel needs its own compilation are tried only on models
@@ -133,8 +136,8 @@ def rival_start(match: MatchResult, model: Model, effect: type[Effect]) -> dict[
     data could hide.
 
     A force (``N``: a friction) at a tenth of the smallest thrust; a speed (``m/s``: a
-    limit) at 0.9 times the fastest the fit's model goes, so that it acts; a time (``s``:
-    a delay) at two samples; any other at the effect's default. A drive lag the model
+    limit) at :data:`SPEED_SHARE` of the fastest the fit's model goes, so that it acts; a
+    time (``s``: a delay) at two samples; any other at the effect's default. A drive lag the model
     lacks (``T_up`` over ``T_a``) starts at the fit's drive lag.
 
     Parameters
@@ -163,17 +166,97 @@ def rival_start(match: MatchResult, model: Model, effect: type[Effect]) -> dict[
         if p.unit == "N" and thrusts:
             value = 0.1 * min(thrusts)
         elif p.unit == "m/s" and math.isfinite(speed) and speed > 0:
-            value = 0.9 * speed
+            value = SPEED_SHARE * speed
         elif p.unit == "s":
             value = match.model.drive_lag(now) if p.name in model.drive_lag_names else 2 * dt
         start[p.name] = float(min(max(value, p.min), p.max))
     return start
 
 
+#: A rival is refitted only when one Gauss-Newton step from its start predicts a BIC gap
+#: within this much more than :data:`RIVAL_BIC`: the step's quadratic model is rough
+#: where the effect is far from linear (a limit, a friction's kink), so the margin is
+#: wide; a rival the data reject by more (a clean log's: about ``ln(n / tau)``) costs one
+#: simulation, not a refit.
+SCREEN_MARGIN = 4.0
+#: Rows simulated per block by the screen.
+BLOCK_ROWS = 1 << 16
+
+
+def _n_eff(match: MatchResult) -> float:
+    """The fit's independent samples ``n / tau``."""
+    return match.y.size / max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+
+
+def predicted_gap(
+    match: MatchResult, model: Model, start: Mapping[str, float], fixed: Mapping[str, float]
+) -> float:
+    """The BIC gap one bounded Gauss-Newton step from ``start`` predicts for a rival.
+
+    One simulation of the rival model with its sensitivities at ``start`` gives the
+    residual ``r`` and Jacobian ``J``; the step minimises ``|r + J d|^2`` with every
+    parameter inside its bounds (:func:`scipy.optimize.lsq_linear`), and that minimum
+    stands for the rival's residual sum of squares.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    model : Model
+        The rival model.
+    start : mapping
+        Its start values (:func:`rival_start`).
+    fixed : mapping
+        Values held.
+
+    Returns
+    -------
+    float
+        The predicted BIC gap (rival minus fit, on independent samples); ``inf`` when the
+        simulation fails.
+    """
+    from scipy.optimize import lsq_linear
+
+    free = [
+        i for i, p in enumerate(model.params)
+        if p.name not in fixed and (p.name not in match.parameters or match.parameters[p.name].vary)
+    ]  # fmt: skip
+    values = {**{p.name: p.value for p in model.params}, **start, **fixed}
+    pvec = np.asarray(model.vector(values), float)
+    k = len(free)
+    hess, grad, rss = np.zeros((k, k)), np.zeros(k), 0.0
+    y = match.y
+    with np.errstate(all="ignore"):
+        for first, out, sens in match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS):
+            r = out[:, 0] - y[first : first + out.shape[0]]
+            if not (np.isfinite(r).all() and np.isfinite(sens).all()):
+                return math.inf
+            hess += sens.T @ sens
+            grad += sens.T @ r
+            rss += float(r @ r)
+    scale = np.sqrt(np.maximum(np.diag(hess), 1e-300))
+    h = hess / np.outer(scale, scale)
+    w, v = np.linalg.eigh(h)
+    keep = w > w.max() * 1e-12
+    # |r + J d|^2 = rss + 2 g'd + d'Hd, as the least squares |R e - b|^2 (R'R = H, e = d*scale)
+    root = (v[:, keep] * np.sqrt(w[keep])).T
+    b = -(v[:, keep].T @ (grad / scale)) / np.sqrt(w[keep])
+    lo = np.array([model.params[i].min for i in free]) - pvec[free]
+    hi = np.array([model.params[i].max for i in free]) - pvec[free]
+    step = lsq_linear(root, b, bounds=(lo * scale, hi * scale), method="bvls").x
+    d = step / scale
+    predicted = max(rss + 2 * float(grad @ d) + float(d @ hess @ d), 0.0)
+    n_eff = _n_eff(match)
+    rss0 = float(np.sum(match.residual**2))
+    k0 = sum(p.vary for p in match.parameters.values())
+    return float(
+        n_eff * math.log(max(predicted, 1e-300) / max(rss0, 1e-300)) + (k - k0) * math.log(n_eff)
+    )
+
+
 def _bic_gap(match: MatchResult, rival: MatchResult) -> float:
     """The rival's BIC minus the fit's, on the fit's independent samples ``n / tau``."""
-    n = match.y.size
-    n_eff = n / max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    n_eff = _n_eff(match)
     rss0 = float(np.sum(match.residual**2))
     rss1 = float(np.sum(rival.residual**2))
     k0 = sum(p.vary for p in match.parameters.values())
@@ -191,6 +274,8 @@ def _refit(
         model = parse_model(f"{match.model.spec}+{effect.name}", match.model.registry)
         held = {k: v for k, v in fixed.items() if k in model.param_names}
         start = rival_start(match, model, effect)
+        if predicted_gap(match, model, start, held) > RIVAL_BIC + SCREEN_MARGIN:
+            return None  # the data reject it by more than the screen's margin
         rival = match_trials(
             model, match.data.trials, start=start, fixed=held, n_starts=1, max_nfev=RIVAL_NFEV
         )
