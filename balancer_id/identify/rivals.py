@@ -12,7 +12,10 @@ lacks (:func:`rival_effects`), warm-started at the fit with the effect switched 
 strength the data could hide (:func:`rival_start`). A rival is *as well supported* when
 its BIC, counted on the residual's independent samples (``n / tau``, as the standard
 errors are), is no more than :data:`RIVAL_BIC` above the fit's: the data prefer the fit
-by less than Kass and Raftery's "bare mention" (odds under e to 1), or prefer the rival.
+by less than Kass and Raftery's "bare mention" (odds under e to 1), or prefer the rival;
+and so again without the trial it gains most on (an error shared by one whole trial, its
+thrust level or its zero, is no noise the correlation time sees). A rival whose one-step
+prediction (:func:`predicted_gap`) is far from support is not refitted.
 A trusted parameter that such a rival moves outside its 95 % interval is no longer
 trusted: its value depends on whether the effect is present, and the range it spans under
 the rivals is said. The others keep their trust. A rival that does not fit as well (the
@@ -63,7 +66,8 @@ class Rival:
     summary : str
         What it is, in words.
     delta_bic : float
-        Its BIC on independent samples minus the fit's (negative: the rival fits better).
+        Its BIC on independent samples minus the fit's (negative: the rival fits better),
+        the larger of it over all trials and without the trial the rival gains most on.
     values : dict of str to float
         Its fitted values.
     ranges : dict of str to (float, float)
@@ -254,16 +258,33 @@ def predicted_gap(
     )
 
 
+def _gap(n_eff: float, rss0: float, rss1: float, extra: int) -> float:
+    return float(n_eff * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + extra * math.log(n_eff))
+
+
 def _bic_gap(match: MatchResult, rival: MatchResult) -> float:
-    """The rival's BIC minus the fit's, on the fit's independent samples ``n / tau``."""
+    """The rival's BIC minus the fit's, on the fit's independent samples ``n / tau``, and
+    without the trial it gains most on (the larger of the two).
+
+    An error shared by a whole trial (its thrust level read from a noisy force, its own
+    zero) is no noise the correlation time sees; a rival that follows it gains on that
+    trial alone. Support must hold without it (with three trials or more).
+    """
     n_eff = _n_eff(match)
-    rss0 = float(np.sum(match.residual**2))
-    rss1 = float(np.sum(rival.residual**2))
     k0 = sum(p.vary for p in match.parameters.values())
-    k1 = sum(p.vary for p in rival.parameters.values())
-    return float(
-        n_eff * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + (k1 - k0) * math.log(n_eff)
-    )
+    extra = sum(p.vary for p in rival.parameters.values()) - k0
+    r0, r1 = match.residual, rival.residual
+    gap = _gap(n_eff, float(np.sum(r0**2)), float(np.sum(r1**2)), extra)
+    slices = match.data.slices()
+    if len(slices) < 3:
+        return gap
+    parts0 = np.array([float(np.sum(r0[sl] ** 2)) for sl in slices])
+    parts1 = np.array([float(np.sum(r1[sl] ** 2)) for sl in slices])
+    best = int(np.argmax(parts0 - parts1))
+    keep = np.arange(len(slices)) != best
+    share = float(sum(sl.stop - sl.start for k, sl in enumerate(slices) if keep[k])) / r0.size
+    rest = _gap(n_eff * share, float(parts0[keep].sum()), float(parts1[keep].sum()), extra)
+    return max(gap, rest)
 
 
 def _refit(
@@ -387,11 +408,11 @@ def rival_note(rival: Rival, match: MatchResult) -> Note:
     Note
         Severity ``error`` (the values it moves are not trusted); subject the effect.
     """
+    bic = f"BIC {rival.delta_bic:+.1f} on independent samples, its best trial left out"
     how = (
-        f"fits better (BIC {rival.delta_bic:+.1f} on independent samples)"
+        f"fits better ({bic})"
         if rival.delta_bic < 0
-        else f"fits as well (BIC {rival.delta_bic:+.1f} on independent samples, within "
-        f"{RIVAL_BIC:g})"
+        else f"fits as well ({bic}, within {RIVAL_BIC:g})"
     )
     moved = "; ".join(f"{k} {lo:.3g} .. {hi:.3g}" for k, (lo, hi) in rival.ranges.items())
     text = (
