@@ -223,3 +223,31 @@ def test_ns_values_under_a_seconds_header_are_read_by_their_spacing(tmp_path: Pa
     assert rec.started_at == pytest.approx(1730147596.6, abs=1.0)  # a clock time in ns
     (note,) = [n for n in log.notes if n.code == "read.time_unit"]
     assert "read in ns" in note.text and "the header says s" in note.text
+
+
+@pytest.mark.parametrize(
+    ("name", "factor"),
+    [("Force (lbf)", 4.4482216152605), ("force_mN", 1e-3), ("Kraft (kN)", 1e3), ("F_N", 1.0)],
+)
+def test_a_force_unit_in_the_name_is_scaled_to_newtons(tmp_path: Path, name, factor) -> None:
+    # a lbf or mN force read as N put m_a 4.4x low or 1000x high, and trusted
+    rows = [f"{i * 0.005:.3f},{2.0 + 0.01 * (i % 3)},0.01,0.02,9.81" for i in range(100)]
+    text = f"Time (s),{name},ax (m/s^2),ay (m/s^2),az (m/s^2)\n" + "\n".join(rows) + "\n"
+    log = read_log(_write(tmp_path, "f.csv", text))
+    (rec,) = log.recordings
+    assert np.median(rec.force) == pytest.approx(2.01 * factor, rel=1e-6)
+    said = [n.text for n in log.notes if n.code == "read.force_unit"]
+    if factor == 1.0:
+        assert said == []
+    else:
+        (text,) = said
+        assert f"x{factor:.6g} to N" in text and text in log.warnings
+        (unit,) = [i for i in log.inferences if i.what == "force unit"]
+        assert unit.override.endswith(":N")
+    # the column map's own unit wins over the name's
+    mapped = read_log(
+        tmp_path / "f.csv",
+        columns={"time": "Time (s)", "force": f"{name}:N", "ax": "ax (m/s^2)",
+                 "ay": "ay (m/s^2)", "az": "az (m/s^2)"},
+    )  # fmt: skip
+    assert np.median(mapped.recordings[0].force) == pytest.approx(2.01, rel=1e-6)
