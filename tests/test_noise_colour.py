@@ -1,0 +1,43 @@
+"""The sensor's own colour, against which the residual's whiteness is judged (issue 31):
+read from short rests without their mean's pull, or from the residual's differences
+where the trials hold too little rest (a session's one rest, a 50 Hz log)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from balancer_id.diagnostics.adequacy import _mean_acf, _unbiased
+from balancer_id.diagnostics.context import difference_colour
+from balancer_id.identify.metrics import correlation_time
+from balancer_id.simulation.synth import ar1_noise
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.5, 0.85])
+def test_the_colour_from_differences_ignores_a_smooth_misfit(rho) -> None:
+    # 8 trials of 600 samples: AR(1) noise plus a misfit as large as the noise, slow
+    # against the samples (a drive lag's transient of 50 samples)
+    rng = np.random.default_rng(7)
+    t = np.arange(600.0)
+    misfit = 0.02 * np.exp(-t / 50.0)
+    parts = [misfit + ar1_noise(rng, 0.02, rho, (600,)) for _ in range(8)]
+    # the lag-one correlation of differences of 4800 samples: standard error about 0.03
+    # in r (twice that of the differences' own correlation); 3 of them
+    assert difference_colour(parts) == pytest.approx(rho, abs=0.1)
+
+
+def test_short_rests_read_the_noise_colour_without_their_means_pull() -> None:
+    # forty rests of 50 samples (0.5 s at 100 Hz) of a strongly coloured noise: each
+    # rest's mean removed pulls its autocorrelation down by about tau / 50 (a quarter)
+    rng = np.random.default_rng(3)
+    rho = 0.8
+    rests = [ar1_noise(rng, 1.0, rho, (50,)) for _ in range(40)]
+    rests = [r - r.mean() for r in rests]
+    raw, _, length = _mean_acf(rests, 10, shortest=10)
+    tau = correlation_time(rests, removed=1)
+    fixed = _unbiased(raw, tau, length)
+    truth = rho ** np.arange(1, 6)
+    # 2000 samples of tau ~ 9: the mean over lags 1-5 varies by about 0.03, and tau from
+    # short rests comes out a little low, so the pull is undone to within about 0.05
+    assert np.mean(truth - raw[:5]) > 0.12  # the pull the colour test used to read as misfit
+    assert np.mean(fixed[:5]) == pytest.approx(np.mean(truth), abs=0.1)
