@@ -41,3 +41,20 @@ def test_short_rests_read_the_noise_colour_without_their_means_pull() -> None:
     # short rests comes out a little low, so the pull is undone to within about 0.05
     assert np.mean(truth - raw[:5]) > 0.12  # the pull the colour test used to read as misfit
     assert np.mean(fixed[:5]) == pytest.approx(np.mean(truth), abs=0.1)
+
+
+def test_consistency_alone_is_a_missing_effect_only_when_its_refit_stands() -> None:
+    """The per-run test's claim is refitted per run on the whole data: consistency failing
+    alone, with no split or drift standing, is the per-trial fits' scatter (adequate);
+    with another test failing, or nothing refitted per run, it is still a failure."""
+    from balancer_id.diagnostics.explanations.base import Explanation
+    from balancer_id.diagnostics.verdict import _uncorroborated
+
+    consistency = {"name": "consistency", "passed": False, "text": "D0 differs"}
+    level = {"name": "level", "passed": False, "text": "above the noise"}
+    split = Explanation("split", "D0 changes after run 2", 6.6, 0.01, parameters=["D0"])
+    effect = Explanation("effect", "+bias", 27.9, 0.01, effects=["bias"])
+    assert _uncorroborated([consistency], [effect, split])
+    assert not _uncorroborated([consistency, level], [split])
+    assert not _uncorroborated([consistency], [effect])  # its claim was never refitted
+    assert not _uncorroborated([], [split])
