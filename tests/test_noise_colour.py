@@ -58,3 +58,23 @@ def test_consistency_alone_is_a_missing_effect_only_when_its_refit_stands() -> N
     assert not _uncorroborated([consistency, level], [split])
     assert not _uncorroborated([consistency], [effect])  # its claim was never refitted
     assert not _uncorroborated([], [split])
+
+
+def test_a_low_pass_is_tried_from_the_response_only_where_the_acceleration_lags() -> None:
+    """Without the resting noise's roll-off (noise that enters after the filter), a
+    low-pass is tried only where the fit's timing test finds the acceleration clearly
+    late, started at the cut-off whose lag that is."""
+    from types import SimpleNamespace
+
+    from balancer_id.diagnostics.explanations.sensor_lowpass import _lag_cutoff
+
+    def inp(lead: float, se: float) -> SimpleNamespace:
+        trial = SimpleNamespace(time=np.arange(0.0, 5.0, 0.01))  # 100 Hz
+        match = SimpleNamespace(metrics={"timing_lead_s": lead, "timing_lead_stderr_s": se})
+        return SimpleNamespace(match=match, trials=[trial])
+
+    # 9 ms late at 3 standard errors: the 2nd-order filter of that lag, sqrt(2)/(2 pi d)
+    assert _lag_cutoff(inp(-0.009, 0.003)) == pytest.approx(np.sqrt(2) / (2 * np.pi * 0.009))
+    assert _lag_cutoff(inp(-0.004, 0.003)) is None  # not clearly late
+    assert _lag_cutoff(inp(+0.020, 0.003)) is None  # early: a late force channel, no filter
+    assert _lag_cutoff(inp(-0.0005, 0.0001)) == pytest.approx(40.0)  # at most 0.4 fs
