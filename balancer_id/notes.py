@@ -54,6 +54,7 @@ CODES: dict[str, str] = {
     "fit.structured_residual": "the residual in motion carries more than the noise at rest",
     "fit.rest_level": "the acceleration at rest is not 0: the accelerometer's gain or zero",
     "fit.timing": "the acceleration is early or late against its drive (late channel, dead time)",
+    "fit.rival": "a model with one more library effect fits as well and moves a trusted value",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",
     "fit.decimated": "trials fitted at a lower rate than recorded (anti-aliased)",
     "fit.posterior_not_converged": "the posterior chain is short against its autocorrelation time",

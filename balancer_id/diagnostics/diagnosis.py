@@ -40,6 +40,7 @@ from balancer_id.diagnostics.residual_tests import (
     whiteness,
     worst_windows,
 )
+from balancer_id.diagnostics.rival_ambiguity import ambiguous_by_rival
 from balancer_id.diagnostics.suggest import Suggestion, is_missing, suggest
 from balancer_id.diagnostics.verdict import (
     CLOSE_SHARE,
@@ -263,6 +264,7 @@ def diagnose(
     inp = arena_input(fit, ctx, checks, suggestions, threads, discover, extra_terms)
     explanations = run_arena(inp)
     judgement = judge(ctx, tests, checks, inp, fit)
+    ambiguous_by_rival(judgement, fit)  # a rival model that fits as well (issue 31)
     if judgement.best is not None and judgement.verdict == Verdict.PARAMETER_CHANGED:
         tests.parameter_groups = groups_record(judgement.best, *_per_trial(fit))
     return Diagnosis(

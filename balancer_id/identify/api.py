@@ -18,6 +18,7 @@ from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
 from balancer_id.identify.rest_level import resting_level
 from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
 from balancer_id.identify.timing import check_timing
@@ -408,6 +409,14 @@ def _profile_notes(match: Any) -> list[Note | str]:
     return notes
 
 
+def _rival_notes(match: Any, notes: Sequence[Note | str], fixed: Any) -> list[Note]:
+    """A trusted fit checked against rival models that fit as well (issue 31,
+    :mod:`~balancer_id.identify.rivals`); an untrusted one is not (nothing to keep)."""
+    if any(getattr(n, "severity", None) == "error" for n in [*notes, *match.warnings]):
+        return []
+    return check_rivals(match, fixed)
+
+
 def _posterior(match: Any, priors: Sequence[Any], seed: int) -> Any:
     """The posterior sampled with the given priors (issue 34.2: tens of seconds)."""
     from balancer_id.identify.posterior import Prior, parse_prior, sample_posterior
@@ -537,6 +546,7 @@ def fit(
     notes.extend(_fit_checks(match))
     if profile:
         notes.extend(_profile_notes(match))
+    notes.extend(_rival_notes(match, notes, fixed))
     tracking = None
     if track:
         from balancer_id.identify.tracking import track_parameters

@@ -21,7 +21,7 @@ the information and is proposed.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -425,6 +425,180 @@ def _modest(scores: np.ndarray, grid: Sequence[Candidate], logdet: bool) -> int 
     return picks[min(range(len(picks)), key=lambda m: key[m])]
 
 
+def _planned_names(match: MatchResult, target: str | None, also: Sequence[str]) -> list[str]:
+    """The parameters planned for (the free ones and ``also``); refuses a robot's move,
+    nothing fitted, or an unknown ``target``."""
+    model = match.model
+    if model.needs_reference_move:
+        raise UsageError("plan: a robot's move is not planned yet; plan the balancer's steps")
+    names = [n for n, p in match.parameters.items() if p.vary or n in also]
+    if not names:
+        raise UsageError("plan: the fit has no free parameter; nothing to plan for")
+    if target not in (None, "all", *names):
+        raise UsageError(
+            f"--param {target}: not a fitted parameter of '{model.spec}' "
+            f"(fitted: {', '.join(names)}; or 'all' for D-optimal)"
+        )
+    return names
+
+
+def _noise_variance(match: MatchResult, k: int) -> float:
+    """The residual's variance per sample, widened by its correlation time."""
+    n = match.y.size
+    s2 = float(np.sum(match.residual**2)) / max(n - k, 1)
+    return s2 * max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+
+
+def _travel_and_speed(match: MatchResult, fitted: Mapping[str, float]) -> tuple[float, float]:
+    """How far a trial may move (the hoist's travel the trials show, times
+    :data:`TRAVEL_FACTOR`) and the fastest speed the trials reach, in the fitted model."""
+    model = match.model
+    with np.errstate(all="ignore"):
+        out0 = match.data.packed.run(model, np.asarray(model.vector(fitted), float))
+    travel = TRAVEL_FACTOR * float(np.nanmax(np.abs(out0[:, 2]))) if out0.size else math.inf
+    fastest = float(np.nanmax(np.abs(out0[:, 1]))) if out0.size else 0.0
+    return travel, fastest
+
+
+@dataclass
+class _Information:
+    """The information now at each point (``infos``; the fitted point first), each
+    candidate's added information there (``adds_at``), and each candidate's peak speed and
+    travel at the fitted point."""
+
+    infos: list[np.ndarray]
+    adds_at: list[list[np.ndarray]]
+    peaks: np.ndarray
+    moved: np.ndarray
+
+
+def _information(
+    match: MatchResult,
+    grid: list[Candidate],
+    values: dict[str, float],
+    also: Sequence[str],
+    names: list[str],
+    s2: float,
+) -> _Information:
+    """The information now and each candidate's, at the fitted point and, where a
+    parameter is held at a guess, at the other values the data allow (each refitted): the
+    proposals are chosen for all of them (module docstring)."""
+    ridge = np.diag([1.0 / (VAGUE * _scale(match, nm)) ** 2 for nm in names])
+    points = [values, *_guessed_points(match, also, values)]
+    infos, adds_at = [], []
+    for point in points:
+        _, sens = _sensitivities(match, match.data.packed, point, names)
+        infos.append(sens.T @ sens / s2 + ridge)
+        adds_p, peaks, moves = _candidate_information(match, grid, point, names, s2)
+        adds_at.append(adds_p)
+        if point is values:
+            peak_arr, moved_arr = np.array(peaks), np.array(moves)
+    return _Information(infos, adds_at, peak_arr, moved_arr)
+
+
+def _limited(
+    match: MatchResult,
+    grid: list[Candidate],
+    values: dict[str, float],
+    unreached: list[str],
+    names: list[str],
+    s2: float,
+    info: _Information,
+    travel: float,
+) -> None:
+    """Speeds and travels without a speed limit the data do not reach, and no information
+    from a candidate that moves beyond the travel; the information now scaled to the
+    fit's standard errors."""
+    # a speed limit the data do not reach limits the simulation at its open bound: how
+    # fast a trial goes, and how far it moves, are those of the balancer without it (the
+    # limit may lie anywhere above; a trial that reaches it must pass the bound)
+    model = match.model
+    lifted = {
+        nm: model.param(nm).max
+        for nm in unreached
+        if match.parameters[nm].not_reached == "above" and match.parameters[nm].unit == "m/s"
+    }
+    if lifted:
+        _, peaks_free, moves_free = _candidate_information(
+            match, grid, {**values, **lifted}, names, s2
+        )
+        info.peaks, info.moved = np.array(peaks_free), np.array(moves_free)
+    # too far a move adds nothing: it cannot be recorded on this hoist
+    far = info.moved > travel
+    for adds_p in info.adds_at:
+        for i in np.flatnonzero(far):
+            adds_p[i] = np.zeros_like(info.infos[0])
+    # the fit reports standard errors that may exceed the Fisher information's (widened
+    # to the trials' scatter): the information held now is scaled to them, parameter by
+    # parameter (its correlations kept), so that the plan starts from the fit's intervals
+    d = _widening(match, info.infos[0], names)
+    info.infos = [inf / np.outer(d, d) for inf in info.infos]
+
+
+def _goals(
+    match: MatchResult,
+    target: str | None,
+    count: int,
+    names: list[str],
+    unreached: list[str],
+    now: Mapping[str, float],
+) -> list[tuple[str | None, str]]:
+    """The (parameter or None for D-optimal, label) each proposal aims at, in order: the
+    unreached parameters first, then the target (or the widest interval)."""
+    order: list[tuple[str | None, str]] = [(u, u) for u in unreached if target in (None, u)]
+    if target == "all":
+        order += [(None, "all")] * count
+    else:
+        if target is None:
+            rel = {nm: now[nm] / _scale(match, nm) for nm in names if nm not in unreached}
+            chosen = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
+        else:
+            chosen = str(target)  # a parameter's name (not None, not "all")
+        order += [(chosen, chosen)] * count
+    return order[: max(count, len(unreached) if target is None else 1)]
+
+
+def _proposals(
+    match: MatchResult,
+    order: list[tuple[str | None, str]],
+    grid: list[Candidate],
+    info: _Information,
+    names: list[str],
+    values: Mapping[str, float],
+    unreached: list[str],
+    fastest: float,
+) -> list[Proposal]:
+    """Each goal's best candidate in turn, its information added before the next."""
+    infos = info.infos
+    peaks = list(info.peaks)
+    proposals = []
+    for goal, label in order:
+        j = names.index(goal) if goal is not None else None
+        scores = _mean_score(infos, info.adds_at, j)
+        if goal in unreached and match.parameters[goal].not_reached == "above":
+            # a speed limit is reached by a trial faster than both the bound the data
+            # leave open and every trial so far (in the model without the limit)
+            if match.parameters[goal].unit == "m/s":
+                need = REACH_MARGIN * max(values[goal], fastest)
+                scores = np.where(info.peaks >= need, scores, np.inf)
+        best = _modest(scores, grid, j is None)
+        if best is None:
+            break
+        before = _typical_halfwidths(infos, names)
+        infos = [inf + adds_p[best] for inf, adds_p in zip(infos, info.adds_at, strict=True)]
+        proposals.append(
+            Proposal(
+                grid[best],
+                label,
+                before,
+                _typical_halfwidths(infos, names),
+                peaks[best],
+                goal if goal in unreached else None,
+            )
+        )
+    return proposals
+
+
 def design_trials(
     match: MatchResult, target: str | None = None, count: int = 3, also: Sequence[str] = ()
 ) -> Design:
@@ -454,106 +628,18 @@ def design_trials(
         An unknown or held ``target``, nothing fitted, or a model that needs a robot's
         reference move (its moves are not planned).
     """
-    model = match.model
-    if model.needs_reference_move:
-        raise UsageError("plan: a robot's move is not planned yet; plan the balancer's steps")
-    names = [n for n, p in match.parameters.items() if p.vary or n in also]
-    if not names:
-        raise UsageError("plan: the fit has no free parameter; nothing to plan for")
-    if target not in (None, "all", *names):
-        raise UsageError(
-            f"--param {target}: not a fitted parameter of '{model.spec}' "
-            f"(fitted: {', '.join(names)}; or 'all' for D-optimal)"
-        )
+    names = _planned_names(match, target, also)
     values, unreached = _point(match)
-    k = len(names)
-    n = match.y.size
-    s2 = float(np.sum(match.residual**2)) / max(n - k, 1)
-    s2 *= max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
-    ridge = np.diag([1.0 / (VAGUE * _scale(match, nm)) ** 2 for nm in names])
+    s2 = _noise_variance(match, len(names))
     fitted = match.values()  # where the load goes (the bound point only for information)
-    with np.errstate(all="ignore"):
-        out0 = match.data.packed.run(model, np.asarray(model.vector(fitted), float))
-    travel = TRAVEL_FACTOR * float(np.nanmax(np.abs(out0[:, 2]))) if out0.size else math.inf
-    fastest = float(np.nanmax(np.abs(out0[:, 1]))) if out0.size else 0.0
-
+    travel, fastest = _travel_and_speed(match, fitted)
     grid = candidate_grid(match.data.trials)
     grid += _filling_travel(match, grid, fitted, travel)
-    # the information now and each candidate's, at the fitted point and, where a parameter
-    # is held at a guess, at the other values the data allow (each refitted): the
-    # proposals are chosen for all of them (module docstring)
-    points = [values, *_guessed_points(match, also, values)]
-    infos, adds_at = [], []
-    for point in points:
-        _, sens = _sensitivities(match, match.data.packed, point, names)
-        infos.append(sens.T @ sens / s2 + ridge)
-        adds_p, peaks, moves = _candidate_information(match, grid, point, names, s2)
-        adds_at.append(adds_p)
-        if point is values:
-            peak_arr, moved_arr = np.array(peaks), np.array(moves)
-    # a speed limit the data do not reach limits the simulation at its open bound: how
-    # fast a trial goes, and how far it moves, are those of the balancer without it (the
-    # limit may lie anywhere above; a trial that reaches it must pass the bound)
-    lifted = {
-        nm: model.param(nm).max
-        for nm in unreached
-        if match.parameters[nm].not_reached == "above" and match.parameters[nm].unit == "m/s"
-    }
-    if lifted:
-        _, peaks_free, moves_free = _candidate_information(
-            match, grid, {**values, **lifted}, names, s2
-        )
-        peak_arr, moved_arr = np.array(peaks_free), np.array(moves_free)
-    # too far a move adds nothing: it cannot be recorded on this hoist
-    far = moved_arr > travel
-    for adds_p in adds_at:
-        for i in np.flatnonzero(far):
-            adds_p[i] = np.zeros_like(infos[0])
-    # the fit reports standard errors that may exceed the Fisher information's (widened
-    # to the trials' scatter): the information held now is scaled to them, parameter by
-    # parameter (its correlations kept), so that the plan starts from the fit's intervals
-    d = _widening(match, infos[0], names)
-    infos = [inf / np.outer(d, d) for inf in infos]
-    info = infos[0]
-    now = _halfwidths(info, names)
-    peaks = list(peak_arr)
-
-    order: list[tuple[str | None, str]] = [(u, u) for u in unreached if target in (None, u)]
-    if target == "all":
-        order += [(None, "all")] * count
-    else:
-        if target is None:
-            rel = {nm: now[nm] / _scale(match, nm) for nm in names if nm not in unreached}
-            chosen = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
-        else:
-            chosen = str(target)  # a parameter's name (not None, not "all")
-        order += [(chosen, chosen)] * count
-    order = order[: max(count, len(unreached) if target is None else 1)]
-    proposals = []
-    for goal, label in order:
-        j = names.index(goal) if goal is not None else None
-        scores = _mean_score(infos, adds_at, j)
-        if goal in unreached and match.parameters[goal].not_reached == "above":
-            # a speed limit is reached by a trial faster than both the bound the data
-            # leave open and every trial so far (in the model without the limit)
-            if match.parameters[goal].unit == "m/s":
-                need = REACH_MARGIN * max(values[goal], fastest)
-                scores = np.where(peak_arr >= need, scores, np.inf)
-        best = _modest(scores, grid, j is None)
-        if best is None:
-            break
-        before = _typical_halfwidths(infos, names)
-        infos = [inf + adds_p[best] for inf, adds_p in zip(infos, adds_at, strict=True)]
-        proposals.append(
-            Proposal(
-                grid[best],
-                label,
-                before,
-                _typical_halfwidths(infos, names),
-                peaks[best],
-                goal if goal in unreached else None,
-            )
-        )
+    info = _information(match, grid, values, also, names, s2)
+    _limited(match, grid, values, unreached, names, s2, info, travel)
+    now = _halfwidths(info.infos[0], names)
+    order = _goals(match, target, count, names, unreached, now)
+    proposals = _proposals(match, order, grid, info, names, values, unreached, fastest)
     return Design(
         target=target or "widest",
         names=names,

@@ -208,6 +208,237 @@ def _estimate(model: Model, name: str, value: float, se: float | None, lo: float
     )
 
 
+def _check_own(model: Model, own: Sequence[str], fixed: Mapping[str, float]) -> None:
+    """Refuse an own parameter that is not the model's or is held."""
+    names = list(model.param_names)
+    for name in own:
+        if name not in names:
+            raise UsageError(
+                f"{name} is not a parameter of '{model.spec}' (its parameters: {', '.join(names)})"
+            )
+        if name in fixed:
+            raise UsageError(f"{name} is held with --fix; it cannot also be each log's own")
+
+
+@dataclass
+class _Layout:
+    """Where each parameter sits in a group's vector: the shared ones (``p``), then the
+    group's own (``q``); their bounds, and the same strictly inside (``lo_in``/``hi_in``)."""
+
+    shared_names: list[str]
+    own_names: list[str]
+    idx: list[int]
+    lo: np.ndarray
+    hi: np.ndarray
+    lo_in: np.ndarray
+    hi_in: np.ndarray
+
+    @property
+    def p(self) -> int:
+        return len(self.shared_names)
+
+    @property
+    def q(self) -> int:
+        return len(self.own_names)
+
+    def clip_shared(self, s: np.ndarray) -> np.ndarray:
+        return np.clip(s, self.lo_in[: self.p], self.hi_in[: self.p])
+
+    def clip_own(self, o: np.ndarray) -> np.ndarray:
+        return np.clip(o, self.lo_in[self.p :], self.hi_in[self.p :])
+
+
+def _layout(
+    model: Model, own: Sequence[str], fixed: Mapping[str, float], trials: Sequence[TrialData]
+) -> _Layout:
+    """The layout of the free parameters; a drive lag's lower bound is the trials' floor."""
+    names = list(model.param_names)
+    shared_names = [n for n in names if n not in fixed and n not in own]
+    own_names = [n for n in names if n in own]
+    order = shared_names + own_names
+    lo = np.array([model.param(n).min for n in order], float)
+    hi = np.array([model.param(n).max for n in order], float)
+    floor = lag_floor(trials)
+    for j, n in enumerate(order):
+        if n in model.drive_lag_names:
+            lo[j] = max(lo[j], floor)
+    lo_in = lo + 1e-9 * np.maximum(1.0, np.abs(lo))  # strictly inside the bounds
+    hi_in = hi - 1e-9 * np.maximum(1.0, np.abs(hi))
+    return _Layout(shared_names, own_names, [names.index(n) for n in order], lo, hi, lo_in, hi_in)
+
+
+def _held_levels(
+    model: Model,
+    trials: Sequence[TrialData],
+    own: Sequence[str],
+    fixed: dict[str, float],
+    start: Mapping[str, float] | None,
+) -> None:
+    """Hold the parameters of a thrust level's dependence where the trials have one level."""
+    if len(thrust_levels(trials)) >= 2:
+        return
+    for name in model.thrust_level_names:
+        if name in model.param_names and name not in fixed and name not in own:
+            fixed[name] = dict(start or {}).get(name, model.param(name).value)
+
+
+Parts = list[tuple[np.ndarray, np.ndarray]]
+
+
+def _evaluate(
+    problems: Sequence[_Problem], s: np.ndarray, o: Sequence[np.ndarray]
+) -> tuple[float, Parts]:
+    """The cost over all groups and each group's compressed ``(J, r)``."""
+    parts = []
+    cost = 0.0
+    for prob, og in zip(problems, o, strict=True):
+        x = np.concatenate([s, og])
+        rt = prob.fun(x)
+        jt = prob.jac(x)
+        cost += float(rt @ rt)
+        parts.append((jt, rt))
+    return cost, parts
+
+
+@dataclass
+class _Descent:
+    """Where Levenberg-Marquardt ended: the shared vector, each group's own, the parts
+    there, whether it converged and after how many iterations."""
+
+    s: np.ndarray
+    o: list[np.ndarray]
+    parts: Parts
+    converged: bool
+    iterations: int
+
+
+def _descend(
+    problems: Sequence[_Problem],
+    lay: _Layout,
+    s: np.ndarray,
+    o: list[np.ndarray],
+    max_iterations: int,
+    spec: str,
+) -> _Descent:
+    """Levenberg-Marquardt on the block-arrow normal equations from ``(s, o)``."""
+    p, q = lay.p, lay.q
+    n_total = int(sum(pr.n_samples for pr in problems))
+    cost, parts = _evaluate(problems, s, o)
+    if not np.isfinite(cost):
+        raise IdentificationError(f"model '{spec}' is not finite at its start values")
+    lam = 1e-3
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):
+        step_s, step_o, se_s, se_o = _lm_step(parts, p, q, lam, cost, n_total)
+        if step_s is None:
+            lam *= 10
+            if lam > 1e10:
+                break
+            continue
+        new_s = lay.clip_shared(s + step_s)
+        new_o = [lay.clip_own(og + d) for og, d in zip(o, step_o, strict=True)]
+        new_cost, new_parts = _evaluate(problems, new_s, new_o)
+        if np.isfinite(new_cost) and new_cost <= cost:
+            small = _small(s, new_s, se_s, o, new_o, se_o)
+            s, o, cost, parts = new_s, new_o, new_cost, new_parts
+            lam = max(lam / 10, 1e-9)
+            if small:
+                return _Descent(s, o, parts, True, iterations)
+        else:
+            lam *= 10
+            if lam > 1e10:  # no step lowers the cost: a minimum (at a bound)
+                return _Descent(s, o, parts, True, iterations)
+    return _Descent(s, o, parts, False, iterations)
+
+
+@dataclass
+class _AtFit:
+    """Each group's residual, its own parameters' times and its linearization at the fit."""
+
+    residuals: list[np.ndarray]
+    own_time: list[dict[str, float]]
+    within: list[WithinGroup]
+
+    def rss_and_tau(self, problems: Sequence[_Problem]) -> tuple[float, float]:
+        """The residual sum of squares over all groups, and the residual's correlation
+        time (samples, at least 1) over every trial's stretch."""
+        rss = float(sum(float(r @ r) for r in self.residuals))
+        segs = [
+            r[sl] for pr, r in zip(problems, self.residuals, strict=True) for sl in pr.data.slices()
+        ]
+        return rss, max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
+
+
+def _start_vectors(
+    lay: _Layout,
+    full: Mapping[str, float],
+    n_groups: int,
+    own_start: Sequence[Mapping[str, float]] | None,
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The shared start vector and each group's own (``own_start``'s, else ``full``'s),
+    strictly inside the bounds."""
+    s = lay.clip_shared(np.array([full[n] for n in lay.shared_names], float))
+    o = []
+    for g in range(n_groups):
+        given = dict(own_start[g]) if own_start is not None else {}
+        o.append(lay.clip_own(np.array([given.get(n, full[n]) for n in lay.own_names], float)))
+    return s, o
+
+
+def _at_fit(problems: Sequence[_Problem], lay: _Layout, end: _Descent) -> _AtFit:
+    """Evaluate every group at the fit: residuals, own times, within-group linearizations."""
+    out = _AtFit([], [], [])
+    for pr, og in zip(problems, end.o, strict=True):
+        r, sens = pr.evaluate(np.concatenate([end.s, og]))
+        out.residuals.append(np.where(np.isfinite(r), r, 0.0))
+        times = np.concatenate([td.time for td in pr.data.trials])[: r.size]
+        if lay.q:
+            out.within.append(_within(sens, pr.data.slices(), times, lay.p))
+        w = sens[:, lay.p :] ** 2
+        total = w.sum(axis=0)
+        out.own_time.append(
+            {
+                name: float(w[:, j] @ times / total[j]) if total[j] > 0 else float(np.mean(times))
+                for j, name in enumerate(lay.own_names)
+            }
+        )
+    return out
+
+
+def _estimates(
+    model: Model,
+    lay: _Layout,
+    end: _Descent,
+    fixed: Mapping[str, float],
+    cov: tuple[np.ndarray | None, list],
+    sigma2: float,
+) -> tuple[dict[str, ParameterEstimate], list[dict[str, ParameterEstimate]], list[dict]]:
+    """The shared estimates (fitted, then held), each group's own, and their standard
+    errors given the shared values."""
+    p, lo, hi = lay.p, lay.lo, lay.hi
+    cov_s, cov_o = cov
+    shared = {}
+    for j, name in enumerate(lay.shared_names):
+        shared[name] = _estimate(model, name, end.s[j], _se(cov_s, j, sigma2), lo[j], hi[j])
+    for name, value in fixed.items():
+        if name in model.param_names:
+            shared[name] = _estimate(model, name, value, None, -np.inf, np.inf, vary=False)
+    owns = []
+    own_given_shared = []
+    for og, (cond, common) in zip(end.o, cov_o, strict=True):
+        full_cov = None if cond is None else cond + common
+        owns.append(
+            {
+                name: _estimate(model, name, og[j], _se(full_cov, j, sigma2), lo[p + j], hi[p + j])
+                for j, name in enumerate(lay.own_names)
+            }
+        )
+        own_given_shared.append(
+            {name: _se(cond, j, sigma2) for j, name in enumerate(lay.own_names)}
+        )
+    return shared, owns, own_given_shared
+
+
 def fit_grouped(
     model: Model,
     groups: Sequence[Sequence[TrialData]],
@@ -256,132 +487,24 @@ def fit_grouped(
         No group, or a simulation that is not finite at the start.
     """
     fixed = dict(fixed or {})
-    names = list(model.param_names)
-    for name in own:
-        if name not in names:
-            raise UsageError(
-                f"{name} is not a parameter of '{model.spec}' (its parameters: {', '.join(names)})"
-            )
-        if name in fixed:
-            raise UsageError(f"{name} is held with --fix; it cannot also be each log's own")
+    _check_own(model, own, fixed)
     if not groups or not all(groups):
         raise IdentificationError("no trials to fit in a group")
     all_trials = [td for g in groups for td in g]
-    if len(thrust_levels(all_trials)) < 2:
-        for name in model.thrust_level_names:
-            if name in names and name not in fixed and name not in own:
-                fixed[name] = dict(start or {}).get(name, model.param(name).value)
+    _held_levels(model, all_trials, own, fixed, start)
     full = model.resolve({**dict(start or {}), **fixed})
-    shared_names = [n for n in names if n not in fixed and n not in own]
-    own_names = [n for n in names if n in own]
-    p, q = len(shared_names), len(own_names)
-    idx = [names.index(n) for n in shared_names + own_names]
-    lo = np.array([model.param(n).min for n in shared_names + own_names], float)
-    hi = np.array([model.param(n).max for n in shared_names + own_names], float)
-    floor = lag_floor(all_trials)
-    for j, n in enumerate(shared_names + own_names):
-        if n in model.drive_lag_names:
-            lo[j] = max(lo[j], floor)
-    lo_in = lo + 1e-9 * np.maximum(1.0, np.abs(lo))  # strictly inside the bounds
-    hi_in = hi - 1e-9 * np.maximum(1.0, np.abs(hi))
-    base = np.array([full[n] for n in names], float)
-    s = np.clip(np.array([full[n] for n in shared_names], float), lo_in[:p], hi_in[:p])
-    o = []
-    for g in range(len(groups)):
-        given = dict(own_start[g]) if own_start is not None else {}
-        vec = np.array([given.get(n, full[n]) for n in own_names], float)
-        o.append(np.clip(vec, lo_in[p:], hi_in[p:]))
-    problems = [_Problem(model, FitData.build(list(g)), base, idx) for g in groups]
-
-    def evaluate(
-        s_: np.ndarray, o_: list[np.ndarray]
-    ) -> tuple[float, list[tuple[np.ndarray, np.ndarray]]]:
-        parts = []
-        cost = 0.0
-        for prob, og in zip(problems, o_, strict=True):
-            x = np.concatenate([s_, og])
-            rt = prob.fun(x)
-            jt = prob.jac(x)
-            cost += float(rt @ rt)
-            parts.append((jt, rt))
-        return cost, parts
-
-    n_total = int(sum(pr.n_samples for pr in problems))
-    cost, parts = evaluate(s, o)
-    if not np.isfinite(cost):
-        raise IdentificationError(f"model '{model.spec}' is not finite at its start values")
-    lam = 1e-3
-    converged = False
-    iterations = 0
-    for iterations in range(1, max_iterations + 1):  # noqa: B007 - the count is reported
-        step_s, step_o, se_s, se_o = _lm_step(parts, p, q, lam, cost, n_total)
-        if step_s is None:
-            lam *= 10
-            if lam > 1e10:
-                break
-            continue
-        new_s = np.clip(s + step_s, lo_in[:p], hi_in[:p])
-        new_o = [
-            np.clip(og + d, lo_in[p:], hi_in[p:])
-            for og, d in zip(o, step_o, strict=True)
-        ]
-        new_cost, new_parts = evaluate(new_s, new_o)
-        if np.isfinite(new_cost) and new_cost <= cost:
-            small = _small(s, new_s, se_s, o, new_o, se_o)
-            s, o, cost, parts = new_s, new_o, new_cost, new_parts
-            lam = max(lam / 10, 1e-9)
-            if small:
-                converged = True
-                break
-        else:
-            lam *= 10
-            if lam > 1e10:
-                converged = True  # no step lowers the cost: a minimum (at a bound)
-                break
-    n_obs = n_total
-    k = p + q * len(groups)
-    residuals = []
-    own_time = []
-    within = []
-    for pr, og in zip(problems, o, strict=True):
-        r, sens = pr.evaluate(np.concatenate([s, og]))
-        residuals.append(np.where(np.isfinite(r), r, 0.0))
-        times = np.concatenate([td.time for td in pr.data.trials])[: r.size]
-        if q:
-            within.append(_within(sens, pr.data.slices(), times, p))
-        w = sens[:, p:] ** 2
-        total = w.sum(axis=0)
-        own_time.append(
-            {
-                name: float(w[:, j] @ times / total[j]) if total[j] > 0 else float(np.mean(times))
-                for j, name in enumerate(own_names)
-            }
-        )
-    rss = float(sum(float(r @ r) for r in residuals))
-    segs = [r[sl] for pr, r in zip(problems, residuals, strict=True) for sl in pr.data.slices()]
-    tau = max(correlation_time([x - x.mean() for x in segs if x.size]), 1.0)
+    lay = _layout(model, own, fixed, all_trials)
+    base = np.array([full[n] for n in model.param_names], float)
+    s, o = _start_vectors(lay, full, len(groups), own_start)
+    problems = [_Problem(model, FitData.build(list(g)), base, lay.idx) for g in groups]
+    end = _descend(problems, lay, s, o, max_iterations, model.spec)
+    n_obs = int(sum(pr.n_samples for pr in problems))
+    k = lay.p + lay.q * len(groups)
+    at = _at_fit(problems, lay, end)
+    rss, tau = at.rss_and_tau(problems)
     sigma2 = rss / max(n_obs - k, 1) * tau
-    cov_s, cov_o = _covariances(parts, p, q, sigma2 if robust_shared else None)
-    shared = {}
-    for j, name in enumerate(shared_names):
-        se = _se(cov_s, j, sigma2)
-        shared[name] = _estimate(model, name, s[j], se, lo[j], hi[j])
-    for name, value in fixed.items():
-        if name in names:
-            shared[name] = _estimate(model, name, value, None, -np.inf, np.inf, vary=False)
-    owns = []
-    own_given_shared = []
-    for og, (cond, common) in zip(o, cov_o, strict=True):
-        full_cov = None if cond is None else cond + common
-        owns.append(
-            {
-                name: _estimate(model, name, og[j], _se(full_cov, j, sigma2), lo[p + j], hi[p + j])
-                for j, name in enumerate(own_names)
-            }
-        )
-        own_given_shared.append(
-            {name: _se(cond, j, sigma2) for j, name in enumerate(own_names)}
-        )
+    cov = _covariances(end.parts, lay.p, lay.q, sigma2 if robust_shared else None)
+    shared, owns, own_given_shared = _estimates(model, lay, end, fixed, cov, sigma2)
     return GroupedFit(
         model=model,
         shared=shared,
@@ -390,13 +513,13 @@ def fit_grouped(
         n_samples=n_obs,
         n_free=k,
         tau=tau,
-        group_rss=[float(r @ r) for r in residuals],
-        group_n=[int(r.size) for r in residuals],
-        own_time=own_time,
+        group_rss=[float(r @ r) for r in at.residuals],
+        group_n=[int(r.size) for r in at.residuals],
+        own_time=at.own_time,
         own_given_shared=own_given_shared,
-        converged=converged,
-        iterations=iterations,
-        within=within,
+        converged=end.converged,
+        iterations=end.iterations,
+        within=at.within,
     )
 
 

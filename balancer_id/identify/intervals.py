@@ -10,8 +10,10 @@ chi-square threshold of the optimum,
 
 (the likelihood-ratio interval of least squares with the noise variance estimated from
 the fit; ``tau`` the residual's correlation time, ``metrics["residual_tau"]``, 1 for
-independent samples). An end that reaches a bound before the cost crosses the threshold *is* the
-bound: the data cannot exclude it, and the interval says so.
+independent samples; times the square of the widening the trials' scatter gave the
+parameter's standard error, ``scatter_ratio``, so that a profile and the standard error it
+replaces count the same evidence). An end that reaches a bound before the cost crosses the
+threshold *is* the bound: the data cannot exclude it, and the interval says so.
 """
 
 from __future__ import annotations
@@ -143,6 +145,9 @@ def profile_interval(match: MatchResult, name: str, level: float = 0.95) -> Prof
     # a residual correlated over tau samples: each sample counts 1/tau (as the Wald
     # standard errors, matching._covariance)
     sigma2 = s_min / max(n - k, 1) * max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    # a standard error widened to the trials' scatter (a whole trial pulled at once) widens
+    # the threshold alike: the profile then says what the standard error says
+    sigma2 *= max(float(est.scatter_ratio), 1.0) ** 2
     threshold = s_min + sigma2 * chi2_quantile_1dof(level)
     held = {p.name: p.value for p in match.parameters.values() if not p.vary}
     # continuation: each refit starts from the optimum of the nearest value refitted so

@@ -45,6 +45,10 @@ class ParameterEstimate:
     #: The part of ``stderr`` from where the steps lie between their samples
     #: (:func:`~balancer_id.identify.timing.sampling_variance`): no new trial reduces it.
     phase_se: float = 0.0
+    #: How many times the trials' scatter widened ``stderr``
+    #: (:func:`~balancer_id.identify.trial_scatter.widen_by_trial_scatter`; 1: not at all):
+    #: a profile interval's threshold is widened alike.
+    scatter_ratio: float = 1.0
     _sealed: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __setattr__(self, name: str, value: object) -> None:
@@ -126,6 +130,10 @@ class MatchResult(Displayable):
     warnings: list[Note | str] = field(default_factory=list)
     #: The distinct optima of a multi-start fit, best first (empty for one start).
     optima: list[basins.Optimum] = field(default_factory=list)
+    #: Rival explanations that fit as well and move a trusted value
+    #: (:class:`~balancer_id.identify.rivals.Rival`, from
+    #: :func:`~balancer_id.identify.rivals.check_rivals`).
+    rivals: list[Any] = field(default_factory=list)
     _sealed: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __setattr__(self, name: str, value: object) -> None:
@@ -156,6 +164,7 @@ class MatchResult(Displayable):
             else FrozenDict({k: FrozenDict(row) for k, row in self.correlations.items()}),
             "warnings": tuple(self.warnings),
             "optima": tuple(self.optima),
+            "rivals": tuple(self.rivals),
             "trial_rmse": tuple(self.trial_rmse),
             "_sealed": True,
         }
@@ -1210,20 +1219,14 @@ def _correlated_note(tau: float) -> Note:
     )
 
 
-def _collect(
-    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[Note | str]
-) -> MatchResult:
-    y_model = data.y + out.residual
-    values = problem.full(out.x)
-    free_names = [model.param_names[i] for i in problem.free]
-    n_free = len(free_names)
-    metrics = error_metrics(data.y, y_model, n_free)
-    tau = correlation_time([out.residual[sl] for sl in data.slices()], removed=0)
-    metrics["residual_tau"] = tau
-    if tau > TAU_NOTE and n_free:
-        notes.append(_correlated_note(tau))
-    cov = _covariance(out, tau)
+def _estimates(
+    model: Model, problem: _Problem, values: np.ndarray, free_names: list[str],
+    cov: np.ndarray | None,
+) -> tuple[dict[str, ParameterEstimate], dict[str, dict[str, float]]]:
+    """Every parameter's estimate (held ones without an error) and the free ones'
+    correlations."""
     sd = np.sqrt(np.abs(np.diag(cov))) if cov is not None else None
+    n_free = len(free_names)
     estimates: dict[str, ParameterEstimate] = {}
     correlations: dict[str, dict[str, float]] = {}
     for i, spec in enumerate(model.params):
@@ -1247,41 +1250,66 @@ def _collect(
         estimates[spec.name] = ParameterEstimate(
             spec.name, value, stderr, spec.unit, vary, at_bound
         )
-        if at_bound:
+    return estimates, correlations
+
+
+def _bound_notes(
+    model: Model, estimates: dict[str, ParameterEstimate], problem: _Problem, out: _Outcome,
+    tau: float,
+) -> list[Note | str]:
+    """A note for each estimate on a bound (with the pull past it), and for each drive lag
+    below two sample intervals."""
+    notes: list[Note | str] = []
+    for i, spec in enumerate(model.params):
+        e = estimates[spec.name]
+        if e.at_bound:
             pull = _pull_past(problem, out, problem.free.index(i), tau)
-            notes.append(_bound_note(model, spec.name, value, at_bound, problem, pull))
-        elif vary and spec.name in model.drive_lag_names and value < 2 * problem.lag_floor:
-            notes.append(_unresolved_lag_note(spec.name, value, problem.lag_floor))
+            notes.append(_bound_note(model, spec.name, e.value, e.at_bound, problem, pull))
+        elif e.vary and spec.name in model.drive_lag_names and e.value < 2 * problem.lag_floor:
+            notes.append(_unresolved_lag_note(spec.name, e.value, problem.lag_floor))
+    return notes
+
+
+def _poorly_note(
+    model: Model, estimates: dict[str, ParameterEstimate], lag_floor: float
+) -> Note | None:
+    """The free parameters the data cannot determine (standard error beyond the value)."""
     poorly = [
         e.name
         for e in estimates.values()
         if e.vary
         and e.at_bound is None
         and (e.stderr is None or not np.isfinite(e.stderr) or e.stderr > abs(e.value))
-        and not (e.name in model.drive_lag_names and e.value < 2 * problem.lag_floor)
+        and not (e.name in model.drive_lag_names and e.value < 2 * lag_floor)
     ]  # a lag below one sample interval is a bound (fit.below_resolution), not a value
-    if poorly:
-        notes.append(
-            Note(
-                "fit.not_identifiable",
-                f"the data cannot determine {', '.join(poorly)} (standard error larger than "
-                "the value or undefined); fix them with --fix NAME=VALUE or add trials that "
-                "excite them",
-                subject=poorly[0] if len(poorly) == 1 else None,
-                severity="error",
-            )
-        )
+    if not poorly:
+        return None
+    return Note(
+        "fit.not_identifiable",
+        f"the data cannot determine {', '.join(poorly)} (standard error larger than "
+        "the value or undefined); fix them with --fix NAME=VALUE or add trials that "
+        "excite them",
+        subject=poorly[0] if len(poorly) == 1 else None,
+        severity="error",
+    )
+
+
+def _worse_than_mean_note(metrics: Mapping[str, float], n_free: int) -> Note | None:
+    """An error note where the model follows the acceleration worse than its mean."""
     fit_percent = float(metrics.get("nrmse_fit_percent", np.nan))
-    if n_free and np.isfinite(fit_percent) and fit_percent < 0:
-        notes.append(
-            Note(
-                "fit.worse_than_mean",
-                f"fit {fit_percent:.1f} %: the model follows the acceleration worse than its "
-                "mean does, so its values describe nothing measured; check the trials with "
-                "'balancer-id inspect --plot' and the model with 'balancer-id diagnose'",
-                severity="error",
-            )
-        )
+    if not (n_free and np.isfinite(fit_percent) and fit_percent < 0):
+        return None
+    return Note(
+        "fit.worse_than_mean",
+        f"fit {fit_percent:.1f} %: the model follows the acceleration worse than its "
+        "mean does, so its values describe nothing measured; check the trials with "
+        "'balancer-id inspect --plot' and the model with 'balancer-id diagnose'",
+        severity="error",
+    )
+
+
+def _correlation_notes(correlations: Mapping[str, Mapping[str, float]]) -> list[Note | str]:
+    """A note for each pair of parameters almost fully correlated."""
     strong = sorted(
         {
             tuple(sorted((a, b)))
@@ -1290,15 +1318,38 @@ def _collect(
             if abs(c) > 0.98
         }
     )
-    for a, b in strong:
-        notes.append(
-            Note(
-                "fit.not_identifiable",
-                f"{a} and {b} are almost fully correlated ({correlations[a][b]:+.3f})",
-                subject=a,
-                severity="info",
-            )
+    return [
+        Note(
+            "fit.not_identifiable",
+            f"{a} and {b} are almost fully correlated ({correlations[a][b]:+.3f})",
+            subject=a,
+            severity="info",
         )
+        for a, b in strong
+    ]
+
+
+def _collect(
+    model: Model, out: _Outcome, problem: _Problem, data: FitData, notes: list[Note | str]
+) -> MatchResult:
+    y_model = data.y + out.residual
+    free_names = [model.param_names[i] for i in problem.free]
+    n_free = len(free_names)
+    metrics = error_metrics(data.y, y_model, n_free)
+    tau = correlation_time([out.residual[sl] for sl in data.slices()], removed=0)
+    metrics["residual_tau"] = tau
+    if tau > TAU_NOTE and n_free:
+        notes.append(_correlated_note(tau))
+    cov = _covariance(out, tau)
+    estimates, correlations = _estimates(model, problem, problem.full(out.x), free_names, cov)
+    notes.extend(_bound_notes(model, estimates, problem, out, tau))
+    for note in (
+        _poorly_note(model, estimates, problem.lag_floor),
+        _worse_than_mean_note(metrics, n_free),
+    ):
+        if note is not None:
+            notes.append(note)
+    notes.extend(_correlation_notes(correlations))
     trial_rmse = [float(np.sqrt(np.mean((data.y[s] - y_model[s]) ** 2))) for s in data.slices()]
     return MatchResult(
         model=model,

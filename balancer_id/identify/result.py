@@ -29,6 +29,10 @@ from balancer_id.records import FitRecord, FrozenDict, ReadsBack
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.trials import TrialSet
 
+#: ``error`` notes about some parameters only: each names those it moves in their own
+#: ``distrust``, and the others keep their trust (the drive's timing, a rival model).
+PARAMETER_NOTES = ("fit.timing", "fit.rival")
+
 if TYPE_CHECKING:
     from balancer_id.identify.advice import Advice
     from balancer_id.identify.posterior import Posterior
@@ -171,7 +175,7 @@ class FitResult(Displayable, ReadsBack):
         parameter is and no note says otherwise.
         """
         errors = [n for n in self.all_notes if isinstance(n, Note) and n.severity == "error"]
-        whole = [n.text for n in errors if n.code != "fit.timing"]
+        whole = [n.text for n in errors if n.code not in PARAMETER_NOTES]
         out: dict[str, list[str]] = {}
         for name, est in self.match.parameters.items():
             if not est.vary:

@@ -253,6 +253,145 @@ def step_trend(accel: np.ndarray, half: int) -> tuple[np.ndarray, float]:
     return out, float(np.sqrt(inv[2, 2]))
 
 
+class _MotionScan:
+    """The stages of :func:`_changes_while_moving` over one gap-free stretch ``[lo, hi)``:
+    the step-over-trend measure, its peaks, and the tests a departure or a peak must pass
+    while moving."""
+
+    def __init__(
+        self,
+        time: np.ndarray,
+        a: np.ndarray,
+        rest: np.ndarray,
+        span: tuple[int, int],
+        catches: list[tuple[int, int]],
+        half: int,
+        levels: tuple[float, float, float],
+        rate: float,
+        settings: StepSettings,
+    ) -> None:
+        self.time, self.a, self.rest = time, a, rest
+        self.lo, self.hi = span
+        self.catches, self.half = catches, half
+        self.thr, self.sigma, self.clip = levels
+        self.step, self.gain = step_trend(a[self.lo : self.hi], half)
+        self.level = max(settings.min_accel_step, settings.accel_k_sigma * self.sigma * self.gain)
+        self.mag = np.nan_to_num(np.abs(self.step))
+        self.catch_s = n_samples(settings.max_catch_s, rate)
+        self.after, self.span = n_samples(0.5, rate), n_samples(settings.response_s, rate)
+        self.w_pre = odd(n_samples(settings.accel_window_s, rate, 3))
+
+    def local_noise(self, k: int) -> tuple[float, float]:
+        """The noise near ``k`` (issue 19.4), as a white-equivalent sample noise and the
+        noise of a ``half``-long mean: travel (a ride's sway, a hand's tremor) can be
+        noisier, and slower, than the rest the log's ``sigma`` was measured on."""
+        a, lo, hi, half = self.a, self.lo, self.hi, self.half
+        side = LOCAL_NOISE_HALVES * half
+        before = level_noise(a[max(lo, k - half - side) : max(lo, k - half)], half, self.sigma)
+        after = level_noise(a[min(hi, k + half) : min(hi, k + half + side)], half, self.sigma)
+        return min(before, after)  # another motion's edge on one side is no noise
+
+    def peaks(self) -> list[int]:
+        """The step's peaks above the level, largest first taken, each masking its side
+        lobes within two half-widths; in time order."""
+        mag, half = self.mag, self.half
+        peaks: list[int] = []
+        taken = np.zeros(mag.size, dtype=bool)
+        for j in np.argsort(-mag):
+            if mag[j] <= self.level:
+                break
+            if taken[j]:
+                continue
+            peaks.append(self.lo + int(j))
+            taken[max(0, j - 2 * half) : j + 2 * half] = True
+        return sorted(peaks)
+
+    def abrupt(self, k: int) -> bool:
+        """A catch is abrupt: a "catch" the step does not confirm is the level following
+        the decay."""
+        lo, half = self.lo, self.half
+        return bool(np.any(self.mag[max(0, k - lo - half) : k - lo + half] > self.level))
+
+    def events(self, steps: list[Step]) -> list[tuple[int, int, Step | None]]:
+        """Departures (0), catches (1) and peaks (2), in time order."""
+        # (near a drop-out the step cannot be measured: a catch there is taken as it is)
+        kept = [c for c, _ in self.catches if self.abrupt(c) or self.hi - c <= 2 * self.half]
+        return sorted(
+            [(st.onset, 0, st) for st in steps]
+            + [(c, 1, None) for c in kept]
+            + [(p, 2, None) for p in self.peaks()]
+        )
+
+    def stands_out(self, st: Step) -> bool:
+        """A departure while moving must stand out of the noise of the means around it
+        (a ride's sway leaves the resting level too), not only of the resting noise,
+        and reach a level away from rest (a return to rest is steady travel)."""
+        _, per_mean = self.local_noise(st.onset)  # noise of a `half`-long mean
+        pre_n, post_n = max(self.w_pre, 1), max(self.span, 1)
+        se = per_mean * np.sqrt(self.half / pre_n + self.half / post_n)
+        if abs(st.response) <= LOCAL_K_SIGMA * se:
+            return False
+        return self.new_level(st.onset, st.response, per_mean, (self.rest[st.onset],))
+
+    def new_level(self, k: int, change: float, per_mean: float, levels: tuple[float, ...]) -> bool:
+        """Whether the acceleration after ``k`` (up to the next catch) sits away from every
+        level of ``levels`` (rest, the level before the motion): else the motion stopped
+        or travels steadily, and no thrust level is new."""
+        after = self.after
+        ends = [c for c, _ in self.catches if c > k + after]
+        seg = self.a[k + after : min(self.hi, k + self.span, *ends[:1])]
+        if seg.size < 3:
+            return False
+        tol = max(self.thr, BACK_AT_REST_FRACTION * abs(change), REST_K_SIGMA * per_mean)
+        reached = clipped_mean(seg, self.clip)
+        return min(abs(reached - x) for x in levels) > tol
+
+    def departs_while_moving(self, k: int, st: Step, out: list[Step]) -> bool:
+        """A departure while moving must be abrupt (else it is the resting level following
+        the slow decay), not already found, and stand out."""
+        near = bool(out) and abs(k - out[-1].onset) <= 2 * self.half
+        return self.abrupt(k) and not near and self.stands_out(st)
+
+    def passed_over(
+        self, k: int, out: list[Step], moving: bool, caught: int, steps: list[Step]
+    ) -> bool:
+        """Whether the peak at ``k`` is no new change: the one that started this motion
+        (or its side lobe), a catch, or found from the resting level."""
+        half = self.half
+        if out and abs(k - out[-1].onset) <= 2 * half:
+            return True  # the change that started this motion, or its side lobe
+        if caught - half <= k <= caught + self.catch_s + half:
+            return True  # the catch itself
+        if any(0 <= c - k <= half for c, _ in self.catches):
+            return True  # a catch ahead, inside the window that measured the change
+        # at rest, departures are found from the resting level
+        return not moving and bool(out or any(abs(k - d.onset) <= 2 * half for d in steps))
+
+    def change_at(self, k: int, out: list[Step], moving: bool, earlier: set[int] | frozenset[int]
+                  ) -> Step | None:
+        """The thrust change at the peak ``k``, or None where it does not stand out of the
+        noise around it or reach a new level."""
+        a, lo, half = self.a, self.lo, self.half
+        start = out[-1].onset if moving and out else k  # the motion's first onset
+        if moving and not out and earlier:  # carried over a drop-out: its onset is back
+            start = max(earlier)
+        first = lo if start >= lo else 0  # (the rest before a carried motion is back too)
+        pre = a[max(first, start - 2 * half) : max(first, start - half // 2)]
+        still = clipped_mean(pre, self.clip) if pre.size >= half // 2 else self.rest[k]
+        dep = float(self.step[k - lo])
+        noise, mean_noise = self.local_noise(k)
+        if abs(dep) <= LOCAL_K_SIGMA * noise * self.gain:
+            return None  # does not stand out of the noise around it (steady travel)
+        # a motion carried over a drop-out may also have stopped at the resting level
+        levels = (still, self.rest[k]) if start < lo else (still,)
+        if not self.new_level(k, dep, mean_noise, levels):
+            return None  # the motion stopped or travels steadily: no new thrust level
+        onset = rise_onset(self.time, a, lo, self.hi, k, half)
+        if onset - lo < 3 or self.hi - onset < 3:
+            return None
+        return Step(int(onset), float("nan"), dep, abs(dep) / (noise * self.gain), "accel")
+
+
 def _changes_while_moving(
     time: np.ndarray,
     a: np.ndarray,
@@ -280,113 +419,29 @@ def _changes_while_moving(
     the resting level (a stop is no change). A departure inside a motion that no such
     peak confirms is the resting level following the slow decay, not an onset.
     """
-    step, gain = step_trend(a[lo:hi], half)
-    level = max(settings.min_accel_step, settings.accel_k_sigma * sigma * gain)
-
-    def local_noise(k: int) -> tuple[float, float]:
-        """The noise near ``k`` (issue 19.4), as a white-equivalent sample noise and the
-        noise of a ``half``-long mean: travel (a ride's sway, a hand's tremor) can be
-        noisier, and slower, than the rest the log's ``sigma`` was measured on."""
-        side = LOCAL_NOISE_HALVES * half
-        before = level_noise(a[max(lo, k - half - side) : max(lo, k - half)], half, sigma)
-        after = level_noise(a[min(hi, k + half) : min(hi, k + half + side)], half, sigma)
-        return min(before, after)  # another motion's edge on one side is no noise
-
-    mag = np.nan_to_num(np.abs(step))
-    peaks: list[int] = []
-    order = np.argsort(-mag)
-    taken = np.zeros(mag.size, dtype=bool)
-    for j in order:
-        if mag[j] <= level:
-            break
-        if taken[j]:
-            continue
-        peaks.append(lo + int(j))
-        taken[max(0, j - 2 * half) : j + 2 * half] = True
-    peaks.sort()
-
-    # a catch is abrupt: a "catch" the step does not confirm is the level following the decay
-    def abrupt(k: int) -> bool:
-        return bool(np.any(mag[max(0, k - lo - half) : k - lo + half] > level))
-
-    def stands_out(st: Step) -> bool:
-        """A departure while moving must stand out of the noise of the means around it
-        (a ride's sway leaves the resting level too), not only of the resting noise,
-        and reach a level away from rest (a return to rest is steady travel)."""
-        _, per_mean = local_noise(st.onset)  # noise of a `half`-long mean
-        pre_n, post_n = max(w_pre, 1), max(span, 1)
-        se = per_mean * np.sqrt(half / pre_n + half / post_n)
-        if abs(st.response) <= LOCAL_K_SIGMA * se:
-            return False
-        return new_level(st.onset, st.response, per_mean, (rest[st.onset],))
-
-    def new_level(k: int, change: float, per_mean: float, levels: tuple[float, ...]) -> bool:
-        """Whether the acceleration after ``k`` (up to the next catch) sits away from every
-        level of ``levels`` (rest, the level before the motion): else the motion stopped
-        or travels steadily, and no thrust level is new."""
-        ends = [c for c, _ in catches if c > k + after]
-        seg = a[k + after : min(hi, k + span, *ends[:1])]
-        if seg.size < 3:
-            return False
-        tol = max(thr, BACK_AT_REST_FRACTION * abs(change), REST_K_SIGMA * per_mean)
-        reached = clipped_mean(seg, clip)
-        return min(abs(reached - x) for x in levels) > tol
-
-    catch_s = n_samples(settings.max_catch_s, rate)
-    stopped = dict(catches)  # catch -> the onset of the motion it stops
-    events = sorted(
-        [(st.onset, 0, st) for st in steps]
-        # (near a drop-out the step cannot be measured: a catch there is taken as it is)
-        + [(c, 1, None) for c, _ in catches if abrupt(c) or hi - c <= 2 * half]
-        + [(p, 2, None) for p in peaks]
+    scan = _MotionScan(
+        time, a, rest, (lo, hi), catches, half, (thr, sigma, clip), rate, settings
     )
+    stopped = dict(catches)  # catch -> the onset of the motion it stops
     out: list[Step] = []
     moving = moving_at_start  # a motion carried over a drop-out
     caught = -(10**12)  # start of the last catch
-    after, span = n_samples(0.5, rate), n_samples(settings.response_s, rate)
-    w_pre = odd(n_samples(settings.accel_window_s, rate, 3))
-    for k, kind, st in events:
+    for k, kind, st in scan.events(steps):
         if kind == 1:
             owner = stopped[k]
             if owner >= 0 and owner not in earlier and not any(d.onset == owner for d in out):
                 continue  # the catch of a departure not kept (a sway) stops no motion
             moving, caught = False, k
         elif kind == 0:
-            # a departure from rest starts a motion; one while moving must be abrupt (else
-            # it is the resting level following the slow decay) and not already found
-            near = bool(out) and abs(k - out[-1].onset) <= 2 * half
-            if st is not None and (not moving or (abrupt(k) and not near and stands_out(st))):
+            # a departure from rest starts a motion; one while moving must pass the tests
+            if st is not None and (not moving or scan.departs_while_moving(k, st, out)):
                 out.append(st)
                 moving = True
-        else:
-            last = out[-1].onset if out else None
-            if last is not None and abs(k - last) <= 2 * half:
-                continue  # the change that started this motion, or its side lobe
-            if caught - half <= k <= caught + catch_s + half:
-                continue  # the catch itself
-            if any(0 <= c - k <= half for c, _ in catches):
-                continue  # a catch ahead, inside the window that measured the change
-            if not moving and (out or any(abs(k - d.onset) <= 2 * half for d in steps)):
-                continue  # at rest, departures are found from the resting level
-            start = out[-1].onset if moving and out else k  # the motion's first onset
-            if moving and not out and earlier:  # carried over a drop-out: its onset is back
-                start = max(earlier)
-            first = lo if start >= lo else 0  # (the rest before a carried motion is back too)
-            pre = a[max(first, start - 2 * half) : max(first, start - half // 2)]
-            still = clipped_mean(pre, clip) if pre.size >= half // 2 else rest[k]
-            dep = float(step[k - lo])
-            noise, mean_noise = local_noise(k)
-            if abs(dep) <= LOCAL_K_SIGMA * noise * gain:
-                continue  # does not stand out of the noise around it (steady travel)
-            # a motion carried over a drop-out may also have stopped at the resting level
-            levels = (still, rest[k]) if start < lo else (still,)
-            if not new_level(k, dep, mean_noise, levels):
-                continue  # the motion stopped or travels steadily: no new thrust level
-            onset = rise_onset(time, a, lo, hi, k, half)
-            if onset - lo < 3 or hi - onset < 3:
-                continue
-            out.append(Step(int(onset), float("nan"), dep, abs(dep) / (noise * gain), "accel"))
-            moving = True
+        elif not scan.passed_over(k, out, moving, caught, steps):
+            found = scan.change_at(k, out, moving, earlier)
+            if found is not None:
+                out.append(found)
+                moving = True
     return sorted(out, key=lambda st: st.onset)
 
 

@@ -1,0 +1,352 @@
+"""Rival explanations of a trusted fit: does a model that fits as well move a value? (issue 31)
+
+A fit's interval assumes its model. An effect the model lacks can be mimicked by the
+model's own parameters: at steady speed a friction ``f`` slows the load as a viscosity
+that is larger at small thrusts does (``v = (h - f) / D`` against ``v = h / (D0 exp(-A
+|h|))``), so a friction below the noise comes out as ``D0`` and ``A`` too large, with a
+residual as white as the noise. A speed limit the trials reach bends ``A`` the other way;
+a dead time lengthens ``T_a``.
+
+So each trusted fit is refitted once per *rival*: the model with one library effect it
+lacks (:func:`rival_effects`), warm-started at the fit with the effect switched on at a
+strength the data could hide (:func:`rival_start`). A rival is *as well supported* when
+its BIC, counted on the residual's independent samples (``n / tau``, as the standard
+errors are), is no more than :data:`RIVAL_BIC` above the fit's: the data prefer the fit
+by less than Kass and Raftery's "bare mention" (odds under e to 1), or prefer the rival.
+A trusted parameter that such a rival moves outside its 95 % interval is no longer
+trusted: its value depends on whether the effect is present, and the range it spans under
+the rivals is said. The others keep their trust. A rival that does not fit as well (the
+data reject the effect, as on a clean log, where its BIC is about ``ln(n / tau)`` worse)
+changes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from balancer_id.errors import BalancerIdError
+from balancer_id.identify.matching import MatchResult, match_trials
+from balancer_id.model.effect import Effect
+from balancer_id.model.spec import Model, parse_model
+from balancer_id.notes import Note
+
+__all__ = ["RIVAL_BIC", "Rival", "check_rivals", "rival_effects", "rival_start"]
+
+#: A rival whose BIC (on independent samples) is at most this much above the fit's is as
+#: well supported: the data prefer the fit by odds under e to 1 (Kass and Raftery's "not
+#: worth more than a bare mention"). On a log without the effect its BIC is about
+#: ``ln(n / tau)`` (8-12) worse; docs/DECISIONS.md.
+RIVAL_BIC = 2.0
+#: Model evaluations of one rival's refit (it starts at the fit: a few steps suffice).
+RIVAL_NFEV = 150
+#: Effects tried as rivals whose kernel needs its own compilation are tried only on models
+#: whose own such effects are among these (the paper's viscosities): their rival kernels
+#: are the ones the diagnosis's candidates compile anyway.
+PAPER_STRUCTURAL = frozenset({"viscous", "variable_viscosity"})
+
+
+@dataclass(frozen=True)
+class Rival:
+    """A rival explanation that fits as well as the fit and moves a trusted value.
+
+    Attributes
+    ----------
+    effect : str
+        The library effect added (``karnopp``).
+    summary : str
+        What it is, in words.
+    delta_bic : float
+        Its BIC on independent samples minus the fit's (negative: the rival fits better).
+    values : dict of str to float
+        Its fitted values.
+    ranges : dict of str to (float, float)
+        Each moved parameter's range under the fit and its rivals (95 %).
+    record : str or None
+        The step trial that tells the fit from the rival, in words.
+    """
+
+    effect: str
+    summary: str
+    delta_bic: float
+    values: Mapping[str, float]
+    ranges: Mapping[str, tuple[float, float]]
+    record: str | None = None
+
+    @property
+    def label(self) -> str:
+        """``+karnopp``."""
+        return f"+{self.effect}"
+
+
+def _structural(cls: type[Effect]) -> bool:
+    from balancer_id.simulation.kernel_source import _is_structural
+
+    return _is_structural(cls)
+
+
+def rival_effects(model: Model) -> list[type[Effect]]:
+    """The library effects a fit of ``model`` is checked against.
+
+    Every built-in effect the model lacks that can be added to it (no effect it excludes
+    is present), needs no robot reference and adds at least one parameter. Effects whose
+    kernel is compiled apart (a friction, a speed limit: :data:`PAPER_STRUCTURAL`) only
+    when the model's own such effects are the paper's viscosities: a model with a user's
+    effect or a friction already chosen is left to ``diagnose``.
+
+    Parameters
+    ----------
+    model : Model
+        The fitted model.
+
+    Returns
+    -------
+    list of type
+        The rival effects, in registry order.
+    """
+    present = {e.name for e in model.effects}
+    own_structural = {e.name for e in model.effects if _structural(e)} - {"base"}
+    plain = own_structural <= PAPER_STRUCTURAL and all(
+        model.registry.origin(e.name) == "built-in" for e in model.effects if e.name != "base"
+    )
+    out = []
+    for effect in model.registry:
+        if effect.name in present or effect.needs_reference_move():
+            continue
+        if model.registry.origin(effect.name) != "built-in":
+            continue
+        if any(n in present for n in effect.excludes) or not effect.parameters:
+            continue
+        if any(effect.name in e.excludes for e in model.effects):
+            continue
+        if _structural(effect) and not plain:
+            continue
+        out.append(effect)
+    return out
+
+
+def rival_start(match: MatchResult, model: Model, effect: type[Effect]) -> dict[str, float]:
+    """Where a rival's refit starts: the fit's values, the effect on at a strength the
+    data could hide.
+
+    A force (``N``: a friction) at a tenth of the smallest thrust; a speed (``m/s``: a
+    limit) at 0.9 times the fastest the fit's model goes, so that it acts; a time (``s``:
+    a delay) at two samples; any other at the effect's default. A drive lag the model
+    lacks (``T_up`` over ``T_a``) starts at the fit's drive lag.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    model : Model
+        The rival model (the fit's with ``effect``).
+    effect : type
+        The effect added.
+
+    Returns
+    -------
+    dict of str to float
+        Start values of every parameter of the rival model the fit has or the effect adds.
+    """
+    now = match.values()
+    start = {k: v for k, v in now.items() if k in model.param_names}
+    trials = match.data.trials
+    thrusts = [abs(t.thrust_N) for t in trials if t.thrust_N]
+    speed = float(np.nanmax(np.abs(match.data.packed.run(
+        match.model, np.asarray(match.model.vector(now), float))[:, 1])))  # fmt: skip
+    dt = float(np.median([1.0 / t.rate_hz for t in trials]))
+    for p in effect.parameters:
+        value = p.value
+        if p.unit == "N" and thrusts:
+            value = 0.1 * min(thrusts)
+        elif p.unit == "m/s" and math.isfinite(speed) and speed > 0:
+            value = 0.9 * speed
+        elif p.unit == "s":
+            value = match.model.drive_lag(now) if p.name in model.drive_lag_names else 2 * dt
+        start[p.name] = float(min(max(value, p.min), p.max))
+    return start
+
+
+def _bic_gap(match: MatchResult, rival: MatchResult) -> float:
+    """The rival's BIC minus the fit's, on the fit's independent samples ``n / tau``."""
+    n = match.y.size
+    n_eff = n / max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    rss0 = float(np.sum(match.residual**2))
+    rss1 = float(np.sum(rival.residual**2))
+    k0 = sum(p.vary for p in match.parameters.values())
+    k1 = sum(p.vary for p in rival.parameters.values())
+    return float(
+        n_eff * math.log(max(rss1, 1e-300) / max(rss0, 1e-300)) + (k1 - k0) * math.log(n_eff)
+    )
+
+
+def _refit(
+    match: MatchResult, effect: type[Effect], fixed: Mapping[str, float]
+) -> MatchResult | None:
+    """The fit's model with ``effect``, refitted from :func:`rival_start` (None: failed)."""
+    try:
+        model = parse_model(f"{match.model.spec}+{effect.name}", match.model.registry)
+        held = {k: v for k, v in fixed.items() if k in model.param_names}
+        start = rival_start(match, model, effect)
+        rival = match_trials(
+            model, match.data.trials, start=start, fixed=held, n_starts=1, max_nfev=RIVAL_NFEV
+        )
+    except (BalancerIdError, ValueError, FloatingPointError):
+        return None
+    if not rival.success or not np.isfinite(rival.metrics["rmse"]):
+        return None
+    return rival
+
+
+def trusted_names(match: MatchResult) -> list[str]:
+    """The fitted parameters nothing distrusts yet, with a finite 95 % interval.
+
+    Parameters
+    ----------
+    match : MatchResult
+
+    Returns
+    -------
+    list of str
+    """
+    return [
+        name
+        for name, p in match.parameters.items()
+        if p.vary and not p.distrust and p.not_reached is None and p.ci95 is not None
+        and all(math.isfinite(x) for x in p.ci95)
+    ]  # fmt: skip
+
+
+def _moved(
+    match: MatchResult, rival: MatchResult, names: Sequence[str]
+) -> dict[str, tuple[float, float]]:
+    """Each of ``names`` the rival puts outside the fit's 95 % interval, with the range
+    (the fit's interval joined with the rival's)."""
+    out = {}
+    for name in names:
+        if name not in rival.parameters:
+            continue
+        lo, hi = match.parameters[name].ci95 or (math.nan, math.nan)
+        r = rival.parameters[name]
+        if lo <= r.value <= hi:
+            continue
+        ends = [lo, hi, r.value, *(r.ci95 or ())]
+        ends = [x for x in ends if math.isfinite(x)]
+        out[name] = (min(ends), max(ends))
+    return out
+
+
+def find_rivals(match: MatchResult, fixed: Mapping[str, float] | None = None) -> list[Rival]:
+    """The rivals that fit as well as ``match`` and move one of its trusted values.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    fixed : mapping, optional
+        Values the fit held (held in the rivals too).
+
+    Returns
+    -------
+    list of Rival
+        Best supported first (lowest BIC gap).
+    """
+    names = trusted_names(match)
+    if not names or match.model.needs_reference_move:
+        return []
+    out = []
+    for effect in rival_effects(match.model):
+        rival = _refit(match, effect, fixed or {})
+        if rival is None:
+            continue
+        gap = _bic_gap(match, rival)
+        if gap > RIVAL_BIC:
+            continue
+        ranges = _moved(match, rival, names)
+        if not ranges:
+            continue
+        from balancer_id.identify.separating import separating_trial
+
+        out.append(
+            Rival(
+                effect.name,
+                effect.summary,
+                gap,
+                dict(rival.values()),
+                ranges,
+                separating_trial(match, rival),
+            )
+        )
+    return sorted(out, key=lambda r: r.delta_bic)
+
+
+def _effect_values(rival: Rival, match: MatchResult) -> str:
+    extra = {k: v for k, v in rival.values.items() if k not in match.parameters}
+    return ", ".join(f"{k} = {v:.3g}" for k, v in extra.items())
+
+
+def rival_note(rival: Rival, match: MatchResult) -> Note:
+    """The ``fit.rival`` note: the rival, how well it fits, what it moves, what to record.
+
+    Parameters
+    ----------
+    rival : Rival
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    Note
+        Severity ``error`` (the values it moves are not trusted); subject the effect.
+    """
+    how = (
+        f"fits better (BIC {rival.delta_bic:+.1f} on independent samples)"
+        if rival.delta_bic < 0
+        else f"fits as well (BIC {rival.delta_bic:+.1f} on independent samples, within "
+        f"{RIVAL_BIC:g})"
+    )
+    moved = "; ".join(f"{k} {lo:.3g} .. {hi:.3g}" for k, (lo, hi) in rival.ranges.items())
+    text = (
+        f"the model with {rival.effect} ({rival.summary}; {_effect_values(rival, match)}) "
+        f"{how} and moves {', '.join(rival.ranges)} outside their 95 % intervals: under "
+        f"the rivals {moved}, so those values are not trusted"
+    )
+    if rival.record:
+        text += f"; to tell them apart, {rival.record}"
+    return Note("fit.rival", text, subject=rival.effect, severity="error")
+
+
+def check_rivals(match: MatchResult, fixed: Mapping[str, float] | None = None) -> list[Note]:
+    """Check a fit's trusted values against its rivals and mark what they move.
+
+    Each parameter a rival moves gets a reason in its
+    :attr:`~balancer_id.identify.matching.ParameterEstimate.distrust` ("D0 depends on
+    whether a karnopp friction is present: 0.041 .. 0.122 under the rivals"); the rivals
+    are kept on the match (``match.rivals``) for the diagnosis.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (changed in place).
+    fixed : mapping, optional
+        Values the fit held.
+
+    Returns
+    -------
+    list of Note
+        One ``fit.rival`` note per rival that moves a value.
+    """
+    found = find_rivals(match, fixed)
+    match.rivals = found
+    notes = []
+    for rival in found:
+        for name, (lo, hi) in rival.ranges.items():
+            match.parameters[name].distrust.append(
+                f"{name} depends on whether {rival.effect} is present: {lo:.4g} .. {hi:.4g} "
+                "under the rivals"
+            )
+        notes.append(rival_note(rival, match))
+    return notes
