@@ -25,6 +25,7 @@ CODES: dict[str, str] = {
     # reading
     "read.gap": "dropped samples: a gap in a run's time base (never interpolated)",
     "read.time_unit": "the time column's unit was read from its header or its values",
+    "read.force_unit": "the force column's name states a unit other than N: scaled to N",
     "read.rate": "the sample rate is unusual or irregular",
     "read.sensor_limit": "samples at the accelerometer's limit (clipped)",
     "read.column_guess": "a column was chosen by guess, not by its header or the column map",
