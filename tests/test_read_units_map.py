@@ -251,3 +251,22 @@ def test_a_force_unit_in_the_name_is_scaled_to_newtons(tmp_path: Path, name, fac
                  "ay": "ay (m/s^2)", "az": "az (m/s^2)"},
     )  # fmt: skip
     assert np.median(mapped.recordings[0].force) == pytest.approx(2.01, rel=1e-6)
+
+
+def test_a_units_row_under_the_names_is_read_as_the_headers_units(tmp_path: Path) -> None:
+    # a logger's names row, then its units row: the units row was taken as the header
+    # ("columns found: 's', 'N', ...") and the names skipped as metadata
+    rows = [f"{i * 5},{2000 + 10 * (i % 3)},0.001,0.002,1.0" for i in range(100)]
+    text = "Device: logger 7\ntime;force;accX;accY;accZ\n[ms];[mN];[g];[g];[g]\n"
+    text = text.replace(";", ",") + "\n".join(rows) + "\n"
+    log = read_log(_write(tmp_path, "units_row.csv", text))
+    (rec,) = log.recordings
+    assert rec.sample_rate_hz == pytest.approx(200.0)
+    assert np.median(rec.force) == pytest.approx(2.01, rel=1e-6)
+    assert any("units were read from the row under it" in w for w in log.warnings)
+    assert any("1 line(s) before the header skipped" in w for w in log.warnings)
+    # a first data row of words that are no units stays an error about the data
+    three = "\n".join(f"{i * 0.005:.3f},2.0,9.81" for i in range(100))
+    bad = _write(tmp_path, "words.csv", "time,force,az\nstart,push,up\n" + three)
+    with pytest.raises(LogReadError, match="no time, force or acceleration column"):
+        read_log(bad)
