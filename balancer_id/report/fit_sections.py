@@ -430,7 +430,8 @@ def _posterior_section(result: FitResult) -> Section:
         ],
         rows,
         "The posterior sampled with emcee (likelihood of the fit's own noise variance and "
-        "residual correlation; Jeffreys' prior inside the bounds"
+        "residual correlation; a reference prior inside the bounds: flat where the data tell "
+        "the parameters apart, Jeffreys' where they do not"
         + (", normal priors as given" if post.priors else "")
         + ")"
         + (
