@@ -25,6 +25,7 @@ CODES: dict[str, str] = {
     # reading
     "read.gap": "dropped samples: a gap in a run's time base (never interpolated)",
     "read.time_unit": "the time column's unit was read from its header or its values",
+    "read.force_unit": "the force column's name states a unit other than N: scaled to N",
     "read.rate": "the sample rate is unusual or irregular",
     "read.sensor_limit": "samples at the accelerometer's limit (clipped)",
     "read.column_guess": "a column was chosen by guess, not by its header or the column map",
@@ -52,6 +53,7 @@ CODES: dict[str, str] = {
     "fit.optima": "the distinct optima the starts ended at, and their costs",
     "fit.held_at_limit": "a parameter held at its physical limit (0) against the data",
     "fit.structured_residual": "the residual in motion carries more than the noise at rest",
+    "fit.rest_level": "the acceleration at rest is not 0: the accelerometer's gain or zero",
     "fit.timing": "the acceleration is early or late against its drive (late channel, dead time)",
     "fit.rival": "a model with one more library effect fits as well and moves a trusted value",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",

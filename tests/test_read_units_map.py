@@ -223,3 +223,50 @@ def test_ns_values_under_a_seconds_header_are_read_by_their_spacing(tmp_path: Pa
     assert rec.started_at == pytest.approx(1730147596.6, abs=1.0)  # a clock time in ns
     (note,) = [n for n in log.notes if n.code == "read.time_unit"]
     assert "read in ns" in note.text and "the header says s" in note.text
+
+
+@pytest.mark.parametrize(
+    ("name", "factor"),
+    [("Force (lbf)", 4.4482216152605), ("force_mN", 1e-3), ("Kraft (kN)", 1e3), ("F_N", 1.0)],
+)
+def test_a_force_unit_in_the_name_is_scaled_to_newtons(tmp_path: Path, name, factor) -> None:
+    # a lbf or mN force read as N put m_a 4.4x low or 1000x high, and trusted
+    rows = [f"{i * 0.005:.3f},{2.0 + 0.01 * (i % 3)},0.01,0.02,9.81" for i in range(100)]
+    text = f"Time (s),{name},ax (m/s^2),ay (m/s^2),az (m/s^2)\n" + "\n".join(rows) + "\n"
+    log = read_log(_write(tmp_path, "f.csv", text))
+    (rec,) = log.recordings
+    assert np.median(rec.force) == pytest.approx(2.01 * factor, rel=1e-6)
+    said = [n.text for n in log.notes if n.code == "read.force_unit"]
+    if factor == 1.0:
+        assert said == []
+    else:
+        (text,) = said
+        assert f"x{factor:.6g} to N" in text and text in log.warnings
+        (unit,) = [i for i in log.inferences if i.what == "force unit"]
+        assert unit.override.endswith(":N")
+    # the column map's own unit wins over the name's
+    mapped = read_log(
+        tmp_path / "f.csv",
+        columns={"time": "Time (s)", "force": f"{name}:N", "ax": "ax (m/s^2)",
+                 "ay": "ay (m/s^2)", "az": "az (m/s^2)"},
+    )  # fmt: skip
+    assert np.median(mapped.recordings[0].force) == pytest.approx(2.01, rel=1e-6)
+
+
+def test_a_units_row_under_the_names_is_read_as_the_headers_units(tmp_path: Path) -> None:
+    # a logger's names row, then its units row: the units row was taken as the header
+    # ("columns found: 's', 'N', ...") and the names skipped as metadata
+    rows = [f"{i * 5},{2000 + 10 * (i % 3)},0.001,0.002,1.0" for i in range(100)]
+    text = "Device: logger 7\ntime;force;accX;accY;accZ\n[ms];[mN];[g];[g];[g]\n"
+    text = text.replace(";", ",") + "\n".join(rows) + "\n"
+    log = read_log(_write(tmp_path, "units_row.csv", text))
+    (rec,) = log.recordings
+    assert rec.sample_rate_hz == pytest.approx(200.0)
+    assert np.median(rec.force) == pytest.approx(2.01, rel=1e-6)
+    assert any("units were read from the row under it" in w for w in log.warnings)
+    assert any("1 line(s) before the header skipped" in w for w in log.warnings)
+    # a first data row of words that are no units stays an error about the data
+    three = "\n".join(f"{i * 0.005:.3f},2.0,9.81" for i in range(100))
+    bad = _write(tmp_path, "words.csv", "time,force,az\nstart,push,up\n" + three)
+    with pytest.raises(LogReadError, match="no time, force or acceleration column"):
+        read_log(bad)

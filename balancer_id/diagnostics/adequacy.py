@@ -23,7 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import chdtrc, erfc
 
-from balancer_id.diagnostics.context import DiagnosisContext
+from balancer_id.diagnostics.context import DiagnosisContext, difference_colour
 from balancer_id.diagnostics.groups import run_estimates
 from balancer_id.diagnostics.residual_tests import autocorrelation
 from balancer_id.identify.metrics import correlation_time
@@ -69,19 +69,80 @@ def rest_noise(ctx: DiagnosisContext) -> list[np.ndarray]:
     return out
 
 
-def _mean_acf(series: Sequence[np.ndarray], lags: int) -> tuple[np.ndarray, int]:
+def _mean_acf(
+    series: Sequence[np.ndarray], lags: int, shortest: int | None = None
+) -> tuple[np.ndarray, int, float]:
+    """The series' autocorrelation (weighted by length), their samples and their mean
+    length; series of ``shortest`` samples or fewer (``3 * lags``) are left out."""
     acfs, w = [], []
     for x in series:
-        if x.size > 3 * lags:
+        if x.size > (3 * lags if shortest is None else shortest):
             acfs.append(autocorrelation(x, lags))
             w.append(x.size)
     if not acfs:
-        return np.zeros(lags), 0
-    return np.average(np.array(acfs), axis=0, weights=w), int(sum(w))
+        return np.zeros(lags), 0, 0.0
+    return np.average(np.array(acfs), axis=0, weights=w), int(sum(w)), float(np.mean(w))
+
+
+def _unbiased(acf: np.ndarray, tau: float, length: float) -> np.ndarray:
+    """``acf`` of series of mean ``length`` whose means were removed, undone of the pull
+    down that removal gives (about ``tau / length`` at every short lag)."""
+    if length <= 0:
+        return acf
+    share = min(tau / length, 0.5)
+    return acf * (1.0 - share) + share
+
+
+#: Resting samples (over all trials) below which the noise's colour is read from the
+#: residual's sample-to-sample differences instead (a first-order colour).
+COLOUR_REST_MIN = 100
+
+
+def noise_colour(ctx: DiagnosisContext, lags: int = COLOUR_LAGS) -> dict[str, object]:
+    """The sensor's own colour: the autocorrelation of its noise, at lags ``1..lags``.
+
+    Measured on the residual at rest before the onsets (each trial's stretch with its
+    mean removed, the pull down of that removal undone). Where the trials hold fewer
+    than :data:`COLOUR_REST_MIN` resting samples (a session's one rest, a 50 Hz log's
+    half second), a first-order colour is read from the residual's differences
+    (:func:`difference_colour`) over all samples instead: assuming white noise there
+    made every coloured log look like a misfit.
+
+    Parameters
+    ----------
+    ctx : DiagnosisContext
+        The fit and its residuals.
+    lags : int
+        Lags returned.
+
+    Returns
+    -------
+    dict
+        ``acf`` (numpy.ndarray), ``n`` (samples it was measured on), ``tau`` (its
+        correlation time, samples), ``source`` (``rest`` or ``differences``) and
+        ``n_rest`` (the resting samples, whichever the source).
+    """
+    rest = [tv.residual[tv.t < -0.02] for tv in ctx.trials]
+    rest = [r for r in rest if r.size > 2 * COLOUR_SHORT]
+    n_rest = int(sum(r.size for r in rest))
+    if n_rest >= COLOUR_REST_MIN:
+        tau = correlation_time(rest, removed=1)
+        acf, n, length = _mean_acf(rest, lags, shortest=2 * COLOUR_SHORT)
+        acf = _unbiased(acf, tau, length)
+        return {"acf": acf, "n": n, "tau": tau, "source": "rest", "n_rest": n_rest}
+    r1 = difference_colour([tv.residual for tv in ctx.trials])
+    n = int(sum(tv.residual.size for tv in ctx.trials))
+    acf = r1 ** np.arange(1, lags + 1, dtype=float)
+    tau = (1.0 + r1) / (1.0 - r1)
+    return {"acf": acf, "n": n, "tau": tau, "source": "differences", "n_rest": n_rest}
 
 
 def colour_test(ctx: DiagnosisContext) -> dict[str, object]:
-    """Whiteness of the residual beyond the noise's own colour (measured at rest).
+    """Whiteness of the residual beyond the noise's own colour (:func:`noise_colour`).
+
+    Both autocorrelations are undone of the pull down that removing each stretch's mean
+    gives (a 0.5 s rest of a strongly coloured noise loses a quarter of its lag-one
+    correlation that way, which read as a misfit on clean logs).
 
     Parameters
     ----------
@@ -92,24 +153,29 @@ def colour_test(ctx: DiagnosisContext) -> dict[str, object]:
     -------
     dict
         ``name`` (``whiteness``), ``passed``, ``p_value``, ``max_acf_difference``,
-        ``residual_acf`` and ``rest_acf`` (lags 1..:data:`COLOUR_LAGS`), ``n_rest``;
-        without resting samples the residual is compared with white noise.
+        ``residual_acf`` and ``rest_acf`` (lags 1..:data:`COLOUR_LAGS`), ``n_rest``,
+        ``rest_tau``, ``colour_from`` (``rest`` or ``differences``) and
+        ``n_rest_samples`` (the resting samples the noise floor's spread was read on).
     """
-    rest = rest_noise(ctx)
-    acf_rest, n_rest = _mean_acf(rest, COLOUR_LAGS)
-    acf_res, n_res = _mean_acf([tv.residual for tv in ctx.trials], COLOUR_LAGS)
+    colour = noise_colour(ctx)
+    acf_rest = np.asarray(colour["acf"], float)
+    n_rest = int(colour["n"])  # type: ignore[call-overload]
+    tau = float(colour["tau"])  # type: ignore[arg-type]
+    raw_res, n_res, length = _mean_acf([tv.residual for tv in ctx.trials], COLOUR_LAGS)
+    acf_res = _unbiased(raw_res, tau, length) if n_res else raw_res
     bartlett = 1.0 + 2.0 * float(np.sum(acf_rest**2))
     var = bartlett / max(n_res, 1) + (bartlett / n_rest if n_rest else 0.0)
     diff = acf_res - acf_rest
     # one-sided: a missing term adds a slowly varying part to the residual, which raises
     # its autocorrelation at every short lag; a residual less coloured than the resting
-    # noise (short, detrended resting parts bias their autocorrelation) is no failure
+    # noise is no failure
     short = diff[:COLOUR_SHORT]
     excess = float(np.mean(short)) if short.size else 0.0
     z = excess / float(np.sqrt(var)) if var > 0 else 0.0
     p = float(0.5 * erfc(z / np.sqrt(2.0)))
     max_diff = float(np.max(short)) if short.size else 0.0
     passed = not (p < COLOUR_P and excess > COLOUR_MIN_DIFF)
+    where = "resting noise's" if colour["source"] == "rest" else "noise's (from its differences)"
     return {
         "name": "whiteness",
         "passed": passed,
@@ -120,9 +186,11 @@ def colour_test(ctx: DiagnosisContext) -> dict[str, object]:
         "residual_acf": [round(float(a), 4) for a in acf_res],
         "rest_acf": [round(float(a), 4) for a in acf_rest],
         "n_rest": n_rest,
-        "rest_tau": correlation_time(rest, removed=2) if rest else 1.0,
+        "rest_tau": tau,
+        "colour_from": colour["source"],
+        "n_rest_samples": colour["n_rest"],
         "text": (
-            f"the residual's autocorrelation exceeds the resting noise's by {excess:.2f} on "
+            f"the residual's autocorrelation exceeds the {where} by {excess:.2f} on "
             f"average over lags 1-{COLOUR_SHORT} (up to {max_diff:.2f}; p = {p:.1e})"
         ),
     }
@@ -146,7 +214,8 @@ def level_test(ctx: DiagnosisContext, colour: dict[str, object]) -> dict[str, ob
         and ``limit``.
     """
     acf_rest = np.asarray(colour.get("rest_acf") or [], float)
-    n_rest = int(colour.get("n_rest") or 0)  # type: ignore[call-overload]
+    # the floor's uncertainty is the resting samples', whichever gave the colour
+    n_rest = int(colour.get("n_rest_samples", colour.get("n_rest")) or 0)  # type: ignore[call-overload]
     n_eff = n_rest / (1.0 + 2.0 * float(np.sum(acf_rest**2))) if n_rest else 0.0
     limit = LEVEL_MIN
     if n_eff > 0:

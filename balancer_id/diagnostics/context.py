@@ -57,8 +57,9 @@ class DiagnosisContext:
         The fit being diagnosed.
     trials : list of TrialView
     noise_floor : float
-        Acceleration noise (m/s^2): the larger of the white-noise level from the residual's
-        sample-to-sample differences and the spread of the resting samples before the
+        Acceleration noise (m/s^2): the larger of the level from the residual's
+        sample-to-sample differences (their first-order colour given back,
+        :func:`difference_colour`) and the spread of the resting samples before the
         onsets (which also holds coloured noise).
     dt : float
         Median sample interval (s).
@@ -241,6 +242,47 @@ def white_noise_level(diffs: np.ndarray, clip: float = 4.0) -> float:
     return sigma / float(np.sqrt(2.0))
 
 
+def difference_colour(residuals: Sequence[np.ndarray]) -> float:
+    """The lag-one correlation of a first-order (AR(1)) noise, from a residual's
+    sample-to-sample differences.
+
+    A model's error is smooth and cancels in the differences, while an AR(1) noise of
+    lag-one correlation ``r`` gives differences correlated ``-(1 - r) / 2`` at lag one
+    (``-1/2`` for white noise); so ``r = 1 + 2 corr``. Differences beyond 4 of their
+    standard deviations (the residual's jumps where a model switches) are left out.
+
+    Parameters
+    ----------
+    residuals : sequence of numpy.ndarray
+        The residual, trial by trial (m/s^2).
+
+    Returns
+    -------
+    float
+        ``r`` in ``[0, 0.95]`` (0 without enough samples).
+    """
+    diffs = [np.diff(np.asarray(r, float)) for r in residuals if np.size(r) > 3]
+    if not diffs:
+        return 0.0
+    sd = float(np.std(np.concatenate(diffs)))
+    if sd <= 0:
+        return 0.0
+    g0 = g1 = 0.0
+    n0 = n1 = 0
+    for d in diffs:
+        sd_k = np.where(np.abs(d - np.mean(d)) <= 4.0 * sd, d, np.nan)
+        ok = np.isfinite(sd_k)
+        g0 += float(np.sum(sd_k[ok] ** 2))
+        n0 += int(ok.sum())
+        both = ok[1:] & ok[:-1]
+        g1 += float(np.sum(sd_k[1:][both] * sd_k[:-1][both]))
+        n1 += int(both.sum())
+    if n0 < 10 or n1 < 10 or g0 <= 0:
+        return 0.0
+    corr = (g1 / n1) / (g0 / n0)
+    return float(np.clip(1.0 + 2.0 * corr, 0.0, 0.95))
+
+
 def rest_noise_level(segments: Sequence[np.ndarray], removed: int = 1) -> float:
     """Standard deviation of the noise from resting segments, each with its mean removed.
 
@@ -317,6 +359,12 @@ def build_context(match: MatchResult) -> DiagnosisContext:
             resting.append(y[rest] - np.mean(y[rest]))
         dts.append(np.median(np.diff(td.time)))
     noise = white_noise_level(np.concatenate(diffs))
+    # a coloured noise hides part of its variance from the differences: a first-order
+    # colour read from them gives it back (bounded by the residual's own RMS)
+    r1 = difference_colour([v.residual for v in views])
+    if r1 > 0 and np.isfinite(noise):
+        rms = float(np.sqrt(np.mean(np.concatenate([v.residual for v in views]) ** 2)))
+        noise = max(noise, min(noise / float(np.sqrt(1.0 - r1)), rms))
     rest_all = np.concatenate(resting) if resting else np.array([])
     if rest_all.size >= 50:
         # Coloured noise (a sensor's low-pass filter) hides part of its variance from the

@@ -68,7 +68,7 @@ def judge(
     explanations = inp.found
     standing = arena.standing(explanations, bool(failed))
     if not standing:
-        return _nothing_stands(ctx, tests, failed, notes)
+        return _nothing_stands(ctx, tests, failed, notes, explanations)
     best = standing[0]
     how = confound(best, inp.trials, inp.runs)
     rival = next((e for e in standing[1:] if rivals(best, e, how is not None)), None)
@@ -91,10 +91,50 @@ def judge(
     return out
 
 
+#: The explanations that refit the consistency test's own claim (a parameter that
+#: differs between runs) on the whole data.
+RUN_KINDS = ("split", "drift")
+
+
+def _uncorroborated(failed: list[dict[str, object]], explanations: list[Explanation]) -> bool:
+    """Whether the only failed test is consistency and its claim, refitted on the whole
+    data, does not stand.
+
+    The consistency test compares per-trial fits against their standard errors; those
+    leave out what a whole trial shares (its thrust level read from a noisy force, its
+    place between samples, a per-trial optimum in a long valley), which the fit itself
+    finds and widens for (``fit.correlated_residual``). Its claim, a parameter that
+    differs between runs, is refitted by the arena on every sample at once (a split or
+    a drift of each parameter): where none of those earns its place, the per-trial
+    scatter is the per-trial fits', not the balancer's.
+    """
+    if not failed or any(t["name"] != "consistency" for t in failed):
+        return False
+    return any(e.kind in RUN_KINDS for e in explanations)
+
+
 def _nothing_stands(
-    ctx: DiagnosisContext, tests: ResidualTests, failed: list[dict[str, object]], notes: list[Note]
+    ctx: DiagnosisContext,
+    tests: ResidualTests,
+    failed: list[dict[str, object]],
+    notes: list[Note],
+    explanations: list[Explanation] | None = None,
 ) -> Judgement:
-    """``adequate`` when every test passed, else ``effect missing`` with what failed."""
+    """``adequate`` when every test passed (or only consistency, uncorroborated by the
+    arena's refits per run), else ``effect missing`` with what failed."""
+    if _uncorroborated(failed, explanations or []):
+        best = max(
+            (e for e in explanations or [] if e.kind in RUN_KINDS), key=lambda e: e.delta_bic
+        )
+        return Judgement(
+            Verdict.ADEQUATE,
+            f"the per-trial estimates scatter beyond their errors ({failed[0]['text']}), but a "
+            f"parameter refitted per run does not earn its place on the whole data (best: "
+            f"{best.label}, BIC {-best.delta_bic:+.0f}): the scatter is the per-trial fits' "
+            "(what a whole trial shares), not the balancer's; the residual is consistent "
+            "with noise",
+            notes,
+        )
     if not failed:
         excess = ctx.excess_rmse()
         ratio = excess / ctx.noise_floor if ctx.noise_floor > 0 else float("inf")

@@ -16,7 +16,8 @@ from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
-from balancer_id.identify.result import FitResult, fit_match, robot_coupling
+from balancer_id.identify.rest_level import resting_level
+from balancer_id.identify.result import PARAMETER_NOTES, FitResult, fit_match, robot_coupling
 from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
 from balancer_id.identify.structure import structured_residual
@@ -352,6 +353,13 @@ def _settled_match(
     return match
 
 
+def _sensor_checks(match: Any, ts: TrialSet) -> list[Note | str]:
+    """The notes of the checks on the sensor, which lead the fit's: an accelerometer that
+    does not read g at rest (its gain or zero, :func:`resting_level`)."""
+    level = resting_level(match, ts)
+    return [level] if level is not None else []
+
+
 def _fit_checks(match: Any) -> list[Note | str]:
     """The notes of the checks on a settled fit: a misfit beyond the noise seen at rest,
     errors shared by a whole trial, a drive late or early against the acceleration."""
@@ -402,10 +410,11 @@ def _profile_notes(match: Any) -> list[Note | str]:
 
 
 def _rival_notes(match: Any, notes: Sequence[Note | str], fixed: Any) -> list[Note]:
-    """A trusted fit checked against rival models that fit as well (issue 31,
-    :mod:`~balancer_id.identify.rivals`); an untrusted one is not (nothing to keep)."""
-    if any(getattr(n, "severity", None) == "error" for n in [*notes, *match.warnings]):
-        return []
+    """A fit's trusted values checked against rival models that fit as well (issue 31,
+    :mod:`~balancer_id.identify.rivals`); not when a note takes every value's trust."""
+    for n in [*notes, *match.warnings]:
+        if getattr(n, "severity", None) == "error" and n.code not in PARAMETER_NOTES:
+            return []
     return check_rivals(match, fixed)
 
 
@@ -534,6 +543,7 @@ def fit(
         return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
     data = _with_move_start(mdl, ts, data, start, fixed, notes)
     match = _settled_match(mdl, data, start, fixed, n_starts, seed, max_nfev, bounds)
+    notes[:0] = _sensor_checks(match, ts)  # the sensor before the balancer: leads
     notes.extend(_fit_checks(match))
     if profile:
         notes.extend(_profile_notes(match))

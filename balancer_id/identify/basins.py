@@ -51,6 +51,13 @@ MORE_STARTS = 4
 #: (heavy and quick, light and slow), the third in between.
 LAG_GRID_S = (0.03, 1.5, 0.3)
 
+#: The viscous times m_a / D0 (s) of the designed starts where the data's start has no
+#: viscosity.
+VISCOUS_TIMES_S = (1.0, 0.3, 3.0)
+
+#: A |u| at the median thrust of the designed starts.
+THRUST_FALLS = (0.1, 1.0, 0.3)
+
 #: Log-factor by which mass and lags are spread (x3 up and down).
 SPREAD_LOG = float(np.log(3.0))
 
@@ -147,7 +154,9 @@ def spread_starts(
     """``count`` starts spread around ``x0`` (deterministic for a seed).
 
     The first two move mass and lags against each other (heavy and quick, light and
-    slow: the trade a lag makes with a mass), the third together; every other parameter
+    slow: the trade a lag makes with a mass), the third together; a viscosity that
+    starts at 0 gets a viscous time ``m_a / D0`` of 0.3-10 s and ``A`` an ``A |u|`` of
+    0.1-2 at the median thrust; every other parameter
     is spread across its plausible range (a force between 2 % and 60 % of the median
     thrust, a speed between 0.6 and 3 times the peak measured speed, a delay between
     0 and 3 times the drive lag), further starts drawn at random around ``x0``.
@@ -188,6 +197,8 @@ def spread_starts(
             sm, sl = design[k]
         else:
             sm, sl = rng.normal(0.0, 1.0, 2)
+        mass = float(x[list(free).index("m_a")]) if "m_a" in free else 1.0
+        mass *= float(np.exp(sm * SPREAD_LOG))
         for j, name in enumerate(free):
             p = model.param(name)
             if name == "m_a":
@@ -197,6 +208,18 @@ def spread_starts(
                 x[j] = max(x[j], 1e-3) * float(np.exp(sl * SPREAD_LOG))
                 if k < len(LAG_GRID_S):
                     x[j] = max(LAG_GRID_S[k], lo[j] * 4)
+            elif name == "D0" and x[j] * VISCOUS_TIMES_S[-1] < 1e-3 * mass:
+                # a start with no viscosity stays without one under a factor: a viscous
+                # time m_a / D0 of 0.3-10 s instead (a push-and-let-go log's data start
+                # can say 0, and from 0 the fit slid into a viscosity that vanishes
+                # whenever anyone pushes)
+                tau = VISCOUS_TIMES_S[k] if k < 3 else float(np.exp(rng.uniform(-1.2, 2.3)))
+                x[j] = mass / tau
+            elif name == "A" and np.isfinite(u) and u > 0:
+                # the viscosity's fall with the thrust, A |u| at the median thrust of
+                # 0.1-2 (a start of A |u| near 1 can slide to a viscosity that vanishes
+                # whenever anyone pushes, A |u| of 100)
+                x[j] = (THRUST_FALLS[k] if k < 3 else float(np.exp(rng.uniform(-2.3, 0.7)))) / u
             elif name in SMOOTH_PARAMETERS:
                 x[j] = x[j] * float(np.exp(rng.normal(0.0, 0.5))) if x[j] != 0 else x[j]
             elif p.unit == "N" and np.isfinite(u):

@@ -29,14 +29,25 @@ ENOUGH = 20.0
 
 
 def _responses(match: MatchResult, grid: list[Candidate]) -> list[np.ndarray]:
-    """Each candidate's simulated output columns (acceleration, speed, position)."""
-    inputs = [c.trial_input() for c in grid]
+    """Each candidate's simulated output columns (acceleration, speed, position): one
+    simulation per level and rest (a shorter duration is a prefix of the longest)."""
+    longest: dict[tuple[float, float], Candidate] = {}
+    for c in grid:
+        key = (c.thrust_N, c.rest_s)
+        if key not in longest or c.duration_s > longest[key].duration_s:
+            longest[key] = c
+    keys = list(longest)
+    inputs = [longest[key].trial_input() for key in keys]
     packed = PackedTrials.pack(inputs)
     with np.errstate(all="ignore"):
         out = packed.run(match.model, np.asarray(match.model.vector(match.values()), float))
-    sizes = [len(i.time) for i in inputs]
-    edges = np.concatenate([[0], np.cumsum(sizes)])
-    return [out[edges[k] : edges[k + 1]] for k in range(len(grid))]
+    edges = np.concatenate([[0], np.cumsum([len(i.time) for i in inputs])])
+    runs = {key: (inputs[k].time, out[edges[k] : edges[k + 1]]) for k, key in enumerate(keys)}
+    parts = []
+    for c in grid:
+        t, o = runs[(c.thrust_N, c.rest_s)]
+        parts.append(o[np.asarray(t) <= c.rest_s + c.duration_s + 1e-9])
+    return parts
 
 
 def separation(

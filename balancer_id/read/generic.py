@@ -15,6 +15,7 @@ import numpy as np
 
 from balancer_id.errors import LogReadError, UsageError
 from balancer_id.read.header import Column, name_tokens
+from balancer_id.read.inference import Inference
 from balancer_id.read.plan import RunPlan, plan_from_columns, plans_by_time, set_time_unit
 from balancer_id.read.timebase import canonical
 
@@ -67,6 +68,69 @@ MAP_UNITS: dict[str, dict[str, float]] = {
     "accel": {"g": 1.0, "mg": 1e-3, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0},
     "force": {"N": 1.0, "kN": 1e3, "mN": 1e-3, "kgf": 9.80665, "lbf": 4.4482216152605},
 }
+
+
+#: A unit word ending a name after a separator: ``force_mN``, ``Force kN``, ``F-lbf``.
+_UNIT_SUFFIX = re.compile(r"[\s_\-.]([A-Za-z]+)$")
+
+
+def force_unit_of(col: Column) -> str:
+    """The force unit a column's name states (``Force (lbf)``, ``force_mN``), as written
+    in :data:`MAP_UNITS`, or ``""`` when it states none.
+
+    Parameters
+    ----------
+    col : Column
+        The force column.
+
+    Returns
+    -------
+    str
+    """
+    units = {k.lower(): k for k in MAP_UNITS["force"]}
+    if col.unit.strip():
+        return units.get(col.unit.strip().lower(), "")
+    suffix = _UNIT_SUFFIX.search(col.quantity.strip())
+    return units.get(suffix.group(1).lower(), "") if suffix else ""
+
+
+def scale_stated_force_units(plans: list[RunPlan], header: list[Column]) -> list[Inference]:
+    """Scale each run's force to N where its name states another unit (``Force (lbf)``,
+    ``force_mN``, ``Kraft (kN)``) and the column map gave none; say so for ``inspect``.
+
+    Parameters
+    ----------
+    plans : list of RunPlan
+        The runs' plans (their ``scales`` gain the force's factor).
+    header : list of Column
+        The classified header.
+
+    Returns
+    -------
+    list of Inference
+        A ``force unit`` decision per run whose force is not in N.
+    """
+    by_index = {c.index: c for c in header}
+    out = []
+    for plan in plans:
+        if plan.force is None or plan.force in plan.scales:
+            continue
+        col = by_index[plan.force]
+        unit = force_unit_of(col)
+        if not unit or unit == "N":
+            continue
+        factor = MAP_UNITS["force"][unit]
+        plan.scales[plan.force] = (factor, 0.0)
+        out.append(
+            Inference(
+                "force unit",
+                unit,
+                f"the name '{col.raw}' says {unit}: values x{factor:.6g} to N",
+                f"--columns force={col.raw}:N",
+                run=plan.name,
+            )
+        )
+    return out
 
 
 def parse_spec(role: str, text: str) -> tuple[str, float, float]:

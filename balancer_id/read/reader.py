@@ -14,7 +14,12 @@ from balancer_id.errors import LogReadError
 from balancer_id.notes import Note, as_note, texts
 from balancer_id.read.assemble import build_recordings
 from balancer_id.read.evidence import columns_inference, layout_inference
-from balancer_id.read.generic import guess_plan, no_columns_error, plan_from_map
+from balancer_id.read.generic import (
+    guess_plan,
+    no_columns_error,
+    plan_from_map,
+    scale_stated_force_units,
+)
 from balancer_id.read.header import Column, classify_header
 from balancer_id.read.layouts import detect_layout
 from balancer_id.read.orientation import orientations, turned_note_text
@@ -104,6 +109,8 @@ def read_log(
     fmt = _refined(fmt, plans, header, sniffed, columns)
     inferences = [layout_inference(fmt, header, columns)]
     inferences += [columns_inference(plan, header, fmt, columns) for plan in plans]
+    scaled = scale_stated_force_units(plans, header)
+    inferences += scaled
     _wall_clocks(sniffed, header, plans)
     wanted = sorted({c for plan in plans for c in plan.columns})
     optional = {c for plan in plans for c in plan.extra.values()}
@@ -126,6 +133,11 @@ def read_log(
     found = [Note("read.other", text, subject=str(sniffed.path)) for text in sniffed.notes]
     found += [as_note(w, "read.other") for w in warnings]
     found += _turned_notes(recordings, g)
+    found += [
+        Note("read.force_unit", f"{s.run}: force read in {s.decision} ({s.evidence})",
+             subject=s.run, severity="info")
+        for s in scaled
+    ]  # fmt: skip
     return Log(
         path=sniffed.path,
         format=fmt,

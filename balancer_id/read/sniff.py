@@ -461,12 +461,6 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
         )
     # The header is the first line that is not blank (after metadata lines, if any).
     start, skipped = _after_preamble(data)
-    if skipped:
-        notes = (
-            *notes,
-            f"{len(skipped)} line(s) before the header skipped as metadata "
-            f"({'; '.join(repr(x[:40]) for x in skipped[:3])})",
-        )
     header_line, start, end = _header_line(path, data, start, complete)
     data_start = len(data) if end < 0 else end + 1
     if not header_line.strip():
@@ -484,6 +478,19 @@ def sniff(path: str | os.PathLike[str], max_bytes: int | None = None) -> Sniffed
     delimiter = _choose_delimiter(header_line, sample)
     decimal = _choose_decimal(delimiter, sample)
     header = [cell.replace("\ufeff", "").strip() for cell in _fields(header_line, delimiter)]
+    named = _names_above_units(skipped, header, delimiter)
+    if named is not None:  # the names' row, then a row of units: "time,force" / "s,N"
+        notes = (
+            *notes,
+            f"the header's units were read from the row under it ({', '.join(header[:5])})",
+        )
+        header, skipped = named, skipped[:-1]
+    if skipped:
+        notes = (
+            *notes,
+            f"{len(skipped)} line(s) before the header skipped as metadata "
+            f"({'; '.join(repr(x[:40]) for x in skipped[:3])})",
+        )
     stream = not complete
     raw_offset = 0
     if stream:
@@ -590,6 +597,38 @@ def _numeric_row(cells: list[str]) -> bool:
     return len(cells) >= 2 and (
         sum(bool(_CELL_NUMBER.match(c)) for c in filled) > 0.5 * len(filled) or not filled
     )
+
+
+#: Units a row under the header may hold (lower case, brackets removed).
+_UNIT_CELLS = frozenset(
+    {
+        "s", "sec", "ms", "us", "µs", "μs", "ns", "min", "n", "kn", "mn", "lbf", "kgf",
+        "g", "mg", "m/s^2", "m/s²", "m/s2", "m s^-2", "m/s", "m", "mm", "cm", "deg", "°",
+        "rad", "rad/s", "deg/s", "°/s", "%", "v", "mv", "hz", "-", "1", "°c", "k",
+    }
+)  # fmt: skip
+
+
+def _unit_cell(cell: str) -> bool:
+    """Whether a cell is a unit as a units row writes it (``s``, ``[N]``, ``(m/s^2)``)."""
+    text = cell.strip().strip('"').strip().strip("[]()").strip().lower()
+    return text in _UNIT_CELLS
+
+
+def _names_above_units(skipped: list[str], units: list[str], delimiter: str) -> list[str] | None:
+    """The header ``name (unit)`` when the line taken as the header is a row of units and
+    the last line skipped above it holds the names, cell for cell; else None."""
+    if not skipped or len(units) < 2 or not all(_unit_cell(u) for u in units if u.strip()):
+        return None
+    if sum(bool(u.strip()) for u in units) < 2:
+        return None
+    names = [c.replace("\ufeff", "").strip().strip('"') for c in _fields(skipped[-1], delimiter)]
+    if len(names) != len(units) or not all(names) or _numeric_row(names):
+        return None
+    return [
+        f"{n} ({u.strip().strip('[]()').strip()})" if u.strip() else n
+        for n, u in zip(names, units, strict=True)
+    ]
 
 
 def _after_preamble(data: bytes) -> tuple[int, list[str]]:

@@ -78,6 +78,15 @@ class SensorGain(ExplanationKind):
 
         fit = fit_mapped(inp, scaled, k0, 0.5, 1.5)
         offset = dict(inp.effect_fits).get("bias")
+        from_offset = _offset_as_gain(offset.values() if offset is not None else None, g)
+        if from_offset is not None:
+            # the offset's fit is the gain's, rescaled (k a + (k - 1) g with m_a and D0
+            # times k is a + b): started there, the gain's fit is as good as the offset's
+            # where its own start, from the current fit, stops short
+            k_b, values_b = from_offset
+            other = fit_mapped(inp, scaled, k_b, 0.5, 1.5, values=values_b)
+            if other.delta_bic > fit.delta_bic:
+                fit = other
         return [
             self.make(
                 f"accelerometer gain {fit.param:.3f}",
@@ -122,6 +131,23 @@ class SensorGain(ExplanationKind):
             f"the acceleration by {k:.3f}) and refit; to tell a gain from an offset, "
             f"{self.separating_trial}"
         )
+
+
+def _offset_as_gain(
+    values: dict[str, float] | None, g: float
+) -> tuple[float, dict[str, float]] | None:
+    """The bias effect's fit read as a gain: ``k = 1 + b / g`` and the balancer's values
+    with ``m_a`` and ``D0`` times ``k`` (the same output), or None without an offset."""
+    if not values or "b" not in values:
+        return None
+    k = 1.0 + float(values["b"]) / g
+    if not 0.5 < k < 1.5:
+        return None
+    out = {n: float(v) for n, v in values.items() if n != "b"}
+    for name in ("m_a", "D0"):
+        if name in out:
+            out[name] *= k
+    return k, out
 
 
 def _gravity(inp: ArenaInput) -> float | None:

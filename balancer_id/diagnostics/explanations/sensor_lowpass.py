@@ -57,15 +57,22 @@ class SensorLowpass(ExplanationKind):
         """
         if e.null:
             return False
+        if e.detail.get("rest_noise_cutoff_hz") is None:  # the response's evidence alone
+            return super().valid(e, tests_failed, threshold, min_drop)
         if not tests_failed:
             return e.delta_bic > -arena.CLOSE_BIC
         return e.delta_bic > threshold
 
     def propose(self, inp: ArenaInput) -> list[Explanation]:
-        """The model's output through the low-pass (none without the rest's evidence)."""
-        fc0 = inp.rest_cutoff_hz
-        if fc0 is None:
+        """The model's output through the low-pass: its cut-off started at the resting
+        noise's, or, without that evidence, at the acceleration's lag behind its drive
+        (none where it does not clearly lag)."""
+        rest_fc = inp.rest_cutoff_hz
+        from_response = rest_fc is None
+        start_fc = _lag_cutoff(inp) if rest_fc is None else rest_fc
+        if start_fc is None:
             return []
+        fc0: float = start_fc
         model = inp.match.model
         sims = arena.Trials(inp.trials)
         dts = [float(np.median(np.diff(td.time))) for td in inp.trials]
@@ -91,15 +98,17 @@ class SensorLowpass(ExplanationKind):
             extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
         )
         d, rmse = arena.score(inp, parts, 1)
-        # the cut-off as measured at rest (no parameter fitted): when the response cannot
-        # place the cut-off itself, the resting noise's is the estimate
-        parts0, base0, _, _ = arena.fit_varying(
-            model, sims, inp.match.values(), fixed, names[0], none, post=measured
-        )
-        d0, rmse0 = arena.score(inp, parts0, 0)
-        fitted = d > d0
-        if not fitted:
-            d, rmse, base, fc = d0, rmse0, base0, fc0
+        fitted = True
+        if not from_response:
+            # the cut-off as measured at rest (no parameter fitted): when the response
+            # cannot place the cut-off itself, the resting noise's is the estimate
+            parts0, base0, _, _ = arena.fit_varying(
+                model, sims, inp.match.values(), fixed, names[0], none, post=measured
+            )
+            d0, rmse0 = arena.score(inp, parts0, 0)
+            fitted = d > d0
+            if not fitted:
+                d, rmse, base, fc = d0, rmse0, base0, fc0
         return [
             self.make(
                 f"sensor low-pass at {fc:.1f} Hz",
@@ -108,7 +117,7 @@ class SensorLowpass(ExplanationKind):
                 detail={
                     "sensor": "low-pass",
                     "cutoff_hz": fc,
-                    "rest_noise_cutoff_hz": fc0,
+                    "rest_noise_cutoff_hz": None if from_response else fc0,
                     "cutoff_fitted": fitted,
                     "values": base,
                 },
@@ -132,13 +141,42 @@ class SensorLowpass(ExplanationKind):
                 "the balancer's parameters hold the sensor's lag"
                 + (f" ({'; '.join(moved)})" if moved else "")
             )
+        rest = d.get("rest_noise_cutoff_hz")
+        why = (
+            f"the resting noise rolls off at {float(rest):.1f} Hz, as a filter's, not as "  # type: ignore[arg-type]
+            "coloured noise's"
+            if rest is not None
+            else "the response lags its drive as a filter's, smoothed; the resting noise "
+            "shows no filter, so the noise enters after it"
+        )
         return (
             f"the accelerometer smooths its signal: a low-pass at {float(d['cutoff_hz']):.1f} Hz "  # type: ignore[arg-type]
-            f"(the resting noise rolls off at {float(d['rest_noise_cutoff_hz']):.1f} Hz, "  # type: ignore[arg-type]
-            f"as a filter's, not as coloured noise's); {said}. Not the balancer: record with "
+            f"({why}); {said}. Not the balancer: record with "
             "the sensor's filter off or a higher bandwidth, or read its delay as part of the "
             "sensor"
         )
+
+
+#: The acceleration must lag its drive by this many standard errors (the fit's timing
+#: test) for a low-pass to be tried without the resting noise's evidence.
+LAG_Z = 2.0
+
+
+def _lag_cutoff(inp: ArenaInput) -> float | None:
+    """The cut-off whose lag is the acceleration's lag behind its drive (the fit's timing
+    test, ``sqrt(2) / (2 pi fc)`` for the 2nd-order filter), or None when the acceleration
+    does not clearly lag (:data:`LAG_Z`)."""
+    lead = inp.match.metrics.get("timing_lead_s")
+    se = inp.match.metrics.get("timing_lead_stderr_s")
+    if lead is None or se is None or not (np.isfinite(lead) and np.isfinite(se) and se > 0):
+        return None
+    if lead >= 0 or -lead < LAG_Z * se:
+        return None
+    dts = [float(np.median(np.diff(td.time))) for td in inp.trials if td.time.size > 1]
+    if not dts:
+        return None
+    fs = 1.0 / max(dts)
+    return float(np.clip(np.sqrt(2.0) / (2.0 * np.pi * -lead), 0.5, 0.4 * fs))
 
 
 def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
