@@ -121,6 +121,12 @@ def main() -> None:
                 if est.wald_ci95 is not None:
                     w = est.wald_ci95[1] - est.wald_ci95[0]
                     widths[k].append((cred[k][1] - cred[k][0]) / w)
+            missed = [k for k in truth if not inside(cred.get(k), truth[k])]
+            print(
+                f"<!-- {case}, seed {seed0 + s}: credible misses {', '.join(missed) or 'none'}; "
+                f"valleys {[round(float(m['weight']), 2) for m in post.modes]} -->",
+                flush=True,
+            )
         n = args.seeds
         for k in truth:
             w, r, c = 100 * hits[k] / n

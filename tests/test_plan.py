@@ -180,3 +180,22 @@ def test_one_level_plan_holds_for_the_other_values_of_the_guess():
     assert q.target in ("A", "D0") and abs(abs(q.candidate.thrust_N) - 4.9) > 0.5
     got = 1.96 * _record(trials, q.candidate, 5).match.parameters["A"].stderr
     assert got == pytest.approx(q.after["A"], rel=0.15)
+
+
+def test_an_interval_set_by_the_steps_places_between_samples_is_not_the_plans_target():
+    # a 0.2 kg cart at 200 Hz: T_a (0.04 s) is known to where its steps fell between
+    # samples (dt^2 / 12, no trial at this rate adds to it); planned for, the trial shrank
+    # the rest 3x and the interval T_a reports 2 %. The plan reports the intervals as the
+    # fit does (that spread included) and aims at one a trial shrinks
+    rng = np.random.default_rng(86782)
+    truth = {"m_a": 0.2, "T_a": 0.04, "D0": 0.25}
+    trials = step_trials("viscous", truth, [0.5, -1.0], 0.05, rng, seconds=4.0)
+    result = fit(trials, model="viscous", profile=False)
+    t_a = result.match.parameters["T_a"]
+    assert t_a.phase_se > 0.9 * t_a.stderr  # the premise: T_a's error is that spread
+    design = plan(result, count=1, separate=False).design
+    for name, half in design.now.items():
+        assert half == pytest.approx(1.96 * result.match.parameters[name].stderr, rel=0.02)
+    q = design.proposals[0]
+    assert q.target != "T_a" and q.after[q.target] < 0.9 * q.before[q.target]
+    assert q.after["T_a"] >= 1.96 * t_a.phase_se

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -389,6 +389,26 @@ def _widening(match: MatchResult, info: np.ndarray, names: list[str]) -> np.ndar
     return out
 
 
+#: A parameter is planned for (as the widest) only where the part of its interval a trial
+#: can shrink is at least this share of the interval (the rest: the steps' places between
+#: samples, :func:`_phase_floor`).
+FLOOR_SHARE = 0.5
+
+
+def _phase_floor(match: MatchResult, names: list[str]) -> dict[str, float]:
+    """Each parameter's 95 % half-width from the steps' places between samples alone (the
+    part of its standard error no new trial at this rate adds information to)."""
+    return {
+        n: Z95 * float(match.parameters[n].phase_se or 0.0) if n in match.parameters else 0.0
+        for n in names
+    }
+
+
+def _with_floor(half: Mapping[str, float], floor: Mapping[str, float]) -> dict[str, float]:
+    """Half-widths with the floor added in quadrature (as the fit's standard error has it)."""
+    return {n: float(math.hypot(h, floor.get(n, 0.0))) for n, h in half.items()}
+
+
 def _halfwidths(info: np.ndarray, names: list[str]) -> dict[str, float]:
     cov = np.linalg.inv(info)
     return {n: float(Z95 * math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(names)}
@@ -542,15 +562,26 @@ def _goals(
     names: list[str],
     unreached: list[str],
     now: Mapping[str, float],
+    floor: Mapping[str, float],
 ) -> list[tuple[str | None, str]]:
     """The (parameter or None for D-optimal, label) each proposal aims at, in order: the
-    unreached parameters first, then the target (or the widest interval)."""
+    unreached parameters first, then the target (or the widest interval a trial can
+    shrink: ``now`` without the ``floor`` the steps' places between samples leave, of a
+    parameter whose interval is not mostly that floor, :data:`FLOOR_SHARE`)."""
     order: list[tuple[str | None, str]] = [(u, u) for u in unreached if target in (None, u)]
     if target == "all":
         order += [(None, "all")] * count
     else:
         if target is None:
             rel = {nm: now[nm] / _scale(match, nm) for nm in names if nm not in unreached}
+            # a cart's T_a at 200 Hz: 1.6 ms of its 1.62 ms standard error is where the steps
+            # fell between samples; a trial shrank the rest 3x and the interval 2 %
+            free = {
+                nm: r
+                for nm, r in rel.items()
+                if now[nm] >= FLOOR_SHARE * math.hypot(now[nm], floor[nm])
+            }
+            rel = free or rel
             chosen = max(rel, key=lambda nm: rel[nm]) if rel else names[0]
         else:
             chosen = str(target)  # a parameter's name (not None, not "all")
@@ -637,14 +668,21 @@ def design_trials(
     grid += _filling_travel(match, grid, fitted, travel)
     info = _information(match, grid, values, also, names, s2)
     _limited(match, grid, values, unreached, names, s2, info, travel)
-    now = _halfwidths(info.infos[0], names)
-    order = _goals(match, target, count, names, unreached, now)
+    reducible = _halfwidths(info.infos[0], names)
+    floor = _phase_floor(match, names)
+    order = _goals(match, target, count, names, unreached, reducible, floor)
     proposals = _proposals(match, order, grid, info, names, values, unreached, fastest)
+    # the intervals as the fit reports them, now and after: with the spread the steps'
+    # places between samples leave, which no trial at this rate shrinks
+    proposals = [
+        replace(p, before=_with_floor(p.before, floor), after=_with_floor(p.after, floor))
+        for p in proposals
+    ]
     return Design(
         target=target or "widest",
         names=names,
         values={nm: float(values[nm]) for nm in names},
-        now=now,
+        now=_with_floor(reducible, floor),
         proposals=proposals,
         fastest=fastest,
         unreached=unreached,

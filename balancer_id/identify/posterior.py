@@ -6,15 +6,20 @@ standard errors do, ``matching._covariance``):
 
     log L(theta) = -S(theta) / (2 sigma^2 tau),   sigma^2 = S_min / (n - k)
 
-times a prior: Jeffreys' reference prior ``sqrt(det(S^T S))`` (``S`` the simulated
-response's sensitivities at ``theta``) over the parameters the user gives no prior for,
-inside each parameter's bounds (a positive one's within a factor 100 of its fitted value,
+times a prior: a reference prior over the parameters the user gives no prior for, inside
+each parameter's bounds (a positive one's within a factor 100 of its fitted value,
 :func:`support`), and, where the user gives one, a normal prior ``NAME=normal:MU,SD``.
 A flat prior over those bounds put most of its volume where the data cannot tell the
 parameters apart (on a short log, ``D0`` large with ``A`` large: no viscosity at any
 level reached), and the posterior sat there, its intervals missing the truth; Jeffreys'
-prior vanishes where the information does, and is unchanged by a change of units or
-coordinates. emcee's ensemble sampler draws from it, started
+prior ``sqrt(det S^T S)`` (``S`` the simulated response's sensitivities) vanishes there,
+but it also grows with the information's size, and leaned (against ``A`` by
+``exp(-A sum |h|)``, towards light masses) so that the short logs' intervals missed on
+that side. The reference prior keeps Jeffreys' shape part (the information's correlation
+matrix: nothing where two parameters move the response alike) and is flat in the
+sampler's coordinates (a positive parameter's logarithm, :func:`_logged`) while the data
+pin each parameter within its support, falling as Jeffreys' does only beyond
+(:func:`_log_reference`). emcee's ensemble sampler draws from it, started
 around the optimum, moved by differential evolution (a positive parameter as its logarithm);
 the chain runs until it is 50
 autocorrelation times long (or its budget is spent), the first two autocorrelation times
@@ -56,6 +61,9 @@ PILE_SHARE = 0.02
 WEIGHTY = 0.01
 #: Another valley of the posterior with at least this share of the samples is named.
 MODE_NOTE_WEIGHT = 0.05
+#: An optimum whose log posterior density is this far below the best optimum's is not
+#: sampled (a share below e^-30 unless its valley were e^30 times wider).
+MODE_DROP = 30.0
 #: Acceptance fractions outside this range say the sampler is not mixing well.
 ACCEPTANCE_RANGE = (0.15, 0.75)
 
@@ -151,7 +159,7 @@ class Posterior:
     n_walkers, n_steps, burn, thin : int
         The ensemble's size, the steps taken, dropped and the thinning.
     priors : list of Prior
-        The normal priors given (the rest: Jeffreys' prior within the bounds).
+        The normal priors given (the rest: the reference prior within the bounds).
     seed : int
         The sampler's seed.
     notes : list of Note
@@ -247,7 +255,7 @@ class Posterior:
         out = ["[[Posterior]]", f"    {self.diagnostics_text()}"]
         if self.priors:
             given = ", ".join(f"{p.name} ~ N({p.mu:g}, {p.sd:g})" for p in self.priors)
-            out.append(f"    priors: {given}; the others Jeffreys' within their bounds")
+            out.append(f"    priors: {given}; the others the reference prior within their bounds")
         width = max(len(n) for n in self.names)
 
         def span(iv: tuple[float, float] | None) -> str:
@@ -337,12 +345,17 @@ def _log_posterior_fn(
     names: list[str],
     priors: Sequence[Prior],
     modes: Sequence[np.ndarray] = (),
+    logged: np.ndarray | None = None,
 ):
-    """``log p(theta)`` of the free parameters ``names`` (a callable for emcee)."""
+    """``log p(theta)`` of the free parameters ``names`` (a callable for emcee), the
+    reference prior's density taken in the sampler's coordinates (``logged``: which
+    parameters are sampled as their logarithm; :func:`_log_reference`)."""
     model = match.model
     base = np.asarray(model.vector(match.values()), float)
     idx = [list(model.param_names).index(n) for n in names]
     lo, hi = support(match, names, modes)
+    if logged is None:
+        logged = np.zeros(len(names), bool)
     n = match.y.size
     k = len(names)
     s_min = float(np.sum(match.residual**2))
@@ -354,6 +367,24 @@ def _log_posterior_fn(
     prior_at = [(j, by_name[nm]) for j, nm in enumerate(names) if nm in by_name]
     # the reference prior's parameters: those without a prior of the user's
     ref_cols = [idx[j] for j, nm in enumerate(names) if nm not in by_name]
+    ref_at = [j for j, nm in enumerate(names) if nm not in by_name]
+    # each reference parameter's support's width in the sampler's coordinate
+    # (a logged one's from its bound, or, where that is 0, from a factor PROFILE_FACTOR
+    # below its smallest optimum: flat in the logarithm down to 0 is a volume without end,
+    # the corner with no viscosity where a short log's D0 sank)
+    from balancer_id.identify.intervals import PROFILE_FACTOR
+
+    def log_width(j: int) -> float:
+        least = min(
+            (v for v in (abs(match.parameters[names[j]].value), *(abs(m[j]) for m in modes))
+             if v > 0),
+            default=hi[j] / PROFILE_FACTOR**2,
+        )
+        return math.log(hi[j] / max(lo[j], least / PROFILE_FACTOR))
+
+    width = np.array([log_width(j) if logged[j] else hi[j] - lo[j] for j in ref_at], float)
+    ref_logged = logged[ref_at]
+    sigma = math.sqrt(s_min / max(n - k, 1) * tau)
 
     def log_p(theta: np.ndarray) -> float:
         if not (np.all(theta > lo) and np.all(theta < hi)):
@@ -364,7 +395,7 @@ def _log_posterior_fn(
             if ref_cols:
                 out, sens = packed.run_sens(model, p, ref_cols)
                 r = out[:, 0] - y
-                ref = _log_jeffreys(sens)
+                ref = _log_reference(sens, theta[ref_at], ref_logged, width, sigma)
             else:
                 r = packed.run(model, p)[:, 0] - y
                 ref = 0.0
@@ -376,28 +407,42 @@ def _log_posterior_fn(
     return log_p, lo, hi
 
 
-#: Smallest eigenvalue of the information's correlation matrix counted by Jeffreys' prior.
+#: Smallest eigenvalue of the information's correlation matrix counted by the reference prior.
 JEFFREYS_FLOOR = 1e-14
 
 
-def _log_jeffreys(sens: np.ndarray) -> float:
-    """Log of Jeffreys' prior, ``0.5 log det(S^T S)`` (``S`` the simulated response's
-    sensitivities; the noise variance is a constant factor): -inf where the data cannot
-    tell the parameters apart."""
+def _log_reference(
+    sens: np.ndarray, theta: np.ndarray, logged: np.ndarray, width: np.ndarray, sigma: float
+) -> float:
+    """Log of the reference prior in the sampler's coordinates ``u`` (a parameter or its
+    logarithm): ``0.5 log det R`` (``R`` the correlation matrix of the information: it
+    vanishes where two parameters move the response alike, the ridge of a short log)
+    plus, for each parameter ``j``, ``min(0, log(s_j W_j / sigma))``: flat while the
+    data pin ``u_j`` to within its support's width ``W_j`` (``sigma / s_j``, ``s_j`` its
+    sensitivity's norm, is its standard error with the others held), falling as
+    Jeffreys' prior does where they stop telling it (no viscosity: ``A`` when ``D0`` is 0).
+
+    Jeffreys' prior ``sqrt(det S^T S)`` is this with every ``s_j`` counted (the
+    information's size as well as its shape): where the
+    information grows (light masses, the effective viscosities ``D0 exp(-A h)`` at the
+    levels recorded) it leans, against ``A`` by ``exp(-A sum |h|)`` and towards light
+    masses, and the credible intervals of short logs missed on that side
+    (DECISIONS.md)."""
     if not np.all(np.isfinite(sens)):
         return -math.inf
     info = sens.T @ sens
     d = np.sqrt(np.diag(info))
     if not np.all(np.isfinite(info)) or np.any(d <= 0):
         return -math.inf
-    # of the correlation matrix (well scaled), its eigenvalues floored: a nearly singular
-    # information is a very small prior, not an undefined one that would strand a walker
     try:
         eig = np.linalg.eigvalsh(info / np.outer(d, d))
     except np.linalg.LinAlgError:
         return -math.inf
-    logdet = float(np.sum(np.log(np.maximum(eig, JEFFREYS_FLOOR))))
-    return 0.5 * logdet + float(np.sum(np.log(d)))
+    shape = 0.5 * float(np.sum(np.log(np.maximum(eig, JEFFREYS_FLOOR))))
+    s_u = d * np.where(logged, np.abs(theta), 1.0)
+    with np.errstate(divide="ignore"):
+        told = np.log(s_u * width / sigma)
+    return shape + float(np.sum(np.minimum(told, 0.0)))
 
 
 def _start_ensemble(
@@ -445,7 +490,7 @@ def sample_posterior(
     match : MatchResult
         The fit (its model, trials, optimum, noise variance and correlation time).
     priors : sequence of Prior
-        Normal priors; the parameters without one have Jeffreys' prior inside their bounds.
+        Normal priors; the parameters without one have the reference prior inside their bounds.
     n_walkers : int, optional
         Ensemble size (default ``max(16, 4 k)``, even).
     max_steps : int
@@ -482,22 +527,31 @@ def sample_posterior(
     walkers = n_walkers or max(16, 4 * k)
     walkers += walkers % 2
     rng = np.random.default_rng(seed)
-    log_p, lo, hi = _log_posterior_fn(match, names, priors, modes)
+    lo, hi = support(match, names, modes)
     center = np.array([match.parameters[n].value for n in names], float)
     cov = covariance_of(match)
     margin = 1e-6 * np.where(np.isfinite(hi - lo), hi - lo, np.maximum(np.abs(center), 1.0))
     centres = np.clip(np.array([center, *modes], float), lo + margin, hi - margin)
-    # a positive parameter is sampled as its logarithm (the prior stays flat in the
-    # parameter: the Jacobian is added): the curved valley of D0 exp(-A h) is nearly
-    # straight in (log D0, A), and a scale spanning decades is one line
+    # a positive parameter is sampled as its logarithm (the reference prior is a density
+    # in these coordinates; a user's normal prior one in the parameter, its Jacobian
+    # added): the curved valley of D0 exp(-A h) is nearly straight in (log D0, A), and a
+    # scale spanning decades is one line
     logged = _logged(match, names, lo, centres)
+    log_p, lo, hi = _log_posterior_fn(match, names, priors, modes, logged)
+    given = logged & np.array([n in {p.name for p in priors} for n in names], bool)
 
     def log_pu(u: np.ndarray) -> float:
         theta = _from_log(u, logged)
         lp = log_p(theta)
-        return lp + float(np.sum(u[logged])) if np.isfinite(lp) else -np.inf
+        return lp + float(np.sum(u[given])) if np.isfinite(lp) else -np.inf
 
     u_centres = np.where(logged, np.log(np.maximum(centres, 1e-300)), centres)
+    # an optimum whose posterior density is far below the best's holds no share (the
+    # ridge's corners, where the prior vanishes): not sampled (its chain accepted nothing)
+    at = np.array([log_pu(u) for u in u_centres])
+    keep = np.isfinite(at) & (at >= np.max(at, initial=-np.inf) - MODE_DROP)
+    keep[0] = True  # the fit's own optimum is always shown
+    centres, u_centres = centres[keep], u_centres[keep]
     nearest = region_of(u_centres)
     began = time.monotonic()
     runs = []
@@ -539,7 +593,9 @@ def sample_posterior(
             if match.parameters[n].profile is not None
         },
         tau={n: float(t) for n, t in zip(names, tau, strict=True)},
-        acceptance=float(min(r.acceptance for r in runs)),
+        # of the valleys that hold samples (a weightless one stuck on the ridge, where
+        # the prior vanishes, accepted nothing and would call every chain unconverged)
+        acceptance=float(min(r.acceptance for r in weighty)),
         n_walkers=walkers,
         n_steps=steps,
         burn=burn,
