@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.ndimage import median_filter
@@ -241,6 +242,65 @@ def _kept(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return x[keep]
 
 
+def _continues(chain: bool, trial: Trial, prev: Trial | None, out: list[TrialData]) -> bool:
+    """Whether ``trial`` goes on from the previous one (same run, thrust changed while
+    moving) and ends after it."""
+    return bool(
+        chain
+        and trial.continues
+        and prev is not None
+        and out
+        and prev.source == trial.source
+        and prev.recording == trial.recording
+        and out[-1].time[-1] < trial.time[-1]
+    )
+
+
+def _fitted_samples(
+    time: np.ndarray, accel: np.ndarray, after: float, t_step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The samples fitted (finite, after ``after``) and the tail after a long drop-out.
+
+    A drop-out longer than the bridging limit: the model cannot be carried across it (its
+    input may have changed unseen); the trial ends before it, and a trial after it starts
+    from the state estimated from the data (:class:`_Motion`). The tail is not fitted;
+    the motion goes on through it.
+    """
+    keep = np.isfinite(accel) & np.isfinite(time) & (time > after)
+    kept = np.flatnonzero(keep)
+    long_gaps = np.flatnonzero(np.diff(time[kept]) > LONG_GAP_S) if kept.size else kept
+    tail = np.zeros_like(keep)
+    if long_gaps.size and kept[long_gaps[0]] >= np.searchsorted(time, t_step) + 10:
+        tail[kept[long_gaps[0] + 1 :]] = True
+        keep[kept[long_gaps[0] + 1] :] = False
+    return keep, tail
+
+
+def _trial_thrust(
+    trial: Trial,
+    time: np.ndarray,
+    keep: np.ndarray,
+    continues: bool,
+    fine: tuple[np.ndarray, np.ndarray] | None,
+    reference: Any,
+    before: float | None,
+) -> Thrust:
+    """The thrust driving a trial: the measured force (from the first kept sample of a
+    trial that continues), else a step, from the previous trial's level (``before``) when
+    it continues."""
+    if trial.force is not None and not trial.thrust_given and reference is None:
+        thrust = measured_thrust(time, trial.force, held=trial.kind == "step", fine=fine)
+        if continues:
+            first = np.searchsorted(time, time[keep][0])  # by sample, not by time
+            thrust = Thrust(thrust.times[first:], thrust.values[first:])
+        return thrust
+    if continues:
+        return Thrust(
+            np.array([time[keep][0], trial.t_step]), np.array([before, trial.thrust_N])
+        )
+    return Thrust.step(trial.t_step, trial.thrust_N)
+
+
 def from_trials(
     trials: Sequence[Trial],
     *,
@@ -280,15 +340,7 @@ def from_trials(
     prev: Trial | None = None
     motion = _Motion()
     for trial in trials:
-        continues = (
-            chain
-            and trial.continues
-            and prev is not None
-            and out
-            and prev.source == trial.source
-            and prev.recording == trial.recording
-            and out[-1].time[-1] < trial.time[-1]
-        )
+        continues = _continues(chain, trial, prev, out)
         after = out[-1].time[-1] if continues else -np.inf
         fine = (
             (np.asarray(trial.time, float), np.asarray(trial.force, float))
@@ -298,16 +350,7 @@ def from_trials(
         trial, decimation = decimate_trial(trial)  # above 400 Hz: to 200-400 Hz
         time = np.asarray(trial.time, float)
         accel = np.asarray(trial.accel, float)
-        keep = np.isfinite(accel) & np.isfinite(time) & (time > after)
-        kept = np.flatnonzero(keep)
-        # a drop-out longer than the bridging limit: the model cannot be carried across it
-        # (its input may have changed unseen); the trial ends before it, and a trial after
-        # it starts from the state estimated from the data (_Motion)
-        long_gaps = np.flatnonzero(np.diff(time[kept]) > LONG_GAP_S) if kept.size else kept
-        tail = np.zeros_like(keep)
-        if long_gaps.size and kept[long_gaps[0]] >= np.searchsorted(time, trial.t_step) + 10:
-            tail[kept[long_gaps[0] + 1 :]] = True  # not fitted; the motion goes on through it
-            keep[kept[long_gaps[0] + 1] :] = False
+        keep, tail = _fitted_samples(time, accel, after, trial.t_step)
         restart = bool(continues and keep.any() and time[keep][0] - out[-1].time[-1] > LONG_GAP_S)
         if keep.sum() < 10:
             raise IdentificationError(
@@ -315,23 +358,10 @@ def from_trials(
                 "acceleration samples; identification needs the acceleration channel"
             )
         reference = getattr(trial, "reference", None) or trajectory  # a robot move's own
-        if trial.force is not None and not trial.thrust_given and reference is None:
-            thrust = measured_thrust(
-                time,
-                trial.force,
-                held=trial.kind == "step",
-                fine=fine if decimation.factor > 1 else None,
-            )
-            if continues:
-                first = np.searchsorted(time, time[keep][0])  # by sample, not by time
-                thrust = Thrust(thrust.times[first:], thrust.values[first:])
-        elif continues:
-            before = out[-1].thrust_N
-            thrust = Thrust(
-                np.array([time[keep][0], trial.t_step]), np.array([before, trial.thrust_N])
-            )
-        else:
-            thrust = Thrust.step(trial.t_step, trial.thrust_N)
+        thrust = _trial_thrust(
+            trial, time, keep, continues, fine if decimation.factor > 1 else None, reference,
+            out[-1].thrust_N if continues else None,
+        )  # fmt: skip
         time, accel = _kept(time, keep), _kept(accel, keep)
         z_ref = v_ref = None
         if reference is not None:
@@ -345,14 +375,13 @@ def from_trials(
         motion.add(time, accel, trial.t_step if not (continues or restart) else None)
         if tail.any():
             motion.add(np.asarray(trial.time, float)[tail], np.asarray(trial.accel, float)[tail])
-        here = TrialInput(time, thrust, z_ref, v_ref, x0)
         out.append(
             TrialData(
                 index=trial.index if index is None else index,
                 thrust_N=float(trial.thrust_N),
                 direction=trial.direction,
                 t_step=float(trial.t_step),
-                input=here,
+                input=TrialInput(time, thrust, z_ref, v_ref, x0),
                 accel=accel,
                 source=f"{trial.source} [{trial.recording}]",
                 continues=bool(continues),

@@ -142,6 +142,57 @@ def _worst_trial(
     return None if worst is None else (worst[1], worst[2])
 
 
+#: A trial's "rest" is motion when its residual there has at least this many times the
+#: power of the other rests' median ...
+MOVING_POWER = 4.0
+
+
+def _moving_before_step(
+    parts: list[tuple[TrialData, np.ndarray, np.ndarray]],
+) -> Note | None:
+    """A ``fit.structured_residual`` note when a trial fitted as starting at rest moves
+    before its step, else None.
+
+    Its residual before the step is both far stronger than the other rests' median (at
+    least :data:`MOVING_POWER` times the power, and beyond an F test at 3 sigma over the
+    trials, on the samples counted by the sensor's correlation time) and correlated over
+    far more samples (:data:`TAU_FACTOR`, :data:`TAU_MARGIN`): a glide left by a push the
+    segmentation took for a catch, not noise (a sensor's colour is the same before every
+    step). A rest shorter than 10 of the sensor's correlation times is not judged.
+    """
+    rests = [(td, r) for td, r, _ in parts if r.size >= 20]
+    if len(rests) < 2:
+        return None
+    from scipy.stats import f as f_dist
+
+    stats = [
+        (td, float(np.mean(r * r)), correlation_time([r], removed=0), r.size) for td, r in rests
+    ]
+    for i, (td, p, tau, n) in enumerate(stats):
+        others = stats[:i] + stats[i + 1 :]
+        ref_p = float(np.median([o[1] for o in others]))
+        ref_tau = max(float(np.median([o[2] for o in others])), 1.0)
+        n_eff = n / ref_tau  # samples over the sensor's own correlation time
+        n_ref = sum(o[3] for o in others) / ref_tau
+        if not (ref_p > 0 and n_eff >= 10):
+            continue
+        critical = float(f_dist.isf(0.00135 / len(stats), n_eff, n_ref))
+        if p > max(MOVING_POWER, critical) * ref_p and tau > TAU_FACTOR * ref_tau + TAU_MARGIN:
+            quiet = min(others, key=lambda o: o[1])[0]
+            return Note(
+                "fit.structured_residual",
+                f"trial {td.index} does not start at rest: before its step the residual is "
+                f"{np.sqrt(p):.3g} m/s^2 RMS, correlated over {tau:.0f} samples, against "
+                f"{np.sqrt(ref_p):.3g} m/s^2 before the other steps (trial {quiet.index}'s "
+                "the quietest); the load still moved (a glide left by a push not taken as a "
+                "trial, or a catch), the fit assumes it still, so the values bend; check the "
+                "trials with 'balancer-id inspect' and fit a window that starts at rest",
+                severity="error",
+                subject=f"trial {td.index}",
+            )
+    return None
+
+
 def structured_residual(match: MatchResult) -> Note | None:
     """A ``fit.structured_residual`` note (severity ``error``) when the residual in motion
     carries clearly more power than the sensor's noise at rest, or is correlated over
@@ -157,7 +208,11 @@ def structured_residual(match: MatchResult) -> Note | None:
     Note or None
         None also when the trials hold fewer than :data:`MIN_REST` resting samples.
     """
-    rest, motion = _parts(match)
+    parts = residual_around_steps(match)
+    moving = _moving_before_step(parts)
+    if moving is not None:
+        return moving
+    rest, motion = [r for _, r, _ in parts], [m for _, _, m in parts]
     if sum(p.size for p in rest) < MIN_REST:
         return None
     p_rest, n_rest = _power(rest)

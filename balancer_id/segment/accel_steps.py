@@ -89,6 +89,143 @@ class _Stretch:
     reverses: bool
 
 
+@dataclass(frozen=True)
+class _AccelLevels:
+    """The acceleration as the detector reads it: rate, gap-filled samples, noise, clip,
+    moving-mean window and mean, threshold and resting level."""
+
+    rate: float
+    a: np.ndarray
+    sigma: float
+    clip: float
+    w: int
+    mean: np.ndarray
+    thr: float
+    rest: np.ndarray
+
+
+def _accel_levels(time: np.ndarray, accel: np.ndarray, settings: StepSettings) -> _AccelLevels:
+    """Measure the noise, the moving mean, the threshold and the resting level."""
+    rate = rate_of(time)
+    a = fill_nan(accel)
+    block = n_samples(settings.noise_block_s, rate, 5)
+    sigma = block_noise(a, block, floor=1e-3)
+    clip = max(5 * sigma, block_range(a, block))
+    w = odd(n_samples(settings.accel_window_s, rate, 3))
+    # a plain moving mean: a median filter would undo the dithering of a quantized signal
+    mean = ndimage.uniform_filter1d(a, w, mode="nearest")
+    noise = max(block_noise(mean, block, floor=1e-4), sigma / np.sqrt(w))
+    thr = max(settings.min_accel_step, settings.accel_k_sigma * noise)
+    return _AccelLevels(rate, a, sigma, clip, w, mean, thr, _resting_level(mean, thr, rate))
+
+
+class _DepartureScan:
+    """The departures from rest of a log, gap-free stretch by stretch, with the state a
+    motion not yet caught carries over a short drop-out (issue 17.6): its sign
+    (``awaiting``), the onset of the trial it belongs to (``owner``; -1: begun at a
+    drop-out), and whether its impulse is cut (``cut``)."""
+
+    def __init__(
+        self, time: np.ndarray, lv: _AccelLevels, settings: StepSettings, det: Detection
+    ) -> None:
+        self.time, self.lv, self.settings, self.det = time, lv, settings, det
+        self.n = lv.a.size
+        self.carried, self.owner = 0, -1
+        self.awaiting, self.cut, self.moving_at_start = 0, False, False
+
+    def goes_on(self, hi: int, sign: int) -> bool:
+        """Whether the motion at the end of the stretch ending at ``hi`` goes on past the
+        drop-out there: a short gap, and the acceleration off rest with the same sign
+        after it (a motion cut by a drop-out, not a short stretch)."""
+        n, lv, time = self.n, self.lv, self.time
+        if hi >= n or time[hi] - time[hi - 1] > MAX_CARRY_GAP_S:
+            return False
+        after = lv.mean[hi : min(n, hi + lv.w)] - lv.rest[hi : min(n, hi + lv.w)]
+        return after.size > 0 and float(np.median(after)) * sign > lv.thr
+
+    def stretch(self, lo: int, hi: int) -> list[tuple[int, int]]:
+        """Scan the gap-free stretch ``[lo, hi)``: its departures join ``det.steps``;
+        returns its catches (the catch, the onset of the motion it stops)."""
+        lv = self.lv
+        dev = lv.mean[lo:hi] - lv.rest[lo:hi]
+        stretches = _active(dev, lv.thr, n_samples(self.settings.merge_s, lv.rate))
+        short_gap = lo > 0 and self.time[lo] - self.time[lo - 1] <= MAX_CARRY_GAP_S
+        self.awaiting = self.carried if short_gap else 0  # sign of a trial not yet caught
+        self.cut = bool(self.awaiting)  # its motion began before this stretch: impulse cut
+        self.moving_at_start = bool(self.awaiting)
+        catches: list[tuple[int, int]] = []
+        for st in stretches:
+            self._active_stretch(lo, hi, dev, st, catches)
+        self.carried = self.awaiting
+        return catches
+
+    def _active_stretch(
+        self, lo: int, hi: int, dev: np.ndarray, st: _Stretch, catches: list[tuple[int, int]]
+    ) -> None:
+        """One active stretch: a motion under way after a drop-out, a catch, a stretch too
+        short, or a trial's departure."""
+        s, w = self.settings, self.lv.w
+        start, stop = lo + st.start, lo + st.stop
+        length = (stop - start) / self.lv.rate
+        if start - lo < w and lo > 0 and (not self.awaiting or st.sign == self.awaiting):
+            self._under_way(lo, dev, st, catches)
+            return
+        since = max(self.owner, lo) - lo if self.owner >= 0 else 0
+        if (
+            self.awaiting
+            and st.sign == -self.awaiting
+            and length < s.max_catch_s
+            and _stops(dev, since, st.start, st.stop, cut=self.cut or st.stop >= hi - lo - w)
+        ):
+            self.awaiting = 0
+            catches.append((start, self.owner))
+            self.det.reject("a catch")
+            return
+        cut_short = st.stop >= hi - lo - w and self.goes_on(hi, st.sign)
+        if start - lo < w or (length < s.min_trial_s and not cut_short):
+            self.det.reject("too short or too close to a gap or the run's edge")
+            return  # a short stretch of an uncaught trial's sign is its motion
+        self._departure(lo, hi, dev, st, catches)
+
+    def _under_way(
+        self, lo: int, dev: np.ndarray, st: _Stretch, catches: list[tuple[int, int]]
+    ) -> None:
+        """Moving when the drop-out ended: a motion under way, not a departure."""
+        if not self.awaiting:
+            self.awaiting, self.owner, self.cut, self.moving_at_start = st.sign, -1, True, True
+        if st.reverses:  # ... and caught inside the stretch
+            back_rel = np.flatnonzero(dev[st.start : st.stop] * st.sign < -self.lv.thr)[0]
+            back = st.start + int(back_rel)
+            if (st.stop - back) / self.lv.rate < self.settings.max_catch_s:
+                catches.append((lo + back, self.owner))
+                self.awaiting = 0
+        self.det.reject("under way after a drop-out")
+
+    def _departure(
+        self, lo: int, hi: int, dev: np.ndarray, st: _Stretch, catches: list[tuple[int, int]]
+    ) -> None:
+        """A trial's onset (where the first-order rise starts) and its response, and its
+        catch when it is caught inside its own stretch."""
+        lv, rate, w = self.lv, self.lv.rate, self.lv.w
+        # the mean leaves rest up to ~1 s after a slow, small rise begins
+        k = rise_onset(self.time, lv.a, lo, hi, lo + st.start, n_samples(1.0, rate, 3))
+        pre = lv.a[max(lo, k - w) : k]
+        post = lv.a[k : min(hi, k + n_samples(self.settings.response_s, rate))]
+        if pre.size < 3 or post.size < 3:
+            self.det.reject("too close to a gap or the run's edge")
+            return
+        dep = clipped_mean(post, lv.clip) - clipped_mean(pre, lv.clip)
+        z = abs(dep) / (lv.sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
+        self.det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
+        self.awaiting, self.owner, self.cut = (0 if st.reverses else st.sign), int(k), False
+        if st.reverses:  # caught inside its own stretch? the catch ends the motion
+            back = st.start + int(np.flatnonzero(dev[st.start : st.stop] * st.sign < -lv.thr)[0])
+            short = (st.stop - back) / rate < self.settings.max_catch_s
+            ends_cut = st.stop >= hi - lo - w  # the drop-out cuts the catch
+            if short and _stops(dev, k - lo, back, st.stop, cut=ends_cut):
+                catches.append((lo + back, int(k)))
+
+
 def detect_accel_steps(
     time: np.ndarray, accel: np.ndarray, breaks: np.ndarray, settings: StepSettings
 ) -> Detection:
@@ -109,101 +246,24 @@ def detect_accel_steps(
         Steps with ``source="accel"``, ``size`` NaN and ``response`` the change of the
         acceleration over the first ``response_s`` after the onset.
     """
-    rate = rate_of(time)
-    a = fill_nan(accel)
-    n = a.size
-    block = n_samples(settings.noise_block_s, rate, 5)
-    sigma = block_noise(a, block, floor=1e-3)
-    clip = max(5 * sigma, block_range(a, block))
-    w = odd(n_samples(settings.accel_window_s, rate, 3))
-    # a plain moving mean: a median filter would undo the dithering of a quantized signal
-    mean = ndimage.uniform_filter1d(a, w, mode="nearest")
-    noise = max(block_noise(mean, block, floor=1e-4), sigma / np.sqrt(w))
-    thr = max(settings.min_accel_step, settings.accel_k_sigma * noise)
-    rest = _resting_level(mean, thr, rate)
-    det = Detection([], float(np.max(np.abs(mean - rest))) if n else 0.0, thr, "m/s^2")
+    lv = _accel_levels(time, accel, settings)
+    n = lv.a.size
+    det = Detection([], float(np.max(np.abs(lv.mean - lv.rest))) if n else 0.0, lv.thr, "m/s^2")
     edges = np.concatenate([[0], breaks, [n]]).astype(int)
-    half = n_samples(CHANGE_HALF_S, rate, 3)
-    # a motion not yet caught, carried over a short drop-out (issue 17.6): its sign, the
-    # onset of the trial it belongs to (-1: begun at a drop-out), and whether it is cut
-    carried, owner = 0, -1
-
-    def goes_on(hi: int, sign: int) -> bool:
-        """Whether the motion at the end of the stretch ending at ``hi`` goes on past the
-        drop-out there: a short gap, and the acceleration off rest with the same sign
-        after it (a motion cut by a drop-out, not a short stretch)."""
-        if hi >= n or time[hi] - time[hi - 1] > MAX_CARRY_GAP_S:
-            return False
-        after = mean[hi : min(n, hi + w)] - rest[hi : min(n, hi + w)]
-        return after.size > 0 and float(np.median(after)) * sign > thr
-
+    half = n_samples(CHANGE_HALF_S, lv.rate, 3)
+    scan = _DepartureScan(time, lv, settings, det)
     for lo, hi in itertools.pairwise(edges):
-        if hi - lo < 2 * w:
+        if hi - lo < 2 * lv.w:
             continue
-        dev = mean[lo:hi] - rest[lo:hi]
-        stretches = _active(dev, thr, n_samples(settings.merge_s, rate))
-        short_gap = lo > 0 and time[lo] - time[lo - 1] <= MAX_CARRY_GAP_S
-        awaiting = carried if short_gap else 0  # sign of a trial not yet caught
-        cut = bool(awaiting)  # its motion began before this stretch: its impulse is cut
-        moving_at_start = bool(awaiting)
         first = len(det.steps)
-        catches: list[tuple[int, int]] = []  # (the catch, the onset of the motion it stops)
-        for st in stretches:
-            start, stop = lo + st.start, lo + st.stop
-            length = (stop - start) / rate
-            if start - lo < w and lo > 0 and (not awaiting or st.sign == awaiting):
-                # moving when the drop-out ended: a motion under way, not a departure
-                if not awaiting:
-                    awaiting, owner, cut, moving_at_start = st.sign, -1, True, True
-                if st.reverses:  # ... and caught inside the stretch
-                    back = st.start + int(
-                        np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0]
-                    )
-                    if (st.stop - back) / rate < settings.max_catch_s:
-                        catches.append((lo + back, owner))
-                        awaiting = 0
-                det.reject("under way after a drop-out")
-                continue
-            since = max(owner, lo) - lo if owner >= 0 else 0
-            if (
-                awaiting
-                and st.sign == -awaiting
-                and length < settings.max_catch_s
-                and _stops(dev, since, st.start, st.stop, cut=cut or st.stop >= hi - lo - w)
-            ):
-                awaiting = 0
-                catches.append((start, owner))
-                det.reject("a catch")
-                continue
-            cut_short = st.stop >= hi - lo - w and goes_on(hi, st.sign)
-            if start - lo < w or (length < settings.min_trial_s and not cut_short):
-                det.reject("too short or too close to a gap or the run's edge")
-                continue  # a short stretch of an uncaught trial's sign is its motion
-            # the mean leaves rest up to ~1 s after a slow, small rise begins
-            k = rise_onset(time, a, lo, hi, start, n_samples(1.0, rate, 3))
-            pre = a[max(lo, k - w) : k]
-            post = a[k : min(hi, k + n_samples(settings.response_s, rate))]
-            if pre.size < 3 or post.size < 3:
-                det.reject("too close to a gap or the run's edge")
-                continue
-            dep = clipped_mean(post, clip) - clipped_mean(pre, clip)
-            z = abs(dep) / (sigma * np.sqrt(1.0 / pre.size + 1.0 / post.size))
-            det.steps.append(Step(int(k), float("nan"), float(dep), float(z), "accel"))
-            awaiting, owner, cut = (0 if st.reverses else st.sign), int(k), False
-            if st.reverses:  # caught inside its own stretch? the catch ends the motion
-                back = st.start + int(np.flatnonzero(dev[st.start : st.stop] * st.sign < -thr)[0])
-                short = (st.stop - back) / rate < settings.max_catch_s
-                ends_cut = st.stop >= hi - lo - w  # the drop-out cuts the catch
-                if short and _stops(dev, k - lo, back, st.stop, cut=ends_cut):
-                    catches.append((lo + back, int(k)))
-        if hi - lo > 4 * half and rate >= MIN_TREND_RATE_HZ:
+        catches = scan.stretch(lo, hi)
+        if hi - lo > 4 * half and lv.rate >= MIN_TREND_RATE_HZ:
             kept = _changes_while_moving(
-                time, a, rest, lo, hi, det.steps[first:], catches, half, thr, sigma, clip, rate,
-                settings, moving_at_start=moving_at_start,
+                time, lv.a, lv.rest, lo, hi, det.steps[first:], catches, half, lv.thr,
+                lv.sigma, lv.clip, lv.rate, settings, moving_at_start=scan.moving_at_start,
                 earlier={st.onset for st in det.steps[:first]},
             )  # fmt: skip
             det.steps[first:] = kept
-        carried = awaiting
     return det
 
 
