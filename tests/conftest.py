@@ -150,3 +150,21 @@ def cli():
         return res.exit_code, res.stdout, res.stderr
 
     return run
+
+
+@pytest.fixture
+def results_cache(tmp_path, monkeypatch):
+    """A result cache of this test's own (``tmp_path/results``), switched on, beside a copy
+    of the run's compiled kernels: an empty cache folder compiled every kernel again (20 s
+    a test warm), and a link to the run's is refused by the kernel cache."""
+    import shutil
+
+    from balancer_id.files import cache_root
+
+    shared = cache_root()
+    for folder in ("kernels", "numba"):
+        if (shared / folder).is_dir():
+            shutil.copytree(shared / folder, tmp_path / folder, copy_function=shutil.copy2)
+    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "0")
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    return tmp_path

@@ -8,7 +8,6 @@ import importlib.util
 import json
 import re
 import shlex
-import shutil
 import subprocess
 import sys
 from collections import Counter
@@ -189,18 +188,10 @@ def test_the_cache_key_changes_with_the_trajectory_files_content(tmp_path, monke
     assert spec.trajectory_files() == []
 
 
-def test_a_cached_fit_is_not_returned_for_another_accel_unit(cli, small_log, tmp_path, monkeypatch):
+def test_a_cached_fit_is_not_returned_for_another_accel_unit(cli, small_log, results_cache):
     from balancer_id import cache
-    from balancer_id.files import cache_root
 
-    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "0")
-    # a results folder of its own; the compiled kernels copied from the run's (a fresh
-    # kernel cache compiled them again: 21 s of this test's 22; a link is refused)
-    shared = cache_root()
-    for folder in ("kernels", "numba"):
-        if (shared / folder).is_dir():
-            shutil.copytree(shared / folder, tmp_path / folder, copy_function=shutil.copy2)
-    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    tmp_path = results_cache
     code, _, err = cli("fit", small_log, "--json")
     assert code == 0, err
     # plant a marked (whole, checksummed) entry, so a result served from the cache shows

@@ -162,11 +162,10 @@ def test_sample_logs_are_fitted_by_the_readme_command(cli):
     assert json.loads(out)["metrics"]["nrmse_fit_percent"] > 50
 
 
-def test_a_second_identical_fit_comes_from_the_cache(cli, simulated, tmp_path, monkeypatch):
+def test_a_second_identical_fit_comes_from_the_cache(cli, simulated, results_cache):
     from balancer_id import cache
 
-    monkeypatch.setenv("BALANCER_ID_NO_CACHE", "0")
-    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    tmp_path = results_cache
     first = cli("fit", simulated, "--json")
     assert first[0] == 0
     entries = list((tmp_path / "results").glob("*.json"))
