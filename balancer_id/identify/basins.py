@@ -197,12 +197,12 @@ def spread_starts(
             sm, sl = design[k]
         else:
             sm, sl = rng.normal(0.0, 1.0, 2)
-        mass = float(x[list(free).index("m_a")]) if "m_a" in free else 1.0
-        mass *= float(np.exp(sm * SPREAD_LOG))
+        mass_factor = float(np.exp(sm * SPREAD_LOG))
+        mass = mass_factor * (float(x[list(free).index("m_a")]) if "m_a" in free else 1.0)
         for j, name in enumerate(free):
             p = model.param(name)
             if name == "m_a":
-                x[j] *= float(np.exp(sm * SPREAD_LOG))
+                x[j] *= mass_factor
             elif name in model.drive_lag_names:
                 # a lag spread over what the samples resolve up to 2 s, whatever the start
                 x[j] = max(x[j], 1e-3) * float(np.exp(sl * SPREAD_LOG))

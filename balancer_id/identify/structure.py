@@ -66,12 +66,6 @@ def residual_around_steps(match: MatchResult) -> list[tuple[TrialData, np.ndarra
     return out
 
 
-def _parts(match: MatchResult) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """The residual of each trial that starts from rest: before its step, and after."""
-    parts = residual_around_steps(match)
-    return [rest for _, rest, _ in parts], [motion for _, _, motion in parts]
-
-
 def _power(parts: Sequence[np.ndarray]) -> tuple[float, float]:
     """Mean square and effective sample count (samples over correlation time)."""
     kept = [p for p in parts if p.size >= 5]
@@ -123,7 +117,7 @@ def _worst_trial(
     number of trials compared (Bonferroni, one-sided normal).
     """
     pairs = [(r, m) for r, m in zip(rest, motion, strict=True) if r.size >= 20 and m.size >= 20]
-    if len(pairs) < 1:
+    if not pairs:
         return None
     from scipy.stats import norm
 

@@ -609,10 +609,14 @@ _UNIT_CELLS = frozenset(
 )  # fmt: skip
 
 
+def _unit_text(cell: str) -> str:
+    """A units row's cell without quotes or brackets: ``"[m/s^2]"`` -> ``m/s^2``."""
+    return cell.strip().strip('"').strip().strip("[]()").strip()
+
+
 def _unit_cell(cell: str) -> bool:
     """Whether a cell is a unit as a units row writes it (``s``, ``[N]``, ``(m/s^2)``)."""
-    text = cell.strip().strip('"').strip().strip("[]()").strip().lower()
-    return text in _UNIT_CELLS
+    return _unit_text(cell).lower() in _UNIT_CELLS
 
 
 def _names_above_units(skipped: list[str], units: list[str], delimiter: str) -> list[str] | None:
@@ -626,7 +630,7 @@ def _names_above_units(skipped: list[str], units: list[str], delimiter: str) -> 
     if len(names) != len(units) or not all(names) or _numeric_row(names):
         return None
     return [
-        f"{n} ({u.strip().strip('[]()').strip()})" if u.strip() else n
+        f"{n} ({_unit_text(u)})" if u.strip() else n
         for n, u in zip(names, units, strict=True)
     ]
 
