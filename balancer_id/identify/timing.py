@@ -25,11 +25,12 @@ longer trusted: its interval does not account for the shift. The others keep the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.starts import lag_floor
 from balancer_id.notes import Note
 
 #: The shift must be this many standard errors from zero to be called (a sensor low-pass of
@@ -76,6 +77,13 @@ class TimingCheck:
     phase_se: dict[str, float] = field(default_factory=dict)
     noise_se_s: float = 0.0
     half_sample_s: float = 0.0
+    #: Drive lags on their floor (:func:`lags_at_floor`) when the drive is clearly late:
+    #: each fitted value bends with the lateness read as "no lag".
+    floored: tuple[str, ...] = ()
+    #: The lead a drive lag on its floor accounts for (s): the model cannot lag less
+    #: than its floor, so a balancer with less lag leads the model by up to the lag's
+    #: value. A lead is clear only beyond it (0: no lag on its floor).
+    floor_lead_s: float = 0.0
 
     @property
     def z(self) -> float:
@@ -97,6 +105,10 @@ class TimingCheck:
         """
         if not np.isfinite(self.z):
             return False
+        if self.floor_lead_s > 0 and self.lead_s > 0:
+            se = self.noise_se_s if self.noise_se_s > 0 else self.stderr_s
+            beyond = self.half_sample_s + self.floor_lead_s + TIMING_Z * se
+            return bool(self.lead_s >= beyond)
         if abs(self.z) >= TIMING_Z:
             return True
         if self.half_sample_s > 0 and self.noise_se_s > 0:
@@ -176,6 +188,118 @@ def sampling_variance(match: MatchResult) -> float:
     return float(np.median(spreads)) if spreads else 0.0
 
 
+def lags_at_floor(match: MatchResult) -> tuple[str, ...]:
+    """The fitted drive lags held on their lower bound (the samples' floor, or 0).
+
+    A lag on its floor cannot shorten further, so it cannot absorb a drive that is late
+    against the acceleration: the fit reads such a drive as "no lag seen" (a first-order
+    lag and a delay move a slow response alike, so a free lag column would take the
+    lead's place in :func:`timing_check` and hide it). These lags are held in the
+    regression; a clear lead then also takes their trust, since the lag the log shows
+    is the lead's remainder, not the floor.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A converged fit.
+
+    Returns
+    -------
+    tuple of str
+        Names of the drive lags at their minimum bound or below two floors.
+    """
+    floor = lag_floor(match.data.trials)
+    out = []
+    for name in match.model.drive_lag_names:
+        est = match.parameters.get(name)
+        if est is None or not est.vary:
+            continue
+        if est.at_bound == "min" or (floor > 0 and est.value < 2 * floor):
+            out.append(name)
+    return tuple(out)
+
+
+#: The longest lateness of the drive looked for where a lag sits on its floor (s).
+LATE_MAX_S = 0.25
+
+
+def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
+    """The model's output were the drive ``lead`` seconds earlier: each trial's output
+    moved earlier by ``lead`` (a time-invariant model from rest; its last value held)."""
+    y_model = np.asarray(match.y_model, dtype=float)
+    out = np.empty_like(y_model)
+    for sl in match.data.slices():
+        tt = t[sl]
+        out[sl] = np.interp(tt + lead, tt, y_model[sl]) if tt.size > 1 else y_model[sl]
+    return out
+
+
+def _late_drive(
+    match: MatchResult, t: np.ndarray, dof: int
+) -> tuple[float, float, np.ndarray] | None:
+    """The drive's lateness where a lag sits on its floor, measured whole, not to first
+    order: the residual sum of squares of the model's output moved earlier by each lead
+    on a grid (up to :data:`LATE_MAX_S`), its minimum and the 1-sigma width of that dip.
+
+    A response that jumps (a lag on its floor) moves by whole samples: the first-order
+    column ``dy/dt`` of :func:`timing_check` is one spike per step and reads a 30 ms
+    lateness as 3 ms. Returns ``(lead, its standard error, output change)``; None when no
+    lead lowers the residual.
+    """
+    y = np.asarray(match.y, dtype=float)
+    if y.size < 4 or t.size != y.size:
+        return None
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if not (np.isfinite(dt) and dt > 0):
+        return None
+    rss0 = float(np.sum((y - np.asarray(match.y_model, dtype=float)) ** 2))
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    coarse = np.arange(dt / 2, LATE_MAX_S + dt / 4, dt / 2)
+    cost = np.array([float(np.sum((y - _shifted(match, t, d)) ** 2)) for d in coarse])
+    best = int(np.argmin(cost))
+    if not (cost[best] < rss0):
+        return None
+    fine = np.linspace(max(coarse[best] - dt / 2, 0.0), coarse[best] + dt / 2, 9)
+    fine_cost = np.array([float(np.sum((y - _shifted(match, t, d)) ** 2)) for d in fine])
+    leads = np.concatenate([[0.0], coarse, fine])
+    costs = np.concatenate([[rss0], cost, fine_cost])
+    order = np.argsort(leads)
+    leads, costs = leads[order], costs[order]
+    i = int(np.argmin(costs))
+    s2 = costs[i] / max(dof, 1) * tau  # the noise once the lead is modelled
+    inside = leads[costs <= costs[i] + s2]  # the 1-sigma profile interval of the lead
+    se = max(float(inside.max() - inside.min()) / 2.0, dt / (2.0 * np.sqrt(3.0)))
+    lead = float(leads[i])
+    return lead, se, _shifted(match, t, lead) - np.asarray(match.y_model, dtype=float)
+
+
+def _whole_shift_check(
+    match: MatchResult,
+    names: list[str],
+    jtj: np.ndarray,
+    j_delta: np.ndarray,
+    late: tuple[float, float, np.ndarray],
+    first_order: TimingCheck,
+) -> TimingCheck:
+    """The check from the whole-shift lead (:func:`_late_drive`) where it is the
+    clearer; each value's move, were the shift modelled, one Gauss-Newton step."""
+    lead, se, _ = late
+    whole = replace(
+        first_order,
+        lead_s=lead,
+        stderr_s=float(np.hypot(se, first_order.half_sample_s / np.sqrt(3.0))),
+        noise_se_s=se,
+    )
+    if first_order.clear or not whole.clear:
+        return first_order
+    try:
+        step = -np.linalg.solve(jtj, j_delta) if names else np.zeros(0)
+    except np.linalg.LinAlgError:
+        step = np.zeros(len(names))
+    shift = {name: float(step[j]) for j, name in enumerate(names)}
+    return replace(whole, shift=shift)
+
+
 def timing_check(match: MatchResult) -> TimingCheck | None:
     """Regress the fit's residual on its sensitivities and on ``dy_model/dt``.
 
@@ -190,16 +314,22 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         None when nothing was fitted, too few samples, or the design is singular.
     """
     model = match.model
-    names = [p.name for p in model.params if match.parameters[p.name].vary]
+    floored = lags_at_floor(match)
+    names = [
+        p.name for p in model.params if match.parameters[p.name].vary and p.name not in floored
+    ]
     free = [model.param_names.index(n) for n in names]
     n, k = int(match.y.size), len(free)
-    if k == 0 or n <= k + 2:
+    if (k == 0 and not floored) or n <= k + 2:
         return None
     pvec = np.array([match.parameters[p.name].value for p in model.params], dtype=float)
     t = _row_times(match)
     starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
     y = match.data.y
+    late = _late_drive(match, t, n - k) if floored else None
+    delta = late[2] if late is not None else None
     gram = np.zeros((k + 2, k + 2))
+    j_delta = np.zeros(k)
     with np.errstate(all="ignore"):
         blocks = match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS)
         for first, out, sens in blocks:
@@ -211,6 +341,8 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
             if not np.isfinite(x).all():
                 return None
             gram += x.T @ x
+            if delta is not None:
+                j_delta += sens.T @ delta[first:stop]
     xtx, xtr, rtr = gram[: k + 1, : k + 1], gram[: k + 1, k + 1], gram[k + 1, k + 1]
     try:
         inv = np.linalg.inv(xtx)
@@ -241,8 +373,13 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     check = TimingCheck(
         float(coef[k]), float(np.sqrt(var_d)), shift, (), phase_se, noise_se, half
     )
+    if floored:
+        check = replace(check, floor_lead_s=max(match.parameters[n].value for n in floored))
+    if late is not None:
+        check = _whole_shift_check(match, names, gram[:k, :k], j_delta, late, check)
     if not check.clear:
         return check
+    shift = check.shift
     moved = tuple(
         name
         for name in names
@@ -250,7 +387,13 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         and np.isfinite(se)
         and abs(shift[name]) > SHIFT_SE * float(np.hypot(se, phase_se.get(name, 0.0)))
     )
-    return TimingCheck(check.lead_s, check.stderr_s, shift, moved, phase_se, noise_se, half)
+    if check.lead_s > 0 and floored:
+        # a lag on its floor reads the drive's lateness as "no lag": the lag and the
+        # lateness are then read together, and no value's interval holds either
+        moved = (*floored, *names)
+    else:
+        floored = ()
+    return replace(check, shift=shift, moved=moved, floored=floored)
 
 
 def timing_note(check: TimingCheck) -> Note:
@@ -281,6 +424,13 @@ def timing_note(check: TimingCheck) -> Note:
             "than the model does (a dead time, a sensor's low-pass, or an "
             "accelerometer time-stamped late)"
         )
+    if check.floored:
+        tail = (
+            f"; {', '.join(check.floored)} sits on its floor, so the fit read this lateness "
+            "as no lag and every fitted value bends with it: none is trusted; refit with "
+            "--force-delay, or run 'balancer-id diagnose' on the same logs"
+        )
+        return Note("fit.timing", what + tail, severity="error")
     if check.moved:
         tail = (
             f"; modelling it would move {', '.join(check.moved)} by more than their "
@@ -324,10 +474,32 @@ def check_timing(match: MatchResult) -> list[Note]:
     match.metrics["timing_lead_stderr_s"] = check.stderr_s
     if not check.clear:
         return []
+    floored = check.floored
+    if floored:
+        match.warnings = [
+            w
+            for w in match.warnings
+            if not (
+                isinstance(w, Note) and w.code == "fit.below_resolution" and w.subject in floored
+            )
+        ]
     for name in check.moved:
-        match.parameters[name].distrust.append(
-            f"modelling the drive's timing ({check.lead_s * 1e3:+.0f} ms) moves it by "
-            f"{abs(check.shift[name]) / (match.parameters[name].stderr or 1.0):.1f} "
-            "standard errors"
-        )
+        if name in floored:
+            why = (
+                f"the drive is {check.lead_s * 1e3:.0f} ms late against the acceleration: "
+                "this lag's floor is the lateness read as no lag, not a measured bound"
+            )
+        elif floored and check.lead_s > 0:
+            why = (
+                f"the drive is {check.lead_s * 1e3:.0f} ms late against the acceleration "
+                f"while {', '.join(floored)} sits on its floor: the lateness and the lag "
+                "are read together, and this value bends with them"
+            )
+        else:
+            why = (
+                f"modelling the drive's timing ({check.lead_s * 1e3:+.0f} ms) moves it by "
+                f"{abs(check.shift[name]) / (match.parameters[name].stderr or 1.0):.1f} "
+                "standard errors"
+            )
+        match.parameters[name].distrust.append(why)
     return [timing_note(check)]
