@@ -16,10 +16,10 @@ from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 TRUTH = {"m_a": 15.0, "T_a": 0.3, "D0": 60.0, "A": 0.05}
 
 
-def _log(tmp_path, delay_s: float) -> str:
+def _log(tmp_path, delay_s: float, truth: dict[str, float] = TRUTH) -> str:
     recs = synthetic_recordings(
         resolve_model("variable_viscosity"),
-        TRUTH,
+        truth,
         [8.0, -8.0, 16.0, -16.0],
         sensor=SensorSettings(rate_hz=200.0),
         duration_s=4.0,
@@ -32,7 +32,7 @@ def _log(tmp_path, delay_s: float) -> str:
             f = np.interp(t - delay_s, t, np.asarray(rec.force, dtype=float))
             late.append(dataclasses.replace(rec, force=f))
         recs = late
-    path = tmp_path / f"late_{delay_s * 1e3:.0f}ms.csv"
+    path = tmp_path / f"late_{delay_s * 1e3:.0f}ms_{truth['T_a'] * 1e3:.0f}.csv"
     write_log(path, recs, "pasco-capstone")
     return str(path)
 
@@ -49,6 +49,31 @@ def test_late_force_channel_is_measured_and_untrusts_what_it_moves(tmp_path) -> 
     t_a = out["parameters"]["T_a"]
     assert t_a["trusted"] is False
     assert any("timing" in why for why in t_a["untrusted_because"])
+
+
+def test_late_force_channel_with_lag_on_its_floor_is_not_read_as_no_lag(tmp_path) -> None:
+    # issue 31: a force channel 30 ms late on a balancer whose own lag is 30 ms: the fit
+    # put T_a on the samples' floor ("T_a < 5 ms, no drive lag seen"), m_a 6 standard
+    # errors high, all trusted; the first-order timing column (one spike per step) read
+    # the lateness as 3 +- 1.5 ms. Measured whole (the output moved by whole leads) the
+    # acceleration clearly leads the force, and no value bends unseen.
+    out = fit(_log(tmp_path, 0.030, {**TRUTH, "T_a": 0.03})).to_dict()
+    lead, se = out["metrics"]["timing_lead_s"], out["metrics"]["timing_lead_stderr_s"]
+    assert lead > 3 * se and lead > 0.005
+    assert out["trusted"] is False
+    assert any(n["code"] == "fit.timing" and n["severity"] == "error" for n in out["notes"])
+    assert not any(n["code"] == "fit.below_resolution" for n in out["notes"])
+    for name in ("m_a", "T_a"):
+        assert out["parameters"][name]["trusted"] is False, name
+
+
+def test_lag_below_the_samples_on_time_stays_a_bound(tmp_path) -> None:
+    # the same balancer with a lag of 1 ms and the force on time: T_a on its floor is a
+    # bound (below resolution), the whole-shift search finds no lead, every value trusted
+    out = fit(_log(tmp_path, 0.0, {**TRUTH, "T_a": 0.001})).to_dict()
+    assert out["trusted"] is True
+    assert any(n["code"] == "fit.below_resolution" for n in out["notes"])
+    assert not any(n["code"] == "fit.timing" for n in out["notes"])
 
 
 def test_on_time_log_keeps_every_value_trusted(tmp_path) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -635,6 +635,34 @@ class SessionPack:
         """
         out, sens = self.inner.run_sens(model, pvec, cols, substeps)  # type: ignore[attr-defined]
         return out[self.rows], sens[self.rows]
+
+    def sens_runner(
+        self, model: Model, cols: Sequence[int], substeps: int = DEFAULT_SUBSTEPS
+    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """:meth:`PackedTrials.sens_runner`, the fitted samples' rows only.
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+        cols : sequence of int
+            What to differentiate with respect to.
+        substeps : int
+            RK4 steps per sample interval.
+
+        Returns
+        -------
+        callable
+            ``pvec`` to ``(out, sens)`` as :meth:`run_sens`.
+        """
+        inner = self.inner.sens_runner(model, cols, substeps)
+        rows = self.rows
+
+        def run(pvec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            out, sens = inner(pvec)
+            return out[rows], sens[rows]
+
+        return run
 
     def stream(
         self, model: Model, pvec: np.ndarray, max_rows: int, substeps: int = DEFAULT_SUBSTEPS
