@@ -219,7 +219,7 @@ def lags_at_floor(match: MatchResult) -> tuple[str, ...]:
     return tuple(out)
 
 
-#: The longest lead of the acceleration over its drive the whole-shift profile tries (s).
+#: The longest lead or lag of the acceleration on its drive the whole-shift profile tries (s).
 SHIFT_MAX_S = 0.25
 
 #: At most this many leads on the whole-shift profile's grid (its step is half a sample,
@@ -231,8 +231,9 @@ SHIFT_CELLS = 4_000_000
 
 
 def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
-    """The model's output were the drive ``lead`` seconds earlier: each trial's output
-    moved earlier by ``lead`` (a time-invariant model from rest; its last value held)."""
+    """The model's output were the drive ``lead`` seconds earlier (negative: later):
+    each trial's output moved in time by ``lead`` (a time-invariant model from rest; its
+    first and last values held)."""
     y_model = np.asarray(match.y_model, dtype=float)
     out = np.empty_like(y_model)
     for sl in match.data.slices():
@@ -241,10 +242,11 @@ def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
     return out
 
 
-def _shift_grid(match: MatchResult, t: np.ndarray) -> np.ndarray | None:
-    """The leads (the acceleration before its drive) the whole-shift profile tries (s,
-    zero left out), or None: no usable
-    sample interval, or the shifted outputs would not fit :data:`SHIFT_CELLS`."""
+def _shift_grid(match: MatchResult, t: np.ndarray, both: bool = False) -> np.ndarray | None:
+    """The leads the whole-shift profile tries (s, zero left out): positive only (the
+    acceleration before its drive) where a lag sits on its floor, which cannot take a
+    lag's place; both signs (``both``) otherwise. None: no usable sample interval, or
+    the shifted outputs would not fit :data:`SHIFT_CELLS`."""
     if t.size < 4 or t.size != match.y.size:
         return None
     dt = float(np.median(np.diff(t)))
@@ -252,7 +254,7 @@ def _shift_grid(match: MatchResult, t: np.ndarray) -> np.ndarray | None:
         return None
     step = max(dt / 2, 2 * SHIFT_MAX_S / SHIFT_GRID)
     half = np.arange(step, SHIFT_MAX_S + step / 2, step)
-    grid = half
+    grid = np.concatenate([-half[::-1], half]) if both else half
     while grid.size * t.size > SHIFT_CELLS and grid.size > 8:
         grid = grid[::2]
     return grid if grid.size * t.size <= SHIFT_CELLS else None
@@ -326,9 +328,10 @@ def _whole_shift(
 ) -> TimingCheck | None:
     """The check from the whole-shift profile where the first-order one is not clear.
 
-    A response that jumps (a drive lag on its floor) moves by whole samples: the
-    first-order column ``dy/dt`` is then one spike per step and reads a 30 ms lateness
-    as 3 ms. The profile moves
+    A response that jumps (a drive lag on its floor; the paper's viscosity changing with
+    the thrust while the balancer moves) moves by whole samples: the first-order column
+    ``dy/dt`` is then one spike per step and reads a 30 ms lateness as 3 ms, or a 25 ms
+    one as 12 +- 7 ms while A is 4.5 standard errors off. The profile moves
     the whole output by each lead and refits the values to first order; its lead is
     clear by the same rule (:attr:`TimingCheck.clear`) and by its fall in the residual
     (:data:`TIMING_Z` squared noise variances). None: not clear that way either.
@@ -377,8 +380,7 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     t = _row_times(match)
     starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
     y = match.data.y
-    # a lag on its floor: the response jumps, and a late drive moves it by whole samples
-    grid = _shift_grid(match, t) if floored else None
+    grid = _shift_grid(match, t, both=not floored)
     profile = _ShiftProfile.start(match, t, grid, k) if grid is not None else None
     gram = np.zeros((k + 2, k + 2))
     with np.errstate(all="ignore"):
