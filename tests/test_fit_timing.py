@@ -16,10 +16,10 @@ from balancer_id.simulation.synth import SensorSettings, synthetic_recordings
 TRUTH = {"m_a": 15.0, "T_a": 0.3, "D0": 60.0, "A": 0.05}
 
 
-def _log(tmp_path, delay_s: float) -> str:
+def _log(tmp_path, delay_s: float, truth: dict[str, float] = TRUTH) -> str:
     recs = synthetic_recordings(
         resolve_model("variable_viscosity"),
-        TRUTH,
+        truth,
         [8.0, -8.0, 16.0, -16.0],
         sensor=SensorSettings(rate_hz=200.0),
         duration_s=4.0,
@@ -32,7 +32,7 @@ def _log(tmp_path, delay_s: float) -> str:
             f = np.interp(t - delay_s, t, np.asarray(rec.force, dtype=float))
             late.append(dataclasses.replace(rec, force=f))
         recs = late
-    path = tmp_path / f"late_{delay_s * 1e3:.0f}ms.csv"
+    path = tmp_path / f"late_{delay_s * 1e3:.0f}ms_{truth['T_a'] * 1e3:.0f}.csv"
     write_log(path, recs, "pasco-capstone")
     return str(path)
 
@@ -49,6 +49,31 @@ def test_late_force_channel_is_measured_and_untrusts_what_it_moves(tmp_path) -> 
     t_a = out["parameters"]["T_a"]
     assert t_a["trusted"] is False
     assert any("timing" in why for why in t_a["untrusted_because"])
+
+
+def test_late_force_channel_with_lag_on_its_floor_is_not_read_as_no_lag(tmp_path) -> None:
+    # issue 31: a force channel 30 ms late on a balancer whose own lag is 30 ms: the fit
+    # put T_a on the samples' floor ("T_a < 5 ms, no drive lag seen"), m_a 6 standard
+    # errors high, all trusted; the first-order timing column (one spike per step) read
+    # the lateness as 3 +- 1.5 ms. Measured whole (the output moved by whole leads) the
+    # acceleration clearly leads the force, and no value bends unseen.
+    out = fit(_log(tmp_path, 0.030, {**TRUTH, "T_a": 0.03})).to_dict()
+    lead, se = out["metrics"]["timing_lead_s"], out["metrics"]["timing_lead_stderr_s"]
+    assert lead > 3 * se and lead > 0.005
+    assert out["trusted"] is False
+    assert any(n["code"] == "fit.timing" and n["severity"] == "error" for n in out["notes"])
+    assert not any(n["code"] == "fit.below_resolution" for n in out["notes"])
+    for name in ("m_a", "T_a"):
+        assert out["parameters"][name]["trusted"] is False, name
+
+
+def test_lag_below_the_samples_on_time_stays_a_bound(tmp_path) -> None:
+    # the same balancer with a lag of 1 ms and the force on time: T_a on its floor is a
+    # bound (below resolution), the whole-shift search finds no lead, every value trusted
+    out = fit(_log(tmp_path, 0.0, {**TRUTH, "T_a": 0.001})).to_dict()
+    assert out["trusted"] is True
+    assert any(n["code"] == "fit.below_resolution" for n in out["notes"])
+    assert not any(n["code"] == "fit.timing" for n in out["notes"])
 
 
 def test_on_time_log_keeps_every_value_trusted(tmp_path) -> None:
@@ -151,5 +176,73 @@ def test_steps_sharing_their_place_between_samples_widen_the_values(tmp_path) ->
     # the truth (without the spread: "11 +- 1 ms late", every value untrusted)
     assert out["trusted"] is True
     for name, value in truth.items():
+        lo, hi = out["parameters"][name]["ci95"]
+        assert lo <= value <= hi, name
+
+
+def _updown_log(tmp_path, delay_s: float) -> str:
+    """Up-then-down moves without rest at 50 Hz, the paper's viscosity falling with the
+    thrust (A |u| about 1.2): the acceleration jumps where the thrust returns to zero
+    while the balancer moves (bench_universe seed 13350865005, scaled to 1 kg)."""
+    from balancer_id.read.recording import Recording
+    from balancer_id.simulation.engine import TrialInput, simulate_many
+    from balancer_id.simulation.inputs import Thrust
+
+    rate, hold = 50.0, 4.33
+    times, levels = [1.4], []
+    for u in (0.97, 1.10, 1.16):
+        for level, span in ((u, hold / 2), (-u, hold / 2), (0.0, hold)):
+            levels.append(level)
+            times.append(times[-1] + span)
+    t = np.arange(round(times[-1] * rate) + 1) / rate
+    drive = Thrust(np.array(times[:-1]), np.array(levels))
+    sim = simulate_many(
+        resolve_model("variable_viscosity"), UPDOWN_TRUTH, [TrialInput(t, drive)], substeps=32
+    )[0]
+    rng = np.random.default_rng(1)
+    accel = np.zeros((t.size, 3))
+    accel[:, 2] = sim.accel + 9.80665
+    accel += rng.normal(0.0, 0.0084, accel.shape)
+    force = np.asarray(sim.operating_force, dtype=float)
+    if delay_s:
+        force = np.interp(t - delay_s, t, force, left=force[0])
+    force = force + rng.normal(0.0, 0.019, t.size)
+    rec = Recording(
+        name="Run #1",
+        time=t,
+        force=force,
+        accel=accel,
+        accel_includes_gravity=True,
+        accel_axes=("x", "y", "z"),
+        sample_rate_hz=rate,
+    )
+    path = tmp_path / f"updown_{delay_s * 1e3:.0f}ms.csv"
+    write_log(path, [rec], "pasco-capstone")
+    return str(path)
+
+
+UPDOWN_TRUTH = {"m_a": 1.0, "T_a": 1.05, "D0": 5.6, "A": 1.14}
+
+
+def test_late_force_on_a_jumping_response_is_measured_whole(tmp_path) -> None:
+    # issue 31: a force channel 25 ms late, 50 Hz, the response jumping at each return to
+    # zero thrust: the first-order test read 12 +- 7 ms (not clear) and A came out 4.5
+    # standard errors low, trusted. The whole-shift profile (the output moved by each
+    # lead, the values refitted to first order) calls it, and A is no longer trusted.
+    out = fit(_updown_log(tmp_path, 0.025)).to_dict()
+    lead, se = out["metrics"]["timing_lead_s"], out["metrics"]["timing_lead_stderr_s"]
+    assert lead > 3 * se and lead > 0.01
+    assert out["trusted"] is False
+    assert any(n["code"] == "fit.timing" and n["severity"] == "error" for n in out["notes"])
+    assert out["parameters"]["A"]["trusted"] is False
+
+
+def test_on_time_jumping_response_keeps_its_trust(tmp_path) -> None:
+    # the same log on time: no lead called, every interval holds the truth (within the
+    # 95 % interval at this seed; the noise is the only error left)
+    out = fit(_updown_log(tmp_path, 0.0)).to_dict()
+    assert not any(n["code"] == "fit.timing" for n in out["notes"])
+    assert out["trusted"] is True
+    for name, value in UPDOWN_TRUTH.items():
         lo, hi = out["parameters"][name]["ci95"]
         assert lo <= value <= hi, name

@@ -225,3 +225,20 @@ def test_credible_interval_is_one_sided_only_where_the_posterior_piles_at_a_boun
     assert cred["D0"][0] == 0.0 and cred["D0"][1] == pytest.approx(0.57, abs=0.02)
     assert cred["m_a"][0] == pytest.approx(np.percentile(m_a, 2.5))
     assert cred["m_a"][1] == pytest.approx(np.percentile(m_a, 97.5))
+
+
+def test_the_chain_is_measured_in_steps_and_the_clock_only_stops_it_named(near_bound):
+    # a seed gives the same samples whatever the machine's speed: the chain's length is in
+    # steps and autocorrelation times; the wall clock is a safety net that, when it stops
+    # a chain, says so and never passes for a converged answer
+    _, result = near_bound
+    short = {"min_steps": 60, "max_steps": 400, "n_walkers": 8, "seed": 4}
+    a = sample_posterior(result.match, **short)
+    b = sample_posterior(result.match, **short, max_seconds=None)
+    assert np.array_equal(a.samples, b.samples) and a.n_steps == b.n_steps > 60
+    cut = sample_posterior(result.match, **short, max_seconds=0.0)
+    assert cut.stopped_by_time and not cut.converged and cut.n_steps == 60
+    assert cut.to_dict()["stopped_by_time"] is True and not a.stopped_by_time
+    said = [n.text for n in cut.notes if n.code == "fit.posterior_not_converged"]
+    assert said and "stopped by time" in said[0]
+    assert "stopped by time" in cut.diagnostics_text()

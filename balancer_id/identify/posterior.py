@@ -22,7 +22,8 @@ pin each parameter within its support, falling as Jeffreys' does only beyond
 (:func:`_log_reference`). emcee's ensemble sampler draws from it, started
 around the optimum, moved by differential evolution (a positive parameter as its logarithm);
 the chain runs until it is 50
-autocorrelation times long (or its budget is spent), the first two autocorrelation times
+autocorrelation times long or 5000 steps (counted in steps, so a seed gives the same
+answer on any machine; a wall clock only as a named safety net), the first two autocorrelation times
 are dropped and the rest thinned by half of one. Credible intervals are the 2.5 and 97.5 %
 quantiles, or, where the posterior piles against a bound, from the bound to the 95 %
 quantile.
@@ -48,6 +49,10 @@ __all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
 
 #: A chain this many autocorrelation times long gives stable quantiles (emcee's advice).
 CHAIN_TAUS = 50
+#: The wall-clock safety net of :func:`sample_posterior` (s): chains are measured in
+#: steps, so a seed gives the same answer on any machine; this only stops a sampler that
+#: would run for hours (a shift-long session), and the result then says so.
+SAFETY_SECONDS = 1800.0
 #: A credible end this far (a share of the Wald width) from the Wald end disagrees.
 DISAGREE_SHARE = 0.25
 #: The posterior piles against a bound (its credible interval is one-sided) when its
@@ -169,6 +174,9 @@ class Posterior:
     modes : list of dict
         The valleys sampled (the fit's optimum first, then its other optima that fit
         about alike): each one's ``values`` and ``weight`` (its share of the samples).
+    stopped_by_time : bool
+        A chain was cut short by the wall-clock safety net (:data:`SAFETY_SECONDS`): not
+        converged, whatever its length says.
     """
 
     names: list[str]
@@ -187,11 +195,15 @@ class Posterior:
     notes: list[Note] = field(default_factory=list)
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     modes: list[dict[str, object]] = field(default_factory=list)
+    stopped_by_time: bool = False
 
     @property
     def converged(self) -> bool:
-        """Whether the chain is :data:`CHAIN_TAUS` autocorrelation times long and the
-        acceptance fraction is in :data:`ACCEPTANCE_RANGE`."""
+        """Whether the chain is :data:`CHAIN_TAUS` autocorrelation times long, the
+        acceptance fraction is in :data:`ACCEPTANCE_RANGE` and no chain was stopped by
+        the wall-clock safety net."""
+        if self.stopped_by_time:
+            return False
         longest = max(self.tau.values(), default=0.0)
         ok_len = np.isfinite(longest) and self.n_steps >= CHAIN_TAUS * longest
         return bool(ok_len and ACCEPTANCE_RANGE[0] <= self.acceptance <= ACCEPTANCE_RANGE[1])
@@ -246,7 +258,11 @@ class Posterior:
             f"({self.samples.shape[0]} samples kept after {self.burn} burn-in, thinned by "
             f"{self.thin}); autocorrelation time {longest:.0f} steps ({ratio:.0f} of them "
             f"run, {CHAIN_TAUS} wanted); acceptance {self.acceptance:.2f}: "
-            + ("converged" if self.converged else "NOT converged")
+            + (
+                "converged"
+                if self.converged
+                else "NOT converged" + (": stopped by time" if self.stopped_by_time else "")
+            )
         )
 
     def lines(self) -> list[str]:
@@ -291,6 +307,7 @@ class Posterior:
             "thin": self.thin,
             "n_samples": int(self.samples.shape[0]),
             "converged": self.converged,
+            "stopped_by_time": self.stopped_by_time,
             "priors": [p.to_dict() for p in self.priors],
             "seed": self.seed,
             "modes": [dict(m) for m in self.modes],
@@ -386,23 +403,40 @@ def _log_posterior_fn(
     ref_logged = logged[ref_at]
     sigma = math.sqrt(s_min / max(n - k, 1) * tau)
 
-    def log_p(theta: np.ndarray) -> float:
-        if not (np.all(theta > lo) and np.all(theta < hi)):
-            return -np.inf
+    runner = packed.sens_runner(model, ref_cols) if ref_cols else None
+    n_ref = len(ref_cols)
+
+    def log_p(thetas: np.ndarray) -> np.ndarray:
+        """The log posterior of each row of ``thetas`` (``m x k``; -inf outside the
+        support): one simulation per row, the reference prior for all rows at once."""
+        thetas = np.atleast_2d(thetas)
+        m = thetas.shape[0]
+        out = np.full(m, -np.inf)
+        inside = np.flatnonzero(np.all(thetas > lo, axis=1) & np.all(thetas < hi, axis=1))
+        cost = np.full(m, np.inf)
+        info = np.zeros((m, n_ref, n_ref))
         p = base.copy()
-        p[idx] = theta
         with np.errstate(all="ignore"):
-            if ref_cols:
-                out, sens = packed.run_sens(model, p, ref_cols)
-                r = out[:, 0] - y
-                ref = _log_reference(sens, theta[ref_at], ref_logged, width, sigma)
-            else:
-                r = packed.run(model, p)[:, 0] - y
-                ref = 0.0
-            s = float(np.einsum("i,i", r, r))
-        if not (math.isfinite(s) and math.isfinite(ref)):
-            return -np.inf
-        return -s * scale + ref + sum(pr.log_density(float(theta[j])) for j, pr in prior_at)
+            for i in inside:
+                p[idx] = thetas[i]
+                if runner is not None:
+                    sim, sens = runner(p)
+                    info[i] = sens.T @ sens
+                else:
+                    sim = packed.run(model, p)
+                r = sim[:, 0] - y
+                cost[i] = float(r @ r)
+            ref = (
+                _log_reference_info(info, thetas[:, ref_at], ref_logged, width, sigma)
+                if ref_cols
+                else np.zeros(m)
+            )
+            for j, pr in prior_at:
+                ref = ref - 0.5 * ((thetas[:, j] - pr.mu) / pr.sd) ** 2
+            lp = -cost * scale + ref
+        good = inside[np.isfinite(lp[inside])]
+        out[good] = lp[good]
+        return out
 
     return log_p, lo, hi
 
@@ -430,19 +464,34 @@ def _log_reference(
     (DECISIONS.md)."""
     if not np.all(np.isfinite(sens)):
         return -math.inf
-    info = sens.T @ sens
-    d = np.sqrt(np.diag(info))
-    if not np.all(np.isfinite(info)) or np.any(d <= 0):
-        return -math.inf
+    with np.errstate(all="ignore"):
+        info = sens.T @ sens
+    return float(_log_reference_info(info[None], theta[None], logged, width, sigma)[0])
+
+
+def _log_reference_info(
+    info: np.ndarray, theta: np.ndarray, logged: np.ndarray, width: np.ndarray, sigma: float
+) -> np.ndarray:
+    """:func:`_log_reference` of many points from their information ``S^T S``
+    (``m x k x k``) and values ``theta`` (``m x k``); -inf where the information is not
+    finite or a parameter moves nothing."""
+    m = info.shape[0]
+    out = np.full(m, -np.inf)
+    d = np.sqrt(np.abs(np.diagonal(info, axis1=1, axis2=2)))
+    ok = np.all(np.isfinite(info), axis=(1, 2)) & np.all(d > 0, axis=1)
+    if not np.any(ok):
+        return out
+    d_ok = d[ok]
     try:
-        eig = np.linalg.eigvalsh(info / np.outer(d, d))
+        eig = np.linalg.eigvalsh(info[ok] / (d_ok[:, :, None] * d_ok[:, None, :]))
     except np.linalg.LinAlgError:
-        return -math.inf
-    shape = 0.5 * float(np.sum(np.log(np.maximum(eig, JEFFREYS_FLOOR))))
-    s_u = d * np.where(logged, np.abs(theta), 1.0)
+        return out
+    shape = 0.5 * np.sum(np.log(np.maximum(eig, JEFFREYS_FLOOR)), axis=1)
+    s_u = d_ok * np.where(logged, np.abs(theta[ok]), 1.0)
     with np.errstate(divide="ignore"):
         told = np.log(s_u * width / sigma)
-    return shape + float(np.sum(np.minimum(told, 0.0)))
+    out[ok] = shape + np.sum(np.minimum(told, 0.0), axis=1)
+    return out
 
 
 def _start_ensemble(
@@ -480,7 +529,7 @@ def sample_posterior(
     n_walkers: int | None = None,
     max_steps: int = 5000,
     min_steps: int = 300,
-    max_seconds: float = 300.0,
+    max_seconds: float | None = SAFETY_SECONDS,
     seed: int = 0,
 ) -> Posterior:
     """Sample the posterior of ``match``'s free parameters with emcee.
@@ -494,12 +543,16 @@ def sample_posterior(
     n_walkers : int, optional
         Ensemble size (default ``max(16, 4 k)``, even).
     max_steps : int
-        Steps at most (each ``n_walkers`` simulations).
+        Steps at most per valley (each ``n_walkers`` simulations): the chain stops at
+        :data:`CHAIN_TAUS` autocorrelation times or there, so a seed gives the same
+        samples on any machine and under any load.
     min_steps : int
         Steps at least, before the chain's length is judged.
-    max_seconds : float
-        The chain is not extended past ``min_steps`` once this much time is spent (a
-        shift-long session simulates for long; the note then says it is short).
+    max_seconds : float or None
+        A safety net only: no chain is extended (past ``min_steps``) once this much time
+        is spent over all valleys (a shift-long session simulates for long). When it
+        stops a chain, the posterior is not converged and says so ("stopped by time");
+        None: no limit.
     seed : int
         The sampler's seed.
 
@@ -540,32 +593,38 @@ def sample_posterior(
     log_p, lo, hi = _log_posterior_fn(match, names, priors, modes, logged)
     given = logged & np.array([n in {p.name for p in priors} for n in names], bool)
 
+    def log_pus(us: np.ndarray) -> np.ndarray:
+        """The log posterior in the sampler's coordinates, each row of ``us``."""
+        us = np.atleast_2d(us)
+        return log_p(_from_log(us, logged)) + np.sum(us[:, given], axis=1)
+
     def log_pu(u: np.ndarray) -> float:
-        theta = _from_log(u, logged)
-        lp = log_p(theta)
-        return lp + float(np.sum(u[given])) if np.isfinite(lp) else -np.inf
+        return float(log_pus(u)[0])
 
     u_centres = np.where(logged, np.log(np.maximum(centres, 1e-300)), centres)
     # an optimum whose posterior density is far below the best's holds no share (the
     # ridge's corners, where the prior vanishes): not sampled (its chain accepted nothing)
-    at = np.array([log_pu(u) for u in u_centres])
+    at = log_pus(u_centres)
     keep = np.isfinite(at) & (at >= np.max(at, initial=-np.inf) - MODE_DROP)
     keep[0] = True  # the fit's own optimum is always shown
     centres, u_centres = centres[keep], u_centres[keep]
     nearest = region_of(u_centres)
-    began = time.monotonic()
+    deadline = None if max_seconds is None else time.monotonic() + max_seconds
     runs = []
     for j, c in enumerate(centres):
         # each valley on its own: the posterior restricted to the points nearest it
-        def log_pk(u: np.ndarray, j: int = j) -> float:
-            if len(centres) > 1 and int(nearest(u)[0]) != j:
-                return -np.inf
-            return log_pu(u)
+        def log_pk(us: np.ndarray, j: int = j) -> np.ndarray:
+            if len(centres) == 1:
+                return log_pus(us)
+            out = np.full(len(us), -np.inf)
+            mine = nearest(us) == j
+            if np.any(mine):
+                out[mine] = log_pus(us[mine])
+            return out
 
         start = _start_ensemble(c, cov[1] if cov else None, lo, hi, walkers, rng)
         start = np.where(logged, np.log(np.maximum(start, 1e-300)), start)
-        budget = (max_seconds - (time.monotonic() - began)) / (len(centres) - j)
-        runs.append(_run_chain(log_pk, start, rng, min_steps, max_steps, budget))
+        runs.append(_run_chain(log_pk, start, rng, min_steps, max_steps, deadline))
     weights = bridge_weights([r.chain for r in runs], log_pu, nearest, rng)
     # the valleys' samples in proportion to their weights, none drawn twice
     total = min(len(r.chain) / w for r, w in zip(runs, weights, strict=True) if w > 0)
@@ -582,6 +641,7 @@ def sample_posterior(
         weighty, key=lambda r: r.steps / _longest(r.tau) if np.any(np.isfinite(r.tau)) else 0
     )
     tau, steps, burn, thin = worst.tau, worst.steps, worst.burn, worst.thin
+    timed_out = any(r.timed_out for r in weighty)
     post = Posterior(
         names=names,
         samples=np.asarray(samples, float),
@@ -607,6 +667,7 @@ def sample_posterior(
             {"values": dict(zip(names, map(float, c), strict=True)), "weight": float(w)}
             for c, w in zip(centres, weights, strict=True)
         ],
+        stopped_by_time=timed_out,
     )
     post.notes.extend(posterior_notes(post))
     return post
@@ -622,31 +683,35 @@ class _Chain:
     steps: int
     burn: int
     thin: int
+    timed_out: bool = False
 
 
-def _run_chain(log_pu, start: np.ndarray, rng, min_steps: int, max_steps: int, seconds: float):
+def _run_chain(
+    log_pus, start: np.ndarray, rng, min_steps: int, max_steps: int, deadline: float | None
+) -> _Chain:
     """An emcee ensemble from ``start`` until :data:`CHAIN_TAUS` autocorrelation times
-    long, ``max_steps`` or ``seconds`` (past ``min_steps``)."""
+    long or ``max_steps``; past ``min_steps`` it is not extended after ``deadline`` (a
+    :func:`time.monotonic` time; the chain then says it ``timed_out``). ``log_pus``
+    takes all the walkers that move at once (``m x k``)."""
     import emcee
 
     walkers, k = start.shape
     # differential-evolution moves: about 2.5x shorter autocorrelation than the stretch
     # move on these fits (15 steps against 40, paper balancer, 16 walkers)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    sampler = emcee.EnsembleSampler(walkers, k, log_pu, moves=moves)
+    sampler = emcee.EnsembleSampler(walkers, k, log_pus, moves=moves, vectorize=True)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
-    began = time.monotonic()
+    timed_out = False
     # a walker started where the prior vanishes has -inf, and inf - inf is no number: such
     # a proposal is rejected (as it should be), without numpy's warning
     with np.errstate(invalid="ignore"):
         state = sampler.run_mcmc(start, min_steps, progress=False, skip_initial_state_check=True)
         steps = min_steps
         tau = _autocorr(sampler)
-        while (
-            steps < max_steps
-            and steps < CHAIN_TAUS * _longest(tau)
-            and time.monotonic() - began < seconds
-        ):
+        while steps < max_steps and steps < CHAIN_TAUS * _longest(tau):
+            if deadline is not None and time.monotonic() > deadline:
+                timed_out = True
+                break
             more = int(min(max_steps - steps, max(200, CHAIN_TAUS * _longest(tau) - steps)))
             state = sampler.run_mcmc(state, more, progress=False)
             steps += more
@@ -661,6 +726,7 @@ def _run_chain(log_pu, start: np.ndarray, rng, min_steps: int, max_steps: int, s
         steps,
         burn,
         thin,
+        timed_out,
     )
 
 
@@ -739,7 +805,22 @@ def posterior_notes(post: Posterior) -> list[Note]:
     """
     notes = []
     longest = max(post.tau.values(), default=float("nan"))
-    if not post.converged:
+    if post.stopped_by_time:
+        notes.append(
+            Note(
+                "fit.posterior_not_converged",
+                "the posterior is not converged: stopped by time (the wall clock's safety "
+                f"limit) after {post.n_steps} steps"
+                + (
+                    f", {post.n_steps / longest:.0f} autocorrelation times of {longest:.0f} "
+                    f"steps where {CHAIN_TAUS} are wanted"
+                    if math.isfinite(longest) and longest > 0
+                    else ""
+                )
+                + ": read its intervals as rough",
+            )
+        )
+    elif not post.converged:
         notes.append(
             Note(
                 "fit.posterior_not_converged",

@@ -25,11 +25,12 @@ longer trusted: its interval does not account for the shift. The others keep the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.starts import lag_floor
 from balancer_id.notes import Note
 
 #: The shift must be this many standard errors from zero to be called (a sensor low-pass of
@@ -76,6 +77,13 @@ class TimingCheck:
     phase_se: dict[str, float] = field(default_factory=dict)
     noise_se_s: float = 0.0
     half_sample_s: float = 0.0
+    #: Drive lags on their floor (:func:`lags_at_floor`) when the drive is clearly late:
+    #: each fitted value bends with the lateness read as "no lag".
+    floored: tuple[str, ...] = ()
+    #: The lead a drive lag on its floor accounts for (s): the model cannot lag less
+    #: than its floor, so a balancer with less lag leads the model by up to the lag's
+    #: value. A lead is clear only beyond it (0: no lag on its floor).
+    floor_lead_s: float = 0.0
 
     @property
     def z(self) -> float:
@@ -97,6 +105,10 @@ class TimingCheck:
         """
         if not np.isfinite(self.z):
             return False
+        if self.floor_lead_s > 0 and self.lead_s > 0:
+            se = self.noise_se_s if self.noise_se_s > 0 else self.stderr_s
+            beyond = self.half_sample_s + self.floor_lead_s + TIMING_Z * se
+            return bool(self.lead_s >= beyond)
         if abs(self.z) >= TIMING_Z:
             return True
         if self.half_sample_s > 0 and self.noise_se_s > 0:
@@ -176,6 +188,172 @@ def sampling_variance(match: MatchResult) -> float:
     return float(np.median(spreads)) if spreads else 0.0
 
 
+def lags_at_floor(match: MatchResult) -> tuple[str, ...]:
+    """The fitted drive lags held on their lower bound (the samples' floor, or 0).
+
+    A lag on its floor cannot shorten further, so it cannot absorb a drive that is late
+    against the acceleration: the fit reads such a drive as "no lag seen" (a first-order
+    lag and a delay move a slow response alike, so a free lag column would take the
+    lead's place in :func:`timing_check` and hide it). These lags are held in the
+    regression; a clear lead then also takes their trust, since the lag the log shows
+    is the lead's remainder, not the floor.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A converged fit.
+
+    Returns
+    -------
+    tuple of str
+        Names of the drive lags at their minimum bound or below two floors.
+    """
+    floor = lag_floor(match.data.trials)
+    out = []
+    for name in match.model.drive_lag_names:
+        est = match.parameters.get(name)
+        if est is None or not est.vary:
+            continue
+        if est.at_bound == "min" or (floor > 0 and est.value < 2 * floor):
+            out.append(name)
+    return tuple(out)
+
+
+#: The longest lead or lag of the acceleration on its drive the whole-shift profile tries (s).
+SHIFT_MAX_S = 0.25
+
+#: At most this many leads on the whole-shift profile's grid (its step is half a sample,
+#: or coarser so that the grid holds no more).
+SHIFT_GRID = 100
+
+#: The whole-shift profile holds the shifted outputs at once up to this many values.
+SHIFT_CELLS = 4_000_000
+
+
+def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
+    """The model's output were the drive ``lead`` seconds earlier (negative: later):
+    each trial's output moved in time by ``lead`` (a time-invariant model from rest; its
+    first and last values held)."""
+    y_model = np.asarray(match.y_model, dtype=float)
+    out = np.empty_like(y_model)
+    for sl in match.data.slices():
+        tt = t[sl]
+        out[sl] = np.interp(tt + lead, tt, y_model[sl]) if tt.size > 1 else y_model[sl]
+    return out
+
+
+def _shift_grid(match: MatchResult, t: np.ndarray, both: bool = False) -> np.ndarray | None:
+    """The leads the whole-shift profile tries (s, zero left out): positive only (the
+    acceleration before its drive) where a lag sits on its floor, which cannot take a
+    lag's place; both signs (``both``) otherwise. None: no usable sample interval, or
+    the shifted outputs would not fit :data:`SHIFT_CELLS`."""
+    if t.size < 4 or t.size != match.y.size:
+        return None
+    dt = float(np.median(np.diff(t)))
+    if not (np.isfinite(dt) and dt > 0):
+        return None
+    step = max(dt / 2, 2 * SHIFT_MAX_S / SHIFT_GRID)
+    half = np.arange(step, SHIFT_MAX_S + step / 2, step)
+    grid = np.concatenate([-half[::-1], half]) if both else half
+    while grid.size * t.size > SHIFT_CELLS and grid.size > 8:
+        grid = grid[::2]
+    return grid if grid.size * t.size <= SHIFT_CELLS else None
+
+
+@dataclass
+class _ShiftProfile:
+    """The residual's sums against each whole shift of the output (:func:`timing_check`
+    accumulates them block by block): ``sum(D^2)``, ``r . D`` and ``J^T D`` per lead."""
+
+    grid: np.ndarray
+    deltas: np.ndarray  # (leads, rows): the output moved by each lead, less the output
+    dd: np.ndarray
+    rd: np.ndarray
+    jd: np.ndarray
+
+    @classmethod
+    def start(cls, match: MatchResult, t: np.ndarray, grid: np.ndarray, k: int) -> _ShiftProfile:
+        y_model = np.asarray(match.y_model, dtype=float)
+        deltas = np.stack([_shifted(match, t, float(d)) - y_model for d in grid])
+        g = grid.size
+        return cls(grid, deltas, np.zeros(g), np.zeros(g), np.zeros((k, g)))
+
+    def add(self, first: int, stop: int, r: np.ndarray, sens: np.ndarray) -> None:
+        block = self.deltas[:, first:stop]
+        self.dd += np.einsum("gi,gi->g", block, block)
+        self.rd += block @ r
+        self.jd += sens.T @ block.T
+
+    def lead(
+        self, jtj: np.ndarray, jr: np.ndarray, rtr: float, dof: int, tau: float, dt: float
+    ) -> tuple[float, float, float, np.ndarray] | None:
+        """The profile's best lead, its standard error (its 1-sigma interval's half
+        width), the fall of the residual's sum of squares there in noise variances, and
+        each value's move were that shift modelled; None when no lead lowers it."""
+        k = jtj.shape[0]
+        try:
+            inv = np.linalg.inv(jtj) if k else np.zeros((0, 0))
+        except np.linalg.LinAlgError:
+            return None
+        # r - D regressed on J: what is left of the residual with each shift modelled
+        jrd = jr[:, None] - self.jd
+        rss = rtr - 2 * self.rd + self.dd - np.einsum("kg,kl,lg->g", jrd, inv, jrd)
+        rss0 = float(rtr - jr @ inv @ jr)
+        leads = np.concatenate([[0.0], self.grid])
+        costs = np.concatenate([[rss0], rss])
+        order = np.argsort(leads)
+        leads, costs = leads[order], costs[order]
+        i = int(np.argmin(costs))
+        if leads[i] == 0.0 or not np.isfinite(costs[i]):
+            return None
+        s2 = max(float(costs[i]), 0.0) / max(dof, 1) * tau
+        if not s2 > 0:
+            return None
+        inside = leads[costs <= costs[i] + s2]  # the 1-sigma profile interval
+        step = float(np.median(np.diff(leads))) if leads.size > 1 else dt
+        se = max(float(inside.max() - inside.min()) / 2.0, max(step, dt) / (2 * np.sqrt(3.0)))
+        g = int(np.flatnonzero(self.grid == leads[i])[0])
+        move = -(inv @ self.jd[:, g]) if k else np.zeros(0)
+        return float(leads[i]), se, (rss0 - float(costs[i])) / s2, move
+
+
+def _whole_shift(
+    profile: _ShiftProfile,
+    gram: np.ndarray,
+    k: int,
+    n: int,
+    match: MatchResult,
+    t: np.ndarray,
+    first_order: TimingCheck,
+) -> TimingCheck | None:
+    """The check from the whole-shift profile where the first-order one is not clear.
+
+    A response that jumps (a drive lag on its floor; the paper's viscosity changing with
+    the thrust while the balancer moves) moves by whole samples: the first-order column
+    ``dy/dt`` is then one spike per step and reads a 30 ms lateness as 3 ms, or a 25 ms
+    one as 12 +- 7 ms while A is 4.5 standard errors off. The profile moves
+    the whole output by each lead and refits the values to first order; its lead is
+    clear by the same rule (:attr:`TimingCheck.clear`) and by its fall in the residual
+    (:data:`TIMING_Z` squared noise variances). None: not clear that way either.
+    """
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    best = profile.lead(gram[:k, :k], gram[:k, k + 1], float(gram[k + 1, k + 1]), n - k, tau, dt)
+    if best is None:
+        return None
+    lead, se, fall, move = best
+    whole = replace(
+        first_order,
+        lead_s=lead,
+        stderr_s=float(np.hypot(se, first_order.half_sample_s / np.sqrt(3.0))),
+        noise_se_s=se,
+    )
+    if not (whole.clear and fall >= TIMING_Z**2):
+        return None
+    names = [n_ for n_ in first_order.shift]
+    return replace(whole, shift={name: float(move[j]) for j, name in enumerate(names)})
+
+
 def timing_check(match: MatchResult) -> TimingCheck | None:
     """Regress the fit's residual on its sensitivities and on ``dy_model/dt``.
 
@@ -190,15 +368,20 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         None when nothing was fitted, too few samples, or the design is singular.
     """
     model = match.model
-    names = [p.name for p in model.params if match.parameters[p.name].vary]
+    floored = lags_at_floor(match)
+    names = [
+        p.name for p in model.params if match.parameters[p.name].vary and p.name not in floored
+    ]
     free = [model.param_names.index(n) for n in names]
     n, k = int(match.y.size), len(free)
-    if k == 0 or n <= k + 2:
+    if (k == 0 and not floored) or n <= k + 2:
         return None
     pvec = np.array([match.parameters[p.name].value for p in model.params], dtype=float)
     t = _row_times(match)
     starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
     y = match.data.y
+    grid = _shift_grid(match, t, both=not floored)
+    profile = _ShiftProfile.start(match, t, grid, k) if grid is not None else None
     gram = np.zeros((k + 2, k + 2))
     with np.errstate(all="ignore"):
         blocks = match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS)
@@ -211,6 +394,8 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
             if not np.isfinite(x).all():
                 return None
             gram += x.T @ x
+            if profile is not None:
+                profile.add(first, stop, r, sens)
     xtx, xtr, rtr = gram[: k + 1, : k + 1], gram[: k + 1, k + 1], gram[k + 1, k + 1]
     try:
         inv = np.linalg.inv(xtx)
@@ -241,8 +426,15 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     check = TimingCheck(
         float(coef[k]), float(np.sqrt(var_d)), shift, (), phase_se, noise_se, half
     )
+    if floored:
+        check = replace(check, floor_lead_s=max(match.parameters[n].value for n in floored))
+    if profile is not None and not check.clear:
+        whole = _whole_shift(profile, gram, k, n, match, t, check)
+        if whole is not None:
+            check = whole
     if not check.clear:
         return check
+    shift = check.shift
     moved = tuple(
         name
         for name in names
@@ -250,7 +442,13 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         and np.isfinite(se)
         and abs(shift[name]) > SHIFT_SE * float(np.hypot(se, phase_se.get(name, 0.0)))
     )
-    return TimingCheck(check.lead_s, check.stderr_s, shift, moved, phase_se, noise_se, half)
+    if check.lead_s > 0 and floored:
+        # a lag on its floor reads the drive's lateness as "no lag": the lag and the
+        # lateness are then read together, and no value's interval holds either
+        moved = (*floored, *names)
+    else:
+        floored = ()
+    return replace(check, shift=shift, moved=moved, floored=floored)
 
 
 def timing_note(check: TimingCheck) -> Note:
@@ -281,6 +479,13 @@ def timing_note(check: TimingCheck) -> Note:
             "than the model does (a dead time, a sensor's low-pass, or an "
             "accelerometer time-stamped late)"
         )
+    if check.floored:
+        tail = (
+            f"; {', '.join(check.floored)} sits on its floor, so the fit read this lateness "
+            "as no lag and every fitted value bends with it: none is trusted; refit with "
+            "--force-delay, or run 'balancer-id diagnose' on the same logs"
+        )
+        return Note("fit.timing", what + tail, severity="error")
     if check.moved:
         tail = (
             f"; modelling it would move {', '.join(check.moved)} by more than their "
@@ -324,10 +529,32 @@ def check_timing(match: MatchResult) -> list[Note]:
     match.metrics["timing_lead_stderr_s"] = check.stderr_s
     if not check.clear:
         return []
+    floored = check.floored
+    if floored:
+        match.warnings = [
+            w
+            for w in match.warnings
+            if not (
+                isinstance(w, Note) and w.code == "fit.below_resolution" and w.subject in floored
+            )
+        ]
     for name in check.moved:
-        match.parameters[name].distrust.append(
-            f"modelling the drive's timing ({check.lead_s * 1e3:+.0f} ms) moves it by "
-            f"{abs(check.shift[name]) / (match.parameters[name].stderr or 1.0):.1f} "
-            "standard errors"
-        )
+        if name in floored:
+            why = (
+                f"the drive is {check.lead_s * 1e3:.0f} ms late against the acceleration: "
+                "this lag's floor is the lateness read as no lag, not a measured bound"
+            )
+        elif floored and check.lead_s > 0:
+            why = (
+                f"the drive is {check.lead_s * 1e3:.0f} ms late against the acceleration "
+                f"while {', '.join(floored)} sits on its floor: the lateness and the lag "
+                "are read together, and this value bends with them"
+            )
+        else:
+            why = (
+                f"modelling the drive's timing ({check.lead_s * 1e3:+.0f} ms) moves it by "
+                f"{abs(check.shift[name]) / (match.parameters[name].stderr or 1.0):.1f} "
+                "standard errors"
+            )
+        match.parameters[name].distrust.append(why)
     return [timing_note(check)]
