@@ -178,3 +178,71 @@ def test_steps_sharing_their_place_between_samples_widen_the_values(tmp_path) ->
     for name, value in truth.items():
         lo, hi = out["parameters"][name]["ci95"]
         assert lo <= value <= hi, name
+
+
+def _updown_log(tmp_path, delay_s: float) -> str:
+    """Up-then-down moves without rest at 50 Hz, the paper's viscosity falling with the
+    thrust (A |u| about 1.2): the acceleration jumps where the thrust returns to zero
+    while the balancer moves (bench_universe seed 13350865005, scaled to 1 kg)."""
+    from balancer_id.read.recording import Recording
+    from balancer_id.simulation.engine import TrialInput, simulate_many
+    from balancer_id.simulation.inputs import Thrust
+
+    rate, hold = 50.0, 4.33
+    times, levels = [1.4], []
+    for u in (0.97, 1.10, 1.16):
+        for level, span in ((u, hold / 2), (-u, hold / 2), (0.0, hold)):
+            levels.append(level)
+            times.append(times[-1] + span)
+    t = np.arange(round(times[-1] * rate) + 1) / rate
+    drive = Thrust(np.array(times[:-1]), np.array(levels))
+    sim = simulate_many(
+        resolve_model("variable_viscosity"), UPDOWN_TRUTH, [TrialInput(t, drive)], substeps=32
+    )[0]
+    rng = np.random.default_rng(1)
+    accel = np.zeros((t.size, 3))
+    accel[:, 2] = sim.accel + 9.80665
+    accel += rng.normal(0.0, 0.0084, accel.shape)
+    force = np.asarray(sim.operating_force, dtype=float)
+    if delay_s:
+        force = np.interp(t - delay_s, t, force, left=force[0])
+    force = force + rng.normal(0.0, 0.019, t.size)
+    rec = Recording(
+        name="Run #1",
+        time=t,
+        force=force,
+        accel=accel,
+        accel_includes_gravity=True,
+        accel_axes=("x", "y", "z"),
+        sample_rate_hz=rate,
+    )
+    path = tmp_path / f"updown_{delay_s * 1e3:.0f}ms.csv"
+    write_log(path, [rec], "pasco-capstone")
+    return str(path)
+
+
+UPDOWN_TRUTH = {"m_a": 1.0, "T_a": 1.05, "D0": 5.6, "A": 1.14}
+
+
+def test_late_force_on_a_jumping_response_is_measured_whole(tmp_path) -> None:
+    # issue 31: a force channel 25 ms late, 50 Hz, the response jumping at each return to
+    # zero thrust: the first-order test read 12 +- 7 ms (not clear) and A came out 4.5
+    # standard errors low, trusted. The whole-shift profile (the output moved by each
+    # lead, the values refitted to first order) calls it, and A is no longer trusted.
+    out = fit(_updown_log(tmp_path, 0.025)).to_dict()
+    lead, se = out["metrics"]["timing_lead_s"], out["metrics"]["timing_lead_stderr_s"]
+    assert lead > 3 * se and lead > 0.01
+    assert out["trusted"] is False
+    assert any(n["code"] == "fit.timing" and n["severity"] == "error" for n in out["notes"])
+    assert out["parameters"]["A"]["trusted"] is False
+
+
+def test_on_time_jumping_response_keeps_its_trust(tmp_path) -> None:
+    # the same log on time: no lead called, every interval holds the truth (within the
+    # 95 % interval at this seed; the noise is the only error left)
+    out = fit(_updown_log(tmp_path, 0.0)).to_dict()
+    assert not any(n["code"] == "fit.timing" for n in out["notes"])
+    assert out["trusted"] is True
+    for name, value in UPDOWN_TRUTH.items():
+        lo, hi = out["parameters"][name]["ci95"]
+        assert lo <= value <= hi, name

@@ -219,13 +219,21 @@ def lags_at_floor(match: MatchResult) -> tuple[str, ...]:
     return tuple(out)
 
 
-#: The longest lateness of the drive looked for where a lag sits on its floor (s).
-LATE_MAX_S = 0.25
+#: The longest lead or lag of the acceleration on its drive the whole-shift profile tries (s).
+SHIFT_MAX_S = 0.25
+
+#: At most this many leads on the whole-shift profile's grid (its step is half a sample,
+#: or coarser so that the grid holds no more).
+SHIFT_GRID = 100
+
+#: The whole-shift profile holds the shifted outputs at once up to this many values.
+SHIFT_CELLS = 4_000_000
 
 
 def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
-    """The model's output were the drive ``lead`` seconds earlier: each trial's output
-    moved earlier by ``lead`` (a time-invariant model from rest; its last value held)."""
+    """The model's output were the drive ``lead`` seconds earlier (negative: later):
+    each trial's output moved in time by ``lead`` (a time-invariant model from rest; its
+    first and last values held)."""
     y_model = np.asarray(match.y_model, dtype=float)
     out = np.empty_like(y_model)
     for sl in match.data.slices():
@@ -234,70 +242,116 @@ def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
     return out
 
 
-def _late_drive(
-    match: MatchResult, t: np.ndarray, dof: int
-) -> tuple[float, float, np.ndarray] | None:
-    """The drive's lateness where a lag sits on its floor, measured whole, not to first
-    order: the residual sum of squares of the model's output moved earlier by each lead
-    on a grid (up to :data:`LATE_MAX_S`), its minimum and the 1-sigma width of that dip.
-
-    A response that jumps (a lag on its floor) moves by whole samples: the first-order
-    column ``dy/dt`` of :func:`timing_check` is one spike per step and reads a 30 ms
-    lateness as 3 ms. Returns ``(lead, its standard error, output change)``; None when no
-    lead lowers the residual.
-    """
-    y = np.asarray(match.y, dtype=float)
-    if y.size < 4 or t.size != y.size:
+def _shift_grid(match: MatchResult, t: np.ndarray, both: bool = False) -> np.ndarray | None:
+    """The leads the whole-shift profile tries (s, zero left out): positive only (the
+    acceleration before its drive) where a lag sits on its floor, which cannot take a
+    lag's place; both signs (``both``) otherwise. None: no usable sample interval, or
+    the shifted outputs would not fit :data:`SHIFT_CELLS`."""
+    if t.size < 4 or t.size != match.y.size:
         return None
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    dt = float(np.median(np.diff(t)))
     if not (np.isfinite(dt) and dt > 0):
         return None
-    rss0 = float(np.sum((y - np.asarray(match.y_model, dtype=float)) ** 2))
-    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
-    coarse = np.arange(dt / 2, LATE_MAX_S + dt / 4, dt / 2)
-    cost = np.array([float(np.sum((y - _shifted(match, t, d)) ** 2)) for d in coarse])
-    best = int(np.argmin(cost))
-    if not (cost[best] < rss0):
-        return None
-    fine = np.linspace(max(coarse[best] - dt / 2, 0.0), coarse[best] + dt / 2, 9)
-    fine_cost = np.array([float(np.sum((y - _shifted(match, t, d)) ** 2)) for d in fine])
-    leads = np.concatenate([[0.0], coarse, fine])
-    costs = np.concatenate([[rss0], cost, fine_cost])
-    order = np.argsort(leads)
-    leads, costs = leads[order], costs[order]
-    i = int(np.argmin(costs))
-    s2 = costs[i] / max(dof, 1) * tau  # the noise once the lead is modelled
-    inside = leads[costs <= costs[i] + s2]  # the 1-sigma profile interval of the lead
-    se = max(float(inside.max() - inside.min()) / 2.0, dt / (2.0 * np.sqrt(3.0)))
-    lead = float(leads[i])
-    return lead, se, _shifted(match, t, lead) - np.asarray(match.y_model, dtype=float)
+    step = max(dt / 2, 2 * SHIFT_MAX_S / SHIFT_GRID)
+    half = np.arange(step, SHIFT_MAX_S + step / 2, step)
+    grid = np.concatenate([-half[::-1], half]) if both else half
+    while grid.size * t.size > SHIFT_CELLS and grid.size > 8:
+        grid = grid[::2]
+    return grid if grid.size * t.size <= SHIFT_CELLS else None
 
 
-def _whole_shift_check(
+@dataclass
+class _ShiftProfile:
+    """The residual's sums against each whole shift of the output (:func:`timing_check`
+    accumulates them block by block): ``sum(D^2)``, ``r . D`` and ``J^T D`` per lead."""
+
+    grid: np.ndarray
+    deltas: np.ndarray  # (leads, rows): the output moved by each lead, less the output
+    dd: np.ndarray
+    rd: np.ndarray
+    jd: np.ndarray
+
+    @classmethod
+    def start(cls, match: MatchResult, t: np.ndarray, grid: np.ndarray, k: int) -> _ShiftProfile:
+        y_model = np.asarray(match.y_model, dtype=float)
+        deltas = np.stack([_shifted(match, t, float(d)) - y_model for d in grid])
+        g = grid.size
+        return cls(grid, deltas, np.zeros(g), np.zeros(g), np.zeros((k, g)))
+
+    def add(self, first: int, stop: int, r: np.ndarray, sens: np.ndarray) -> None:
+        block = self.deltas[:, first:stop]
+        self.dd += np.einsum("gi,gi->g", block, block)
+        self.rd += block @ r
+        self.jd += sens.T @ block.T
+
+    def lead(
+        self, jtj: np.ndarray, jr: np.ndarray, rtr: float, dof: int, tau: float, dt: float
+    ) -> tuple[float, float, float, np.ndarray] | None:
+        """The profile's best lead, its standard error (its 1-sigma interval's half
+        width), the fall of the residual's sum of squares there in noise variances, and
+        each value's move were that shift modelled; None when no lead lowers it."""
+        k = jtj.shape[0]
+        try:
+            inv = np.linalg.inv(jtj) if k else np.zeros((0, 0))
+        except np.linalg.LinAlgError:
+            return None
+        # r - D regressed on J: what is left of the residual with each shift modelled
+        jrd = jr[:, None] - self.jd
+        rss = rtr - 2 * self.rd + self.dd - np.einsum("kg,kl,lg->g", jrd, inv, jrd)
+        rss0 = float(rtr - jr @ inv @ jr)
+        leads = np.concatenate([[0.0], self.grid])
+        costs = np.concatenate([[rss0], rss])
+        order = np.argsort(leads)
+        leads, costs = leads[order], costs[order]
+        i = int(np.argmin(costs))
+        if leads[i] == 0.0 or not np.isfinite(costs[i]):
+            return None
+        s2 = max(float(costs[i]), 0.0) / max(dof, 1) * tau
+        if not s2 > 0:
+            return None
+        inside = leads[costs <= costs[i] + s2]  # the 1-sigma profile interval
+        step = float(np.median(np.diff(leads))) if leads.size > 1 else dt
+        se = max(float(inside.max() - inside.min()) / 2.0, max(step, dt) / (2 * np.sqrt(3.0)))
+        g = int(np.flatnonzero(self.grid == leads[i])[0])
+        move = -(inv @ self.jd[:, g]) if k else np.zeros(0)
+        return float(leads[i]), se, (rss0 - float(costs[i])) / s2, move
+
+
+def _whole_shift(
+    profile: _ShiftProfile,
+    gram: np.ndarray,
+    k: int,
+    n: int,
     match: MatchResult,
-    names: list[str],
-    jtj: np.ndarray,
-    j_delta: np.ndarray,
-    late: tuple[float, float, np.ndarray],
+    t: np.ndarray,
     first_order: TimingCheck,
-) -> TimingCheck:
-    """The check from the whole-shift lead (:func:`_late_drive`) where it is the
-    clearer; each value's move, were the shift modelled, one Gauss-Newton step."""
-    lead, se, _ = late
+) -> TimingCheck | None:
+    """The check from the whole-shift profile where the first-order one is not clear.
+
+    A response that jumps (a drive lag on its floor; the paper's viscosity changing with
+    the thrust while the balancer moves) moves by whole samples: the first-order column
+    ``dy/dt`` is then one spike per step and reads a 30 ms lateness as 3 ms, or a 25 ms
+    one as 12 +- 7 ms while A is 4.5 standard errors off. The profile moves
+    the whole output by each lead and refits the values to first order; its lead is
+    clear by the same rule (:attr:`TimingCheck.clear`) and by its fall in the residual
+    (:data:`TIMING_Z` squared noise variances). None: not clear that way either.
+    """
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    best = profile.lead(gram[:k, :k], gram[:k, k + 1], float(gram[k + 1, k + 1]), n - k, tau, dt)
+    if best is None:
+        return None
+    lead, se, fall, move = best
     whole = replace(
         first_order,
         lead_s=lead,
         stderr_s=float(np.hypot(se, first_order.half_sample_s / np.sqrt(3.0))),
         noise_se_s=se,
     )
-    if first_order.clear or not whole.clear:
-        return first_order
-    try:
-        step = -np.linalg.solve(jtj, j_delta) if names else np.zeros(0)
-    except np.linalg.LinAlgError:
-        step = np.zeros(len(names))
-    shift = {name: float(step[j]) for j, name in enumerate(names)}
-    return replace(whole, shift=shift)
+    if not (whole.clear and fall >= TIMING_Z**2):
+        return None
+    names = [n_ for n_ in first_order.shift]
+    return replace(whole, shift={name: float(move[j]) for j, name in enumerate(names)})
 
 
 def timing_check(match: MatchResult) -> TimingCheck | None:
@@ -326,10 +380,9 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     t = _row_times(match)
     starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
     y = match.data.y
-    late = _late_drive(match, t, n - k) if floored else None
-    delta = late[2] if late is not None else None
+    grid = _shift_grid(match, t, both=not floored)
+    profile = _ShiftProfile.start(match, t, grid, k) if grid is not None else None
     gram = np.zeros((k + 2, k + 2))
-    j_delta = np.zeros(k)
     with np.errstate(all="ignore"):
         blocks = match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS)
         for first, out, sens in blocks:
@@ -341,8 +394,8 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
             if not np.isfinite(x).all():
                 return None
             gram += x.T @ x
-            if delta is not None:
-                j_delta += sens.T @ delta[first:stop]
+            if profile is not None:
+                profile.add(first, stop, r, sens)
     xtx, xtr, rtr = gram[: k + 1, : k + 1], gram[: k + 1, k + 1], gram[k + 1, k + 1]
     try:
         inv = np.linalg.inv(xtx)
@@ -375,8 +428,10 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     )
     if floored:
         check = replace(check, floor_lead_s=max(match.parameters[n].value for n in floored))
-    if late is not None:
-        check = _whole_shift_check(match, names, gram[:k, :k], j_delta, late, check)
+    if profile is not None and not check.clear:
+        whole = _whole_shift(profile, gram, k, n, match, t, check)
+        if whole is not None:
+            check = whole
     if not check.clear:
         return check
     shift = check.shift
