@@ -54,6 +54,11 @@ class TrialData:
         so a long session holds each sample once.
     decimation : Decimation or None
         How the trial was decimated for fitting (None: fitted at the log's own rate).
+    level_se_N : float or None
+        Standard error (N) of the held thrust level read from the noisy force (its
+        noise over the samples after the onset), for a step trial driven by its measured
+        force; None otherwise. The level's error moves the whole response at once
+        (errors in variables); :mod:`~balancer_id.identify.structure` allows for it.
     """
 
     index: int
@@ -66,6 +71,7 @@ class TrialData:
     continues: bool = False
     previous: TrialData | None = field(default=None, repr=False)
     decimation: Decimation | None = None
+    level_se_N: float | None = None
 
     @property
     def lead_in(self) -> TrialInput | None:
@@ -276,6 +282,26 @@ def _fitted_samples(
     return keep, tail
 
 
+def _level_se(trial: Trial, fine: tuple[np.ndarray, np.ndarray] | None) -> float | None:
+    """The standard error (N) of a step trial's held level read from its measured force:
+    the force's white noise (:func:`~balancer_id.identify.input_noise.noise_sigma`) over
+    the samples after the onset; None for a trial not driven by a held measured force."""
+    if (
+        fine is None
+        or trial.kind != "step"
+        or trial.thrust_given
+        or getattr(trial, "reference", None) is not None
+    ):
+        return None
+    t, f = fine
+    after = np.isfinite(f) & (t >= trial.t_step)
+    n = int(after.sum())
+    if n < 3:
+        return None
+    sigma = noise_sigma(f[np.isfinite(f)])
+    return float(sigma / np.sqrt(n)) if np.isfinite(sigma) else None
+
+
 def _trial_thrust(
     trial: Trial,
     time: np.ndarray,
@@ -387,6 +413,7 @@ def from_trials(
                 continues=bool(continues),
                 previous=out[-1] if continues else None,
                 decimation=decimation if decimation.factor > 1 else None,
+                level_se_N=_level_se(trial, fine),
             )
         )
         prev = trial

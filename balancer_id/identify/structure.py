@@ -187,6 +187,91 @@ def _moving_before_step(
     return None
 
 
+#: Relative change of the thrust levels that gives the response's sensitivity to them.
+LEVEL_STEP = 1e-4
+
+#: The level shifts that flatten the residual are the force's noise while their chi-square
+#: (against each level's standard error) stays below its quantile at this probability.
+LEVEL_ALPHA = 1e-3
+
+
+def _level_sensitivity(
+    match: MatchResult, parts: list[tuple[TrialData, np.ndarray, np.ndarray]]
+) -> list[np.ndarray] | None:
+    """Each trial's simulated acceleration after its onset per relative change of its
+    thrust level (one simulation of the trials with every level scaled at once: trials
+    from rest do not share a state)."""
+    from balancer_id.simulation.engine import PackedTrials, TrialInput
+    from balancer_id.simulation.inputs import Thrust
+
+    model = match.model
+    values = match.values()
+    pvec = np.array([values[n] for n in model.param_names], dtype=float)
+
+    def run(scale: float) -> np.ndarray:
+        inputs = [
+            TrialInput(
+                td.input.time,
+                Thrust(td.input.thrust.times, np.asarray(td.input.thrust.values) * scale),
+                td.input.z_ref,
+                td.input.v_ref,
+                td.input.x0,
+            )
+            for td, _, _ in parts
+        ]
+        return PackedTrials.pack(inputs).run(model, pvec)[:, 0]
+
+    try:
+        with np.errstate(all="ignore"):
+            base, moved = run(1.0), run(1.0 + LEVEL_STEP)
+    except (ValueError, FloatingPointError):
+        return None
+    out, k = [], 0
+    for td, rest, motion in parts:
+        n = td.time.size
+        sens = (moved[k : k + n] - base[k : k + n]) / LEVEL_STEP
+        k += n
+        out.append(sens[rest.size :] if sens.size == rest.size + motion.size else sens[:0])
+    return out if all(np.isfinite(x).all() for x in out) else None
+
+
+def _level_shifts_removed(
+    match: MatchResult, parts: list[tuple[TrialData, np.ndarray, np.ndarray]]
+) -> list[np.ndarray]:
+    """The residuals in motion, less the part a shift of each trial's thrust level within
+    its force noise explains (errors in variables), else as they are.
+
+    A step's held level is read from a noisy force: its error (``level_se_N``) moves the
+    whole response at once, a slow misfit the whiteness and power tests would take for
+    the model's. Each trial's shift is fitted to its residual (least squares on the
+    response's sensitivity to the level); where the shifts, against their standard
+    errors, pass a chi-square test at :data:`LEVEL_ALPHA`, they are more than the force's
+    noise (a friction, a limit: the model's misfit) and nothing is removed.
+    """
+    motion = [m for _, _, m in parts]
+    if not parts or any(td.level_se_N is None or td.thrust_N == 0 for td, _, _ in parts):
+        return motion
+    sens = _level_sensitivity(match, parts)
+    if sens is None:
+        return motion
+    from scipy.stats import chi2
+
+    shifts, z2 = [], 0.0
+    for (td, _, m), s in zip(parts, sens, strict=True):
+        ss = float(s @ s)
+        if s.size != m.size or ss <= 0:
+            return motion
+        delta = float(s @ m) / ss  # relative level error
+        se = float(td.level_se_N or 0.0) / abs(td.thrust_N)
+        if se <= 0:
+            return motion
+        shifts.append(delta)
+        z2 += (delta / se) ** 2
+    if z2 > float(chi2.isf(LEVEL_ALPHA, len(parts))):
+        return motion
+    return [m - d * s for m, d, s in zip(motion, shifts, sens, strict=True)]
+
+
 def structured_residual(match: MatchResult) -> Note | None:
     """A ``fit.structured_residual`` note (severity ``error``) when the residual in motion
     carries clearly more power than the sensor's noise at rest, or is correlated over
@@ -206,9 +291,10 @@ def structured_residual(match: MatchResult) -> Note | None:
     moving = _moving_before_step(parts)
     if moving is not None:
         return moving
-    rest, motion = [r for _, r, _ in parts], [m for _, _, m in parts]
+    rest = [r for _, r, _ in parts]
     if sum(p.size for p in rest) < MIN_REST:
         return None
+    motion = _level_shifts_removed(match, parts)
     p_rest, n_rest = _power(rest)
     p_motion, n_motion = _power(motion)
     if not (np.isfinite(p_rest) and p_rest > 0 and np.isfinite(p_motion) and n_motion > 0):

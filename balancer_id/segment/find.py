@@ -15,7 +15,12 @@ from balancer_id.read.recording import Log, Recording
 from balancer_id.segment.accel_steps import detect_accel_steps
 from balancer_id.segment.assign import Run, build_trials, mounting_sign, orient, vertical_name
 from balancer_id.segment.events import standing_out, without_onset
-from balancer_id.segment.gravity import check_vertical, vertical_motion
+from balancer_id.segment.gravity import (
+    VerticalMotion,
+    check_vertical,
+    pool_rest_levels,
+    vertical_motion,
+)
 from balancer_id.segment.guided import guided_move
 from balancer_id.segment.robust import fill_nan, level, n_samples, rate_of
 from balancer_id.segment.steps import (
@@ -91,9 +96,10 @@ def find_trials(
     given = _check_arguments(thrusts, force_sign, vertical, min_step_N)
     settings = StepSettings(min_step_N=float(min_step_N))
     runs = []
-    for k, rec in enumerate(log.recordings, 1):
+    motions = log_verticals(log, vertical, g)
+    for k, (rec, motion) in enumerate(zip(log.recordings, motions, strict=True), 1):
         with step(f"finding the trials of run {k}/{len(log.recordings)}"):
-            runs.append(_detect(rec, vertical, g, settings))
+            runs.append(_detect(rec, vertical, g, settings, motion))
     _note_verticals(log, runs)
     total = sum(len(r.steps) for r in runs)
     if total == 0 and given is None:
@@ -213,8 +219,8 @@ def find_onsets(
     check_vertical(vertical)
     settings = StepSettings(min_step_N=float(min_step_N))
     out = {}
-    for rec in log.recordings:
-        run = _detect(rec, vertical, g, settings)
+    for rec, motion in zip(log.recordings, log_verticals(log, vertical, g), strict=True):
+        run = _detect(rec, vertical, g, settings, motion)
         out[rec.name] = [float(rec.time[st.onset]) for st in run.steps]
     return out
 
@@ -257,7 +263,36 @@ def _onsets(runs: list[Run]) -> str:
     return ", ".join(times) if times else "none"
 
 
-def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> Run:
+def log_verticals(log: Log, vertical: str, g: float) -> list[VerticalMotion | None]:
+    """Every run's vertical motion, their resting level pooled (one sensor, one place:
+    :func:`~balancer_id.segment.gravity.pool_rest_levels`).
+
+    Parameters
+    ----------
+    log : Log
+        What a reader returned.
+    vertical : str
+        The vertical axis setting.
+    g : float
+        Gravity (m/s^2) removed from with-g acceleration.
+
+    Returns
+    -------
+    list of VerticalMotion or None
+        One per run, in order.
+    """
+    tell("the vertical")
+    motions = [vertical_motion(rec, vertical=vertical, g=g) for rec in log.recordings]
+    return pool_rest_levels(motions, g)
+
+
+def _detect(
+    rec: Recording,
+    vertical: str,
+    g: float,
+    settings: StepSettings,
+    motion: VerticalMotion | None = None,
+) -> Run:
     """Detect the steps of one run (force first, else acceleration) and window them.
 
     Force steps are measured against the motion twice: up to the next step, then inside
@@ -265,8 +300,9 @@ def _detect(rec: Recording, vertical: str, g: float, settings: StepSettings) -> 
     dropped (see :func:`_moved`), and so is a step found inside the previous trial's
     catch; the windows are then redone.
     """
-    tell("the vertical")
-    motion = vertical_motion(rec, vertical=vertical, g=g)
+    if motion is None:
+        tell("the vertical")
+        motion = vertical_motion(rec, vertical=vertical, g=g)
     breaks = _breaks(rec, motion, settings)
     force = _usable_force(rec)
     accel = motion.accel if motion is not None else None
