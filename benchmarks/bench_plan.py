@@ -87,8 +87,10 @@ def halfwidth(result, name: str) -> float:
     return 1.96 * p.stderr if p.vary and p.stderr else float("inf")
 
 
-def one(case: str, seed: int) -> tuple[float, float, float, str] | str:
-    """(achieved / predicted, achieved, random's achieved, target) for one seed, or why
+def one(case: str, seed: int) -> tuple[float, float, float, str, float] | str:
+    """(achieved / predicted, achieved, random's achieved, target, the share of the
+    predicted half-width no trial shrinks: the steps' places between samples) for one
+    seed, or why
     the seed was skipped (a first fit that is not trusted or fails: nothing to plan on;
     a refit that fails)."""
     try:
@@ -97,7 +99,7 @@ def one(case: str, seed: int) -> tuple[float, float, float, str] | str:
         return f"a fit failed: {str(exc)[:80]}"
 
 
-def _one(case: str, seed: int) -> tuple[float, float, float, str] | str:
+def _one(case: str, seed: int) -> tuple[float, float, float, str, float] | str:
     spec, truth, thrusts, seconds, noise = CASES[case]
     rng = np.random.default_rng(seed)
     trials = start_trials(spec, truth, thrusts, seconds, noise, rng)
@@ -130,7 +132,8 @@ def _one(case: str, seed: int) -> tuple[float, float, float, str] | str:
     rand = grid[int(rng.integers(len(grid)))]
     other = fit([*trials, *record(spec, truth, [rand], noise, rng)], model=spec, profile=False)
     got = halfwidth(both, target)
-    return got / predicted, got, halfwidth(other, target), target
+    floor_share = p.floor.get(target, 0.0) / predicted
+    return got / predicted, got, halfwidth(other, target), target, floor_share
 
 
 LIMIT_SPEC = "viscous+speed_limit"
@@ -180,9 +183,10 @@ def main() -> None:
     print(f"seed {seed0} (repeat with --seed {seed0}); {args.seeds} seeds per case")
     print(
         "| case | target | achieved / predicted half-width: median (range) | within 25 % "
-        "| suggested beats random | achieved / random's (median) |"
+        "| suggested beats random | achieved / random's (median) "
+        "| predicted half-width that no trial shrinks (median share) |"
     )
-    print("|---|---|---|---:|---:|---:|")
+    print("|---|---|---|---:|---:|---:|---:|")
     for case in CASES:
         rows = [one(case, seed0 + s) for s in range(args.seeds)]
         skipped = [r for r in rows if isinstance(r, str)]
@@ -190,7 +194,7 @@ def main() -> None:
         for why in skipped:
             print(f"<!-- {case}: a seed skipped: {why} -->")
         if not rows:
-            print(f"| {case} | - | no proposal | - | - | - |")
+            print(f"| {case} | - | no proposal | - | - | - | - |")
             continue
         ratio = np.array([r[0] for r in rows])
         got = np.array([r[1] for r in rows])
@@ -200,7 +204,8 @@ def main() -> None:
         print(
             f"| {case} | {', '.join(targets)} | {np.median(ratio):.2f} "
             f"({ratio.min():.2f}-{ratio.max():.2f}) | {within:.0f} % "
-            f"| {100 * np.mean(got < rnd):.0f} % | {np.median(got / rnd):.2f} |"
+            f"| {100 * np.mean(got < rnd):.0f} % | {np.median(got / rnd):.2f} "
+            f"| {np.median([r[4] for r in rows]):.2f} |"
         )
     limit = [limit_case(seed0 + 500 + s) for s in range(args.seeds)]
     for why in [r for r in limit if isinstance(r, str)]:

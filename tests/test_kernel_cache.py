@@ -213,3 +213,27 @@ def test_a_model_whose_hook_raises_is_compiled_once_and_its_error_raised_again(m
     with pytest.raises(EffectError) as again:
         K.get_kernel(model, quiet=True)
     assert len(compiled) == n and str(again.value) == str(first.value)
+
+
+def test_a_kernel_being_compiled_is_waited_for_not_compiled_twice(tmp_path, monkeypatch):
+    """Two builders of one uncached kernel (a batch's workers on a fresh machine) take
+    turns: the second enters only when the first has left, then finds the cache filled."""
+    import threading
+    import time
+
+    monkeypatch.setenv("BALANCER_ID_CACHE", str(tmp_path))
+    model = parse_model("viscous")
+    entered = threading.Event()
+
+    def second() -> None:
+        with KCache.compile_lock(model):
+            entered.set()
+
+    with KCache.compile_lock(model):
+        worker = threading.Thread(target=second)
+        worker.start()
+        time.sleep(0.3)
+        assert not entered.is_set()  # held off while the first builds
+    assert entered.wait(5.0)
+    worker.join()
+    assert list((tmp_path / "kernels").glob("*.lock"))  # the lock file, beside the kernel

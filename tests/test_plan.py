@@ -199,3 +199,30 @@ def test_an_interval_set_by_the_steps_places_between_samples_is_not_the_plans_ta
     q = design.proposals[0]
     assert q.target != "T_a" and q.after[q.target] < 0.9 * q.before[q.target]
     assert q.after["T_a"] >= 1.96 * t_a.phase_se
+
+
+def test_a_light_carts_plan_predicts_the_floor_its_trial_leaves():
+    # a 0.2 kg cart at 200 Hz: most of m_a's interval is where the steps fell between
+    # samples, and a strong, short step widens that part (m_a moves more per second of
+    # its timing); predicted as constant, the plan chose a 3 N step predicted to give
+    # 0.83 mg that gave 0.97 (a random trial did as well). The floor is now predicted
+    # with each trial, the recorded trial gives its prediction, and the plan says no
+    # trial at this rate does much better
+    truth = {"m_a": 0.2, "T_a": 0.04, "D0": 0.25}
+    rng = np.random.default_rng(86782)
+    trials = step_trials("viscous", truth, [0.5, -1.0], 0.05, rng, seconds=4.0)
+    result = fit(trials, model="viscous", profile=False)
+    p = plan(result, separate=False, count=1)
+    q = p.design.proposals[0]
+    assert q.target == "m_a" and q.floor["m_a"] > 0.7 * q.after["m_a"]
+    assert "no trial does much better" in p.summary()
+    inp = q.candidate.trial_input()
+    (sim,) = simulate_many(parse_model("viscous"), truth, [inp])
+    new = TrialData(
+        9, q.candidate.thrust_N, q.candidate.direction, q.candidate.rest_s, inp,
+        sim.accel + rng.normal(0, 0.05, inp.time.size),
+    )
+    again = fit([*trials, new], model="viscous", profile=False)
+    achieved = 1.96 * again.match.parameters["m_a"].stderr
+    assert achieved == pytest.approx(q.after["m_a"], rel=0.08)
+    assert achieved < 0.95 * p.design.now["m_a"]

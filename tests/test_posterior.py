@@ -242,3 +242,26 @@ def test_the_chain_is_measured_in_steps_and_the_clock_only_stops_it_named(near_b
     said = [n.text for n in cut.notes if n.code == "fit.posterior_not_converged"]
     assert said and "stopped by time" in said[0]
     assert "stopped by time" in cut.diagnostics_text()
+
+
+def test_optima_without_a_barrier_between_them_are_one_valley():
+    # two optima of a short log's D0-A ridge fell steadily from one to the other: sampled
+    # as two valleys split by the nearest optimum, the ridge was cut in two and each half
+    # paid a chain. Two bumps with a valley of density between them stay two
+    from balancer_id.identify.posterior_modes import valleys
+
+    def ridge(x):  # a long straight ridge, falling gently along it
+        x = np.atleast_2d(x)
+        return -0.5 * ((x[:, 1] - 0.5 * x[:, 0]) / 0.1) ** 2 - 0.3 * np.abs(x[:, 0])
+
+    def bumps(x):
+        x = np.atleast_2d(x)
+        return np.logaddexp(
+            -0.5 * np.sum((x - [0.0, 0.0]) ** 2, axis=1) / 0.2**2,
+            -0.5 * np.sum((x - [3.0, 1.0]) ** 2, axis=1) / 0.2**2,
+        )
+
+    on_ridge = np.array([[0.0, 0.0], [6.0, 3.0], [-4.0, -2.0]])
+    assert list(valleys(on_ridge, ridge)) == [0, 0, 0]
+    apart = np.array([[0.0, 0.0], [3.0, 1.0], [0.1, 0.05]])
+    assert list(valleys(apart, bumps)) == [0, 1, 0]

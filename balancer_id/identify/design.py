@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +30,7 @@ from balancer_id.errors import BalancerIdError, UsageError
 from balancer_id.identify.band import Z95
 from balancer_id.identify.data import TrialData
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.timing import _derivative
 from balancer_id.simulation.engine import PackedTrials, TrialInput
 from balancer_id.simulation.inputs import Thrust
 
@@ -122,6 +123,9 @@ class Proposal:
         without it).
     reaches : str or None
         The parameter not reached so far that it is chosen to reach.
+    floor : dict of str to float
+        The part of each ``after`` half-width that is the steps' places between
+        samples (added in quadrature): no trial at this sampling rate shrinks it.
     """
 
     candidate: Candidate
@@ -130,6 +134,7 @@ class Proposal:
     after: dict[str, float]
     peak_speed: float
     reaches: str | None = None
+    floor: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dict."""
@@ -140,6 +145,7 @@ class Proposal:
             "halfwidth_after": self.after,
             "peak_speed": self.peak_speed,
             "reaches": self.reaches,
+            "halfwidth_floor": self.floor,
         }
 
 
@@ -319,9 +325,13 @@ def _filling_travel(
 
 def _candidate_information(
     match: MatchResult, grid: Sequence[Candidate], point: dict[str, float],
-    names: list[str], s2: float,
+    names: list[str], s2: float, cross: list[np.ndarray] | None = None,
 ) -> tuple[list[np.ndarray], list[float], list[float]]:
-    """Each candidate's information at ``point``, its peak speed and farthest move."""
+    """Each candidate's information at ``point``, its peak speed and farthest move (and,
+    into ``cross``, its sensitivities against its response's time derivative, ``S^T g /
+    s2``)."""
+    if cross is None:
+        cross = []
     model = match.model
     longest: dict[tuple[float, float], Candidate] = {}
     for c in grid:  # one simulation per level and rest: shorter durations are prefixes
@@ -337,22 +347,36 @@ def _candidate_information(
             out, sens = packed.run_sens(model, pvec, cols)
         runs[key] = (np.asarray(c.trial_input().time), out, np.where(np.isfinite(sens), sens, 0.0))
     adds, peaks, moves = [], [], []
+    cross.clear()
     for c in grid:
         t, out, s = runs[(c.thrust_N, c.rest_s)]
         rows = t <= c.rest_s + c.duration_s + 1e-9
         moves.append(float(np.nanmax(np.abs(out[rows, 2]))) if rows.any() else 0.0)
         adds.append(s[rows].T @ s[rows] / s2)
+        # how the response moves with the trial's timing, against each parameter's
+        # sensitivity: what the step's place between samples moves the values by
+        g = _derivative(out[rows, 0], t[rows], np.zeros(1, int))
+        cross.append(s[rows].T @ np.where(np.isfinite(g), g, 0.0) / s2)
         v = out[rows, 1]
         peaks.append(float(np.nanmax(np.abs(v))) if v.size else 0.0)
     return adds, peaks, moves
 
 
-def _mean_score(infos: list[np.ndarray], adds_at: list[list[np.ndarray]], j: int | None):
+def _mean_score(
+    infos: list[np.ndarray],
+    adds_at: list[list[np.ndarray]],
+    j: int | None,
+    extra: np.ndarray | None = None,
+):
     """Each candidate's objective over the points: the mean of the log target variance (or
-    minus the log-determinant), a pseudo-Bayesian design over a guessed parameter."""
+    minus the log-determinant), a pseudo-Bayesian design over a guessed parameter;
+    ``extra``, each candidate's variance of the target that its information does not
+    hold (the steps' places between samples), is added to the target's."""
     total = np.zeros(len(adds_at[0]))
     for info, adds in zip(infos, adds_at, strict=True):
         sc = np.array([_objective(info + add, j) for add in adds])
+        if j is not None and extra is not None:
+            sc = sc + extra
         if j is not None:
             with np.errstate(divide="ignore", invalid="ignore"):
                 sc = np.where(sc > 0, np.log(sc), np.inf)
@@ -402,6 +426,68 @@ def _phase_floor(match: MatchResult, names: list[str]) -> dict[str, float]:
         n: Z95 * float(match.parameters[n].phase_se or 0.0) if n in match.parameters else 0.0
         for n in names
     }
+
+
+def _per_second(info: np.ndarray, cross: np.ndarray) -> np.ndarray:
+    """How far each value moves per second the drive's timing moves (as the fit's timing
+    check regresses it: ``-(S^T S)^-1 S^T g``); nan where the information is singular."""
+    try:
+        return -np.linalg.solve(info, cross)
+    except np.linalg.LinAlgError:
+        return np.full(cross.size, np.nan)
+
+
+class _Floors:
+    """The phase floor (:func:`_phase_floor`) as trials are added: each parameter's moves
+    with the timing, from the information and ``S^T g`` held (the fitted point's), scaled
+    to the fit's own floor now. A strong, short step moves the values more per second of
+    its timing: at 200 Hz a 3 N step on a 0.2 kg cart raised m_a's floor from 0.79 to 0.94
+    mg (the trial had been chosen as if the floor stayed, and a random trial did as well).
+    """
+
+    def __init__(self, info: _Information, floor_now: Mapping[str, float], names: list[str]):
+        self.names = names
+        self.info = None if info.timing_info is None else info.timing_info.copy()
+        self.cross = None if info.timing_now is None else info.timing_now.copy()
+        self.adds = info.adds_at[0]
+        self.cand_cross = [
+            x if np.any(a) else np.zeros_like(x)  # a move too far adds nothing
+            for x, a in zip(info.timing_cross, self.adds, strict=False)
+        ]
+        self.now = np.array([floor_now.get(n, 0.0) for n in names], float)
+        per = (
+            _per_second(self.info, self.cross)
+            if self.info is not None and self.cross is not None
+            else np.full(len(names), np.nan)
+        )
+        ok = np.isfinite(per) & (np.abs(per) > 0)
+        # the fit's floor per unit of the predicted moves (0 where it has none)
+        self.scale = np.where(ok, self.now / np.where(ok, np.abs(per), 1.0), 0.0)
+        self.active = bool(
+            self.info is not None
+            and np.any(self.now > 0)
+            and len(self.cand_cross) == len(self.adds)
+        )
+
+    def after(self, i: int | None = None) -> np.ndarray:
+        """Each parameter's floor (95 % half-width) with candidate ``i`` added (None: as held)."""
+        info, cross = self.info, self.cross
+        if not self.active or info is None or cross is None:
+            return self.now
+        if i is not None:
+            info, cross = info + self.adds[i], cross + self.cand_cross[i]
+        per = _per_second(info, cross)
+        return np.where(np.isfinite(per), self.scale * np.abs(per), self.now)
+
+    def add(self, i: int) -> None:
+        """Hold candidate ``i`` (proposed) from now on."""
+        if self.active and self.info is not None and self.cross is not None:
+            self.info = self.info + self.adds[i]
+            self.cross = self.cross + self.cand_cross[i]
+
+    def as_dict(self, i: int | None = None) -> dict[str, float]:
+        """:meth:`after` by parameter name."""
+        return dict(zip(self.names, map(float, self.after(i)), strict=True))
 
 
 def _with_floor(half: Mapping[str, float], floor: Mapping[str, float]) -> dict[str, float]:
@@ -490,6 +576,11 @@ class _Information:
     adds_at: list[list[np.ndarray]]
     peaks: np.ndarray
     moved: np.ndarray
+    #: at the fitted point, unwidened: the information now, the sensitivities against
+    #: the response's time derivative now (``S^T g / s2``) and each candidate's
+    timing_info: np.ndarray | None = None
+    timing_now: np.ndarray | None = None
+    timing_cross: list[np.ndarray] = field(default_factory=list)
 
 
 def _information(
@@ -506,14 +597,21 @@ def _information(
     ridge = np.diag([1.0 / (VAGUE * _scale(match, nm)) ** 2 for nm in names])
     points = [values, *_guessed_points(match, also, values)]
     infos, adds_at = [], []
+    cross: list[np.ndarray] = []
     for point in points:
-        _, sens = _sensitivities(match, match.data.packed, point, names)
+        out, sens = _sensitivities(match, match.data.packed, point, names)
         infos.append(sens.T @ sens / s2 + ridge)
-        adds_p, peaks, moves = _candidate_information(match, grid, point, names, s2)
+        adds_p, peaks, moves = _candidate_information(
+            match, grid, point, names, s2, cross if point is values else None
+        )
         adds_at.append(adds_p)
         if point is values:
             peak_arr, moved_arr = np.array(peaks), np.array(moves)
-    return _Information(infos, adds_at, peak_arr, moved_arr)
+            starts = np.array([sl.start for sl in match.data.slices()], int)
+            g = _derivative(out[:, 0], np.asarray(match.data.packed.t_all, float), starts)
+            now = sens.T @ np.where(np.isfinite(g), g, 0.0) / s2
+            timing_info = infos[-1].copy()
+    return _Information(infos, adds_at, peak_arr, moved_arr, timing_info, now, cross)
 
 
 def _limited(
@@ -598,14 +696,20 @@ def _proposals(
     values: Mapping[str, float],
     unreached: list[str],
     fastest: float,
+    floors: _Floors,
 ) -> list[Proposal]:
-    """Each goal's best candidate in turn, its information added before the next."""
+    """Each goal's best candidate in turn, its information added before the next; the
+    half-widths with the floor the steps' places between samples leave (``floors``),
+    predicted after each candidate (a target's candidates are scored with it)."""
     infos = info.infos
     peaks = list(info.peaks)
     proposals = []
     for goal, label in order:
         j = names.index(goal) if goal is not None else None
-        scores = _mean_score(infos, info.adds_at, j)
+        extra = None
+        if j is not None and floors.active:
+            extra = np.array([floors.after(i)[j] for i in range(len(grid))]) ** 2 / Z95**2
+        scores = _mean_score(infos, info.adds_at, j, extra)
         if goal in unreached and match.parameters[goal].not_reached == "above":
             # a speed limit is reached by a trial faster than both the bound the data
             # leave open and every trial so far (in the model without the limit)
@@ -615,16 +719,18 @@ def _proposals(
         best = _modest(scores, grid, j is None)
         if best is None:
             break
-        before = _typical_halfwidths(infos, names)
+        before = _with_floor(_typical_halfwidths(infos, names), floors.as_dict())
         infos = [inf + adds_p[best] for inf, adds_p in zip(infos, info.adds_at, strict=True)]
+        floors.add(best)
         proposals.append(
             Proposal(
                 grid[best],
                 label,
                 before,
-                _typical_halfwidths(infos, names),
+                _with_floor(_typical_halfwidths(infos, names), floors.as_dict()),
                 peaks[best],
                 goal if goal in unreached else None,
+                floors.as_dict(),
             )
         )
     return proposals
@@ -671,13 +777,12 @@ def design_trials(
     reducible = _halfwidths(info.infos[0], names)
     floor = _phase_floor(match, names)
     order = _goals(match, target, count, names, unreached, reducible, floor)
-    proposals = _proposals(match, order, grid, info, names, values, unreached, fastest)
     # the intervals as the fit reports them, now and after: with the spread the steps'
-    # places between samples leave, which no trial at this rate shrinks
-    proposals = [
-        replace(p, before=_with_floor(p.before, floor), after=_with_floor(p.after, floor))
-        for p in proposals
-    ]
+    # places between samples leave (no trial shrinks it; a strong, short step widens it)
+    floors = _Floors(info, floor, names)
+    proposals = _proposals(
+        match, order, grid, info, names, values, unreached, fastest, floors
+    )
     return Design(
         target=target or "widest",
         names=names,

@@ -42,7 +42,12 @@ import numpy as np
 from balancer_id.errors import UsageError
 from balancer_id.identify.band import covariance_of
 from balancer_id.identify.matching import MatchResult
-from balancer_id.identify.posterior_modes import bridge_weights, posterior_modes, region_of
+from balancer_id.identify.posterior_modes import (
+    bridge_weights,
+    posterior_modes,
+    region_of,
+    valleys,
+)
 from balancer_id.notes import Note
 
 __all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
@@ -608,13 +613,21 @@ def sample_posterior(
     keep = np.isfinite(at) & (at >= np.max(at, initial=-np.inf) - MODE_DROP)
     keep[0] = True  # the fit's own optimum is always shown
     centres, u_centres = centres[keep], u_centres[keep]
-    nearest = region_of(u_centres)
+    # optima with no barrier between them are one valley, sampled by one ensemble (its
+    # walkers started around each); a point belongs to the valley of its nearest optimum
+    group = valleys(u_centres, log_pus) if len(centres) > 1 else np.zeros(1, int)
+    n_valleys = int(group.max()) + 1
+    nearest_optimum = region_of(u_centres)
+
+    def nearest(us: np.ndarray) -> np.ndarray:
+        return group[nearest_optimum(us)]
+
     deadline = None if max_seconds is None else time.monotonic() + max_seconds
     runs = []
-    for j, c in enumerate(centres):
+    for j in range(n_valleys):
         # each valley on its own: the posterior restricted to the points nearest it
         def log_pk(us: np.ndarray, j: int = j) -> np.ndarray:
-            if len(centres) == 1:
+            if n_valleys == 1:
                 return log_pus(us)
             out = np.full(len(us), -np.inf)
             mine = nearest(us) == j
@@ -622,9 +635,18 @@ def sample_posterior(
                 out[mine] = log_pus(us[mine])
             return out
 
-        start = _start_ensemble(c, cov[1] if cov else None, lo, hi, walkers, rng)
+        members = np.flatnonzero(group == j)
+        counts = np.full(members.size, walkers // members.size)
+        counts[: walkers % members.size] += 1
+        start = np.concatenate(
+            [
+                _start_ensemble(centres[c], cov[1] if cov else None, lo, hi, int(n_c), rng)
+                for c, n_c in zip(members, counts, strict=True)
+            ]
+        )
         start = np.where(logged, np.log(np.maximum(start, 1e-300)), start)
         runs.append(_run_chain(log_pk, start, rng, min_steps, max_steps, deadline))
+    centres = centres[[int(np.flatnonzero(group == j)[0]) for j in range(n_valleys)]]
     weights = bridge_weights([r.chain for r in runs], log_pu, nearest, rng)
     # the valleys' samples in proportion to their weights, none drawn twice
     total = min(len(r.chain) / w for r, w in zip(runs, weights, strict=True) if w > 0)

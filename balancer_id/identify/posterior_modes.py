@@ -29,7 +29,7 @@ import numpy as np
 
 from balancer_id.identify.matching import MatchResult
 
-__all__ = ["MODE_DELTA", "bridge_weights", "posterior_modes", "region_of"]
+__all__ = ["MODE_DELTA", "bridge_weights", "posterior_modes", "region_of", "valleys"]
 
 #: The fit's other optima whose cost is within this many noise variances (widened by the
 #: residual's correlation time, as the likelihood is) of the best, as good at 95 %, are
@@ -81,6 +81,58 @@ def posterior_modes(match: MatchResult, names: Sequence[str]) -> list[np.ndarray
         kept.append(x)
         out.append(x)
     return out
+
+
+#: Two optima lie in one valley when the log posterior on the straight path between them
+#: (the sampler's coordinates) never falls more than this below the lower of the two.
+#: Two optima of a short log's D0-A ridge (D0 266 and 51,700) fell steadily from one to
+#: the other (no barrier), and sampled as two valleys, split by the nearest optimum, the
+#: ridge was cut in the middle and each half paid a chain; the mirror (lag and viscous
+#: time swapped) lies behind a barrier of thousands.
+BARRIER = 2.0
+#: Points on the path between two optima at which the barrier is looked for.
+PATH_POINTS = 9
+
+
+def valleys(u_centres: np.ndarray, log_p: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Which optima share a valley (no barrier of :data:`BARRIER` between them).
+
+    Parameters
+    ----------
+    u_centres : numpy.ndarray
+        ``K x k``: the optima in the sampler's coordinates, the fit's own first.
+    log_p : callable
+        The log posterior of each row of an ``m x k`` array.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``K`` valley labels, ``0, 1, ...`` in order of each valley's first optimum (the
+        fit's optimum's valley is 0).
+    """
+    k_opt = len(u_centres)
+    parent = list(range(k_opt))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    ends = np.asarray(log_p(u_centres), float)
+    ts = np.linspace(0.0, 1.0, PATH_POINTS + 2)[1:-1, None]
+    for a in range(k_opt):
+        for b in range(a + 1, k_opt):
+            if root(a) == root(b):
+                continue
+            path = u_centres[a] + ts * (u_centres[b] - u_centres[a])
+            with np.errstate(all="ignore"):
+                lp = np.asarray(log_p(path), float)
+            floor = min(ends[a], ends[b]) - BARRIER
+            if np.all(np.isfinite(lp)) and np.isfinite(floor) and lp.min() >= floor:
+                parent[max(root(a), root(b))] = min(root(a), root(b))
+    roots = [root(i) for i in range(k_opt)]
+    order = {r: v for v, r in enumerate(dict.fromkeys(roots))}
+    return np.array([order[r] for r in roots], int)
 
 
 def region_of(centres: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:

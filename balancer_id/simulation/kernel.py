@@ -46,6 +46,7 @@ from balancer_id.simulation.kernel_cache import (  # noqa: F401  (the cache's na
     _write_kernel_file,
     _write_private,
     cache_dir,
+    compile_lock,
     note,
 )
 from balancer_id.simulation.kernel_source import (  # noqa: F401
@@ -172,19 +173,20 @@ _FAILED: dict[tuple[object, ...], EffectError] = {}
 def _load_or_compile(model: Model, quiet: bool) -> Kernel:
     """The kernel of ``model``, from the disk cache or compiled; a cached kernel that fails
     is regenerated once before the model's effects are blamed."""
-    kernel = _build(model)
-    try:
-        _compile_now(model, kernel, quiet)
-    except EffectError:
-        if kernel.path is None:
-            raise
-        note(
-            f"the cached kernel of model '{model.spec}' in {kernel.path.parent} failed to "
-            "load; regenerating and compiling it again"
-        )
-        _purge(kernel.path)
+    with compile_lock(model):
         kernel = _build(model)
-        _compile_now(model, kernel, quiet=True)
+        try:
+            _compile_now(model, kernel, quiet)
+        except EffectError:
+            if kernel.path is None:
+                raise
+            note(
+                f"the cached kernel of model '{model.spec}' in {kernel.path.parent} failed "
+                "to load; regenerating and compiling it again"
+            )
+            _purge(kernel.path)
+            kernel = _build(model)
+            _compile_now(model, kernel, quiet=True)
     return kernel
 
 

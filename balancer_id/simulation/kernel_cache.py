@@ -7,15 +7,16 @@ machine code beside it (:func:`_is_cached_path`).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import inspect
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from balancer_id.files import cache_root
+from balancer_id.files import cache_root, private_folder
 from balancer_id.model.effect import Effect
 from balancer_id.model.spec import Model
 from balancer_id.simulation.jit import HAVE_NUMBA, private_cache_path
@@ -100,6 +101,47 @@ def _purge(path: Path) -> None:
             f.unlink()
         except OSError:
             pass
+
+
+@contextlib.contextmanager
+def compile_lock(model: Model) -> Iterator[None]:
+    """Hold, across processes, the lock of ``model``'s kernel while it is built and compiled.
+
+    Processes started together on a fresh machine (a batch's workers, a test run's
+    workers) that need the same kernel would each compile it, seconds of work apiece;
+    with the lock the first compiles and the others wait for it, then load its cached
+    machine code. A kernel already cached, compiled in memory, or a system without
+    ``fcntl`` (Windows) takes no lock. The lock is released when its holder exits, even
+    by a crash.
+
+    Parameters
+    ----------
+    model : Model
+        The model whose kernel is about to be built.
+
+    Yields
+    ------
+    None
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    path = _kernel_path(model)[0] if HAVE_NUMBA else None
+    if path is None or _is_cached_path(path) or private_folder(path.parent) is not None:
+        yield
+        return
+    try:
+        fd = os.open(path.with_suffix(".lock"), os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError:
+        yield
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 def _kernel_path(model: Model) -> tuple[Path | None, str]:
