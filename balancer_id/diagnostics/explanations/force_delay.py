@@ -165,7 +165,8 @@ def _dead_time_twin(inp: ArenaInput, shift: Explanation) -> list[Explanation]:
     The library's refit starts from the current values and can stop in another basin
     (an up-then-down log with a 72 ms dead time: its refit 2,100 BIC worse than the model
     without it, while the shift gained 83): the verdict then named the sensor alone,
-    though no log of this kind tells the two apart.
+    though no log of this kind tells the two apart. Offered only where that refit falls
+    more than :data:`~balancer_id.diagnostics.arena.CLOSE_BIC` short of the shift.
     """
     d = float(shift.detail.get("force_delay_s", 0.0))  # type: ignore[arg-type]
     model = inp.match.model
@@ -177,7 +178,7 @@ def _dead_time_twin(inp: ArenaInput, shift: Explanation) -> list[Explanation]:
         if name == "dead_time":
             r = own.residual
             d_own, _ = arena.score(inp, [r[sl] for sl in own.data.slices()], 1)
-            if d_own >= shift.delta_bic:
+            if d_own >= shift.delta_bic - arena.CLOSE_BIC:
                 return []  # the library's refit reached it: it speaks for itself
     from balancer_id.diagnostics.explanations.effect import LibraryEffect
 
