@@ -7,7 +7,6 @@ both sides of it, and a fit of those samples misfitted a clean log 4-6x over its
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from simlib.sessions import record, session_thrust, write_recordings
 
 from balancer_id.identify.api import fit
