@@ -141,6 +141,12 @@ def guided_move(
     a_sigma = max(_noise(accel) / np.sqrt(w), 1e-9)
     if np.max(np.abs(acc_s[begin:stop] - np.median(acc_s[start:begin]))) < MOTION_K * a_sigma:
         return None
+    # the force's zero: its mean over all the rest before the move (the median of the
+    # first half second above only finds the departure; its error would drive the model
+    # with a constant force all move long, errors in variables)
+    quiet_end = max(begin - w, lo)
+    if quiet_end - lo > rest_n:
+        ref = float(np.mean(force[lo:quiet_end]))
     change = force[start:stop] - ref
     if abs(_lagged_correlation(time[start:stop], change, acc_s[start:stop])) < MIN_CORRELATION:
         return None
