@@ -108,3 +108,34 @@ def test_profile_counts_the_trials_scatter_as_the_standard_error_does(tmp_path) 
     # cost is quadratic, more where it flattens)
     assert wide.high - est.value > 1.5 * (base.high - est.value)
     assert est.value - wide.low > 1.5 * (est.value - base.low) or wide.low_at_bound
+
+
+def test_a_lag_the_rival_replaces_is_moved_by_the_rival_s_lags() -> None:
+    # issue 31 (bench_universe seed 3117708011): an up-then-down log of a balancer whose
+    # lag is 0.69 s up and 1.72 s down read T_a = 0.15 s (95 % 0.09 .. 0.22), trusted,
+    # beside m_a 5x off: the asymmetric-lag rival moved m_a, but it has no T_a, so T_a
+    # was never compared. A lag the rival replaces is compared with the rival's lags.
+    from types import SimpleNamespace
+
+    from balancer_id.identify.rivals import _moved
+    from balancer_id.model.spec import resolve_model
+
+    def est(value, ci=None):
+        return SimpleNamespace(value=value, ci95=ci)
+
+    match = SimpleNamespace(
+        model=resolve_model("variable_viscosity"),
+        parameters={"m_a": est(3288.0, (2723.0, 3854.0)), "T_a": est(0.151, (0.087, 0.215))},
+    )
+    lags = {"T_up": est(0.586), "T_down": est(1.63)}
+    rival = SimpleNamespace(
+        model=resolve_model("variable_viscosity+asymmetric_lag"),
+        parameters={"m_a": est(700.0, (500.0, 900.0)), **lags},
+    )
+    moved = _moved(match, rival, ["m_a", "T_a"])
+    assert set(moved) == {"m_a", "T_a"}
+    assert moved["T_a"] == (0.087, 1.63)
+    # the rival's lags inside T_a's interval: T_a keeps its trust
+    inside = {"T_up": est(0.12), "T_down": est(0.2)}
+    rival.parameters = {"m_a": est(3300.0, (2700.0, 3900.0)), **inside}
+    assert _moved(match, rival, ["m_a", "T_a"]) == {}
