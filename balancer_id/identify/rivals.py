@@ -331,23 +331,25 @@ def _moved(
 ) -> dict[str, tuple[float, float]]:
     """Each of ``names`` the rival puts outside the fit's 95 % interval, with the range
     (the fit's interval joined with the rival's). A drive lag the rival replaces (an
-    asymmetric lag's ``T_up``, ``T_down`` for ``T_a``) is moved where any of the
-    rival's lags lies outside its interval: an up-then-down log read T_a 0.15 s, trusted,
-    where the rival's lags were 0.59 and 1.63 s (truth 0.69 and 1.72)."""
+    asymmetric lag's ``T_up``, ``T_down`` for ``T_a``) is moved where the 95 % interval
+    of any of the rival's lags misses its interval: an up-then-down log read T_a 0.15 s,
+    trusted, where the rival's lags were 0.59 and 1.63 s (truth 0.69 and 1.72)."""
     out = {}
     for name in names:
         lo, hi = match.parameters[name].ci95 or (math.nan, math.nan)
         if name not in rival.parameters:
             # a drive lag the rival replaces (T_a by T_up and T_down): its value holds
-            # only where each of the rival's lags lies in its interval
+            # only where each of the rival's lags may lie in its interval (each of the
+            # split lags is known less well than the one it replaces: its own interval)
             lags = [
-                rival.parameters[n].value
+                rival.parameters[n]
                 for n in rival.model.drive_lag_names
                 if n in rival.parameters and name in match.model.drive_lag_names
             ]
-            if not lags or all(lo <= v <= hi for v in lags):
+            spans = [lag.ci95 or (lag.value, lag.value) for lag in lags]
+            if all(a <= hi and b >= lo for a, b in spans):
                 continue
-            ends = [x for x in (lo, hi, *lags) if math.isfinite(x)]
+            ends = [x for x in (lo, hi, *(lag.value for lag in lags)) if math.isfinite(x)]
             out[name] = (min(ends), max(ends))
             continue
         r = rival.parameters[name]
