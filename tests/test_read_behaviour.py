@@ -278,3 +278,13 @@ def test_force_on_its_own_time_column_without_acceleration_keeps_its_times(tmp_p
     assert run.accel is None and run.force is not None
     np.testing.assert_allclose(run.time, np.arange(50) / 500)
     assert any("acceleration column is empty" in w for w in log.warnings)
+
+
+def test_a_force_past_the_50_n_range_is_another_sensor_not_one_at_its_limit(tmp_path: Path):
+    """A 78 N push recorded by a larger sensor: nothing is at a limit (the PASCO ±50 N
+    range is claimed only where the values stop at it)."""
+    rows = [f"{i * 0.005:.3f},{78.0 + 0.1 * (i % 3) if i > 5 else 0.2},0,0,9.8" for i in range(40)]
+    text = "Time (s),Force (N),Acceleration x (m/s²),Acceleration y (m/s²),Acceleration z (m/s²)\n"
+    log = read_log(_write(tmp_path, "big.csv", text + "\n".join(rows) + "\n"))
+    assert "force" not in log.recordings[0].saturated
+    assert not any("sensor limit" in str(w) for w in log.warnings)

@@ -434,6 +434,13 @@ def from_trials(
             trial, time, keep, continues, fine if decimation.factor > 1 else None, reference,
             out[-1].thrust_N if continues else None,
         )  # fmt: skip
+        if (continues or getattr(trial, "continues", False)) and decimation.factor > 1:
+            # moving at its step, the model's acceleration jumps there (the viscosity
+            # follows the thrust at once, times the speed): the anti-aliased samples within
+            # the filter's reach of it blend both sides, and are not fitted (the thrust,
+            # built above, still changes at its own time)
+            clear = keep & (np.abs(time - trial.t_step) > decimation.reach_s)
+            keep = clear if clear.sum() >= 10 else keep
         time, accel = _kept(time, keep), _kept(accel, keep)
         z_ref = v_ref = None
         if reference is not None:

@@ -129,19 +129,26 @@ def count_saturated(
     -------
     dict
         ``"force"`` and/or ``"accel"`` -> number of samples with ``|value|`` at least the
-        range minus one resolution step; channels without saturation are left out.
+        range minus one resolution step; channels without saturation are left out, and so
+        is a channel with a sample past its range plus one step (a sensor of another
+        range: a 78 N push read by a 100 N sensor is not at the 50 N limit).
     """
     out: dict[str, int] = {}
     if force is not None:
-        n = int(np.count_nonzero(np.abs(force) >= FORCE_RANGE_N - FORCE_RESOLUTION_N))
+        size = np.abs(force[np.isfinite(force)])
+        beyond = bool(size.size) and float(size.max()) > FORCE_RANGE_N + FORCE_RESOLUTION_N
+        n = 0 if beyond else int(np.count_nonzero(size >= FORCE_RANGE_N - FORCE_RESOLUTION_N))
         if n:
             out["force"] = n
     if accel is not None and accel.size:
         limit = ACCEL_RANGE_G * g - ACCEL_RESOLUTION
         hit = np.zeros(accel.shape[0], dtype=bool)
+        beyond = False
         for j in range(accel.shape[1]):  # column by column: no (n, k) temporaries
-            hit |= np.abs(accel[:, j]) >= limit
-        n = int(np.count_nonzero(hit))
+            size = np.abs(accel[:, j])
+            hit |= size >= limit
+            beyond |= bool(np.nanmax(size, initial=0.0) > limit + 2 * ACCEL_RESOLUTION)
+        n = 0 if beyond else int(np.count_nonzero(hit))
         if n:
             out["accel"] = n
     return out

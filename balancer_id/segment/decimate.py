@@ -41,6 +41,14 @@ class Decimation:
     rate_out_hz: float
     reason: str
 
+    @property
+    def reach_s(self) -> float:
+        """How far (s) the anti-aliasing filter reaches either side of a sample: a kept
+        sample nearer than this to a jump of the acceleration is a blend of both sides."""
+        if self.factor <= 1 or not self.rate_in_hz > 0:
+            return 0.0
+        return (10 * self.factor + 1) / self.rate_in_hz
+
 
 def decimation_factor(rate_hz: float, min_rate_hz: float = MIN_RATE_HZ) -> int:
     """Return the integer factor that brings ``rate_hz`` into ``[min_rate_hz, 2 min_rate_hz)``.

@@ -124,8 +124,9 @@ def soft_clip(y: np.ndarray, knee: float, slope: float, side: float) -> np.ndarr
     -------
     numpy.ndarray
     """
-    beyond = side * (y - knee) > 0
-    return np.where(beyond, knee + slope * (y - knee), y)
+    with np.errstate(invalid="ignore", over="ignore"):  # a diverged candidate's NaN stays NaN
+        beyond = side * (y - knee) > 0
+        return np.where(beyond, knee + slope * (y - knee), y)
 
 
 def _scan(inp: ArenaInput, side: float, top: float, band: float) -> tuple[float, float]:
