@@ -71,25 +71,24 @@ class ForceDelay(ExplanationKind):
         late = "force" if d > 0 else "acceleration"
         lead = inp.match.metrics.get("timing_lead_s")
         lead_se = inp.match.metrics.get("timing_lead_stderr_s")
-        return [
-            self.make(
-                f"{late} channel {abs(d) * 1e3:.0f} ms late",
-                fit.delta_bic,
-                fit.rmse,
-                detail={
-                    "sensor": "channel timing",
-                    "force_delay_s": d,
-                    "force_delay_stderr_s": se,
-                    "late_channel": late,
-                    "sample_interval_s": dt,
-                    "values": fit.values,
-                    "fit_timing_clear": _timing_called(inp),
-                    "fit_lead_s": lead,
-                    "fit_lead_stderr_s": lead_se,
-                },
-                null=abs(d) < 0.5 * dt,
-            )
-        ]
+        shift = self.make(
+            f"{late} channel {abs(d) * 1e3:.0f} ms late",
+            fit.delta_bic,
+            fit.rmse,
+            detail={
+                "sensor": "channel timing",
+                "force_delay_s": d,
+                "force_delay_stderr_s": se,
+                "late_channel": late,
+                "sample_interval_s": dt,
+                "values": fit.values,
+                "fit_timing_clear": _timing_called(inp),
+                "fit_lead_s": lead,
+                "fit_lead_stderr_s": lead_se,
+            },
+            null=abs(d) < 0.5 * dt,
+        )
+        return [shift, *_dead_time_twin(inp, shift)]
 
     def valid(self, e: Explanation, tests_failed: bool, threshold: float, min_drop: float) -> bool:
         """By BIC as any explanation, or, for a late force channel that the fit's own
@@ -154,6 +153,46 @@ class ForceDelay(ExplanationKind):
             f"{head(e)}; {corrected(e, fit)}. Correct the timing and refit: "
             f"{fit.command()} --force-delay {d:.3f}"
         )
+
+
+def _dead_time_twin(inp: ArenaInput, shift: Explanation) -> list[Explanation]:
+    """The balancer's dead time read from a late acceleration's fit, where the library's
+    own ``+dead_time`` refit did not reach it.
+
+    A balancer is time-invariant: its response to a drive ``tau`` late is its response
+    moved ``tau`` later, so the late acceleration's fit is also the fit of a dead time
+    ``tau = -d`` (the same residual, one parameter more than the model, as the shift).
+    The library's refit starts from the current values and can stop in another basin
+    (an up-then-down log with a 72 ms dead time: its refit 2,100 BIC worse than the model
+    without it, while the shift gained 83): the verdict then named the sensor alone,
+    though no log of this kind tells the two apart. Offered only where that refit falls
+    more than :data:`~balancer_id.diagnostics.arena.CLOSE_BIC` short of the shift.
+    """
+    d = float(shift.detail.get("force_delay_s", 0.0))  # type: ignore[arg-type]
+    model = inp.match.model
+    if d >= 0 or shift.null or "dead_time" in {e.name for e in model.effects}:
+        return []
+    if not any(e.name == "dead_time" for e in model.registry):
+        return []
+    for name, own in inp.effect_fits:
+        if name == "dead_time":
+            r = own.residual
+            d_own, _ = arena.score(inp, [r[sl] for sl in own.data.slices()], 1)
+            if d_own >= shift.delta_bic - arena.CLOSE_BIC:
+                return []  # the library's refit reached it: it speaks for itself
+    from balancer_id.diagnostics.explanations.effect import LibraryEffect
+
+    values = dict(shift.detail.get("values") or {})  # type: ignore[call-overload]
+    values["tau_d"] = -d
+    return [
+        LibraryEffect().make(
+            f"+dead_time {-d * 1e3:.0f} ms",
+            shift.delta_bic,
+            shift.rmse,
+            effects=["dead_time"],
+            detail={"values": values, "twin_of": shift.label},
+        )
+    ]
 
 
 def _timing_called(inp: ArenaInput) -> bool:
