@@ -25,6 +25,7 @@ def test_pure_noise_with_a_short_rest_is_rarely_called_a_misfit(monkeypatch):
     for _ in range(draws):
         parts = [(trial, rng.normal(0.0, 0.02, 60), rng.normal(0.0, 0.02, 2000))]
         monkeypatch.setattr(structure, "residual_around_steps", lambda match, p=parts: p)
+        monkeypatch.setattr(structure, "residual_continuing", lambda match: [])
         called += structure.structured_residual(None) is not None  # type: ignore[arg-type]
     # nominal: the 3-sigma one-sided level, 0.135 % (with the whiteness test about 0.3 %,
     # 3 of 1000); the normal approximation called 1.25 % (12 of 1000)
@@ -39,6 +40,7 @@ def test_a_real_excess_over_a_short_rest_is_still_called(monkeypatch):
         # the motion's residual at twice the noise's power (a misfit of the noise's RMS)
         parts = [(trial, rng.normal(0.0, 0.02, 100), rng.normal(0.0, 0.02 * np.sqrt(2), 2000))]
         monkeypatch.setattr(structure, "residual_around_steps", lambda match, p=parts: p)
+        monkeypatch.setattr(structure, "residual_continuing", lambda match: [])
         called += structure.structured_residual(None) is not None  # type: ignore[arg-type]
     # the F test's power there is about 94 % (the normal approximation's 99 %)
     assert called >= 85, called

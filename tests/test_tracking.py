@@ -21,14 +21,15 @@ DURATION = 120.0
 
 
 def _warming(t):
-    return 7.0 - 0.8 * t / DURATION
+    """Oil warming at the issue's rate (8 -> 4 kg/s over 10 min): 0.4 kg/s a minute."""
+    return 7.0 - 0.4 * t / 60.0
 
 
-def _session(tmp_path, d0_of_t, seed: int, name: str = "s.csv"):
+def _session(tmp_path, d0_of_t, seed: int, name: str = "s.csv", duration: float = DURATION):
     rng = np.random.default_rng(seed)
-    thrust = session_thrust(alternating_levels(int((DURATION - 2) / 8), rng), 8.0)
+    thrust = session_thrust(alternating_levels(int((duration - 2) / 8), rng), 8.0)
     rec = record_drifting(
-        MODEL, lambda t: {**TRUTH, "D0": d0_of_t(t)}, thrust, DURATION,
+        MODEL, lambda t: {**TRUTH, "D0": d0_of_t(t)}, thrust, duration,
         sensor=SensorSettings(tilt_deg=8.0), seed=seed,
     )
     path = tmp_path / name
@@ -38,9 +39,12 @@ def _session(tmp_path, d0_of_t, seed: int, name: str = "s.csv"):
 
 @pytest.fixture(scope="module")
 def falling(tmp_path_factory):
-    """A 2-min session with D0 falling 7 -> 6.2 kg/s (oil warming at the issue's rate,
+    """A 4-min session with D0 falling 7 -> 5.4 kg/s (oil warming at the issue's rate,
     8 -> 4 over 10 min), its path and fit."""
-    path = _session(tmp_path_factory.mktemp("falling"), _warming, 3)
+    # 4 minutes, not 2: over 2 minutes (7 blocks, an 11 % fall) "moving" at p < 0.001 held
+    # on 1 of 5 seeds (p 0.0009-0.005; 0.0013-0.05 once the resting level is pooled over
+    # the log); over 4 minutes, p < 1e-5 on 5 of 5
+    path = _session(tmp_path_factory.mktemp("falling"), _warming, 3, duration=240.0)
     return path, fit(str(path), track=["D0"])
 
 
@@ -55,7 +59,7 @@ def test_a_falling_viscosity_is_tracked_inside_its_band(falling):
     # the other parameters refitted with D0 moving: the joint fit's blend is gone
     assert abs(result.tracking.shared["m_a"] - 15.1) < 0.15
     out = result.to_dict()["tracking"]["parameters"]["D0"]
-    assert -1.1 < out["end_minus_start"]["change"] < -0.4
+    assert -2.0 < out["end_minus_start"]["change"] < -0.9  # the truth: -1.6
     lo, hi = out["largest_change"]["ci95"]
     assert lo < out["largest_change"]["change"] < hi < 0
 
@@ -91,13 +95,15 @@ def test_cli_track_prints_start_end_and_writes_series(tmp_path, cli, falling):
     path, _ = falling
     series = tmp_path / "out.csv"
     code, out, err = cli("fit", path, "--track", "D0", "--series", series, "--json")
-    assert code == 0, err
+    # 5: the joint fit's constant D0 misfits a 22 % fall (its residual is correlated) and
+    # says so; the track is written either way
+    assert code in (0, 5), err
     d = json.loads(out)["tracking"]["parameters"]["D0"]
     assert d["moving"] and d["start"]["value"] > d["end"]["value"] + 0.4
     text = (tmp_path / "out-track.csv").read_text()
     assert text.startswith("parameter,time_s,value,ci95_low,ci95_high,local,local_stderr")
     code, out, err = cli("fit", path, "--track", "D0")
-    assert code == 0, err
+    assert code in (0, 5), err
     assert "D0 [kg/s]: moves" in out and "largest change" in out
     code, _, err = cli("fit", path, "--track", "X")
     assert code == 2 and "--track X: not a parameter" in err

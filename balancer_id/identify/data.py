@@ -140,6 +140,7 @@ def measured_thrust(
     force: np.ndarray,
     held: bool = False,
     fine: tuple[np.ndarray, np.ndarray] | None = None,
+    smooth: bool = False,
 ) -> Thrust:
     """The measured operating force as the model's input ``u(t)``, never shifted in time.
 
@@ -169,6 +170,9 @@ def measured_thrust(
         The trial's time and force before decimation: a held force's changes are found
         and placed at that rate (an anti-aliased step spreads over several decimated
         samples, and its pieces would each be held).
+    smooth : bool
+        The force changes smoothly (a guided move's): its noise is smoothed out
+        (:func:`smooth_force`, errors in variables).
 
     Returns
     -------
@@ -197,7 +201,46 @@ def measured_thrust(
         u = median_filter(u, size=width, mode="nearest")
     elif u is force:
         u = u.copy()
+    if smooth:
+        u = smooth_force(time, u)
     return Thrust(time, u)  # the trial's own times, not a copy (a long log is held once)
+
+
+#: Fewest samples a smooth force needs before its noise is smoothed out.
+SMOOTH_MIN_SAMPLES = 50
+
+
+def smooth_force(time: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """A smoothly varying force without its noise: a cubic smoothing spline whose weight
+    is chosen by generalized cross-validation (zero phase: nothing moves in time).
+
+    The measured force drives the model; its noise enters the simulated acceleration and
+    biases a least-squares fit that treats the input as exact (errors in variables: a
+    guided move with a load cell's 5 % noise gave T_a 3 standard errors long and A 4
+    short). Cross-validation keeps what the samples show beyond their noise.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times (s), increasing.
+    u : numpy.ndarray
+        The force at those times (N).
+
+    Returns
+    -------
+    numpy.ndarray
+        The smoothed force; ``u`` itself when the spline cannot be made.
+    """
+    if u.size < SMOOTH_MIN_SAMPLES or not np.all(np.diff(time) > 0):
+        return u
+    from scipy.interpolate import make_smoothing_spline
+
+    try:
+        with np.errstate(all="ignore"):
+            out = make_smoothing_spline(time, u)(time)
+    except (ValueError, np.linalg.LinAlgError):
+        return u
+    return out if np.all(np.isfinite(out)) else u
 
 
 def _on_coarse(time: np.ndarray, fine: Thrust) -> Thrust:
@@ -315,7 +358,10 @@ def _trial_thrust(
     trial that continues), else a step, from the previous trial's level (``before``) when
     it continues."""
     if trial.force is not None and not trial.thrust_given and reference is None:
-        thrust = measured_thrust(time, trial.force, held=trial.kind == "step", fine=fine)
+        thrust = measured_thrust(
+            time, trial.force, held=trial.kind == "step", fine=fine,
+            smooth=trial.kind == "guided",
+        )  # fmt: skip
         if continues:
             first = np.searchsorted(time, time[keep][0])  # by sample, not by time
             thrust = Thrust(thrust.times[first:], thrust.values[first:])

@@ -347,13 +347,13 @@ HETEROGENEITY_ALPHA = 1e-4
 def _between_runs(levels: np.ndarray, se2: np.ndarray) -> float:
     """The variance of the runs' true levels about their mean (DerSimonian-Laird), 0 when
     Cochran's Q does not pass :data:`HETEROGENEITY_ALPHA`."""
-    from scipy.stats import chi2
+    from scipy.special import gammainccinv  # chi-square's quantile (scipy.stats: slow import)
 
     w = 1.0 / np.maximum(se2, 1e-18)
     mean = float(np.sum(w * levels) / np.sum(w))
     q = float(np.sum(w * (levels - mean) ** 2))
     k = levels.size
-    if q <= float(chi2.isf(HETEROGENEITY_ALPHA, k - 1)):
+    if q <= 2.0 * float(gammainccinv(0.5 * (k - 1), HETEROGENEITY_ALPHA)):
         return 0.0
     return max((q - (k - 1)) / float(np.sum(w) - np.sum(w**2) / np.sum(w)), 0.0)
 

@@ -28,10 +28,13 @@ MIN_MOVE_S = 1.0
 DEPART_K = 8.0
 START_K = 2.0
 #: The motion confirms the move when its smoothed acceleration exceeds this many noise
-#: deviations of the acceleration and follows the force (correlation with the force
-#: passed through a first-order lag of ``LAG_S``, at least ``MIN_CORRELATION``).
+#: deviations of the acceleration and follows the force: its correlation with the force
+#: passed through a balancer's response (a drive lag of one of ``LAGS_S``, then a mass
+#: whose viscosity takes one of ``VISCOUS_S`` to stop it, or none), at least
+#: ``MIN_CORRELATION`` for the best of them.
 MOTION_K = 5.0
-LAG_S = 0.3
+LAGS_S = (0.03, 0.3, 1.5)
+VISCOUS_S = (0.1, 0.4, 1.5, np.inf)
 MIN_CORRELATION = 0.5
 #: A person moves the load within seconds: the force leaves its rest within this time
 #: (a slow drift of the sensor's offset is no move).
@@ -44,15 +47,37 @@ def _noise(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0)) if d.size else 0.0
 
 
-def _lagged_correlation(t: np.ndarray, u: np.ndarray, a: np.ndarray) -> float:
-    """Correlation of ``a`` with ``u`` through a first-order lag of :data:`LAG_S`."""
-    f = np.zeros_like(u)
-    for i in range(1, u.size):
-        k = min((t[i] - t[i - 1]) / LAG_S, 1.0)
-        f[i] = f[i - 1] + k * (u[i - 1] - f[i - 1])
-    if np.std(f) == 0 or np.std(a) == 0:
+def _lowpass(x: np.ndarray, dt: float, tau: float) -> np.ndarray:
+    """``x`` through a first-order lag of ``tau`` (s) at sample interval ``dt``."""
+    from scipy.signal import lfilter
+
+    alpha = float(np.exp(-dt / tau))
+    return lfilter([1.0 - alpha], [1.0, -alpha], x)
+
+
+def _response_correlation(t: np.ndarray, u: np.ndarray, a: np.ndarray) -> float:
+    """The largest correlation (in size) of ``a`` with ``u`` passed through a balancer's
+    response: a drive lag, then a mass held back by a viscosity.
+
+    A mass alone accelerates as its (lagged) force; held back by a viscosity that stops
+    it in ``tau_v``, its acceleration is that force less its own lag over ``tau_v`` (a
+    high-pass: ``m a = f - D v``, ``v = LP_tau_v(f) / D``). A heavily damped load's
+    acceleration follows the force's changes, not the force: one fixed lag (0.3 s, a
+    mass alone) missed it, and a light cart's guided move was refused as no trial.
+    """
+    if u.size < 3 or np.std(a) == 0:
         return 0.0
-    return float(np.corrcoef(f, a)[0, 1])
+    dt = float(np.median(np.diff(t)))
+    if not dt > 0:
+        return 0.0
+    best = 0.0
+    for lag in LAGS_S:
+        f = _lowpass(u, dt, lag)
+        for tau_v in VISCOUS_S:
+            r = f if not np.isfinite(tau_v) else f - _lowpass(f, dt, tau_v)
+            if np.std(r) > 0:
+                best = max(best, abs(float(np.corrcoef(r, a)[0, 1])))
+    return best
 
 
 def _stretch(breaks: np.ndarray, first: int, n: int) -> tuple[int, int]:
@@ -148,7 +173,7 @@ def guided_move(
     if quiet_end - lo > rest_n:
         ref = float(np.mean(force[lo:quiet_end]))
     change = force[start:stop] - ref
-    if abs(_lagged_correlation(time[start:stop], change, acc_s[start:stop])) < MIN_CORRELATION:
+    if _response_correlation(time[start:stop], change, acc_s[start:stop]) < MIN_CORRELATION:
         return None
     orientation, how = _orientation(force_sign, smooth(change, w), acc_s[start:stop])
     u = orientation * change
