@@ -1019,6 +1019,27 @@ def _optima_note(optima: list[basins.Optimum], n_starts: int) -> Note:
     )
 
 
+def _sensor_tau(result: MatchResult) -> float:
+    """The sensor's noise correlation time (samples, >= 1): the residual's at rest before
+    the steps where there are 50 resting samples, at most the whole residual's.
+
+    A model's misfit correlates the residual in motion too (a friction it lacks: tens of
+    samples); counting that as the sensor's colour made every other optimum "about as
+    good" and untrusted the misfit fits whose refits diagnose compares (a Stribeck law on
+    a heavy balancer went undiscovered).
+    """
+    from balancer_id.identify.structure import residual_around_steps  # it imports this
+
+    whole = max(float(result.metrics.get("residual_tau", 1.0) or 1.0), 1.0)
+    try:
+        rests = [r for _, r, _ in residual_around_steps(result) if r.size >= 20]
+    except (AttributeError, ValueError):
+        return whole
+    if sum(r.size for r in rests) < 50:
+        return whole
+    return float(min(max(correlation_time(rests, removed=1), 1.0), whole))
+
+
 def _starts_disagree(
     result: MatchResult, best: _Outcome, ends: list[_Outcome], free_names: list[str]
 ) -> Note | None:
@@ -1036,7 +1057,7 @@ def _starts_disagree(
     k = len(free_names)
     if len(ends) < 2 or n <= k:
         return None
-    tau = max(float(result.metrics.get("residual_tau", 1.0) or 1.0), 1.0)
+    tau = _sensor_tau(result)
     s2 = best.chisqr / (n - k) * tau
     for other in ends:
         if other is best or not np.isfinite(other.chisqr) or other.chisqr - best.chisqr > 10 * s2:
