@@ -289,8 +289,8 @@ def test_the_readme_api_section_runs_twice_in_one_process(monkeypatch, capsys):
     monkeypatch.chdir(REPO)
     # the section's posterior line runs as written, on a short chain: sampling to the
     # default length twice took 46 of this test's 65 s, and test_posterior checks the
-    # sampling itself
-    short = functools.partial(posterior.sample_posterior, max_steps=100, min_steps=100)
+    # sampling itself (30 steps: the line runs; 100 took 3 s a round)
+    short = functools.partial(posterior.sample_posterior, max_steps=30, min_steps=30)
     monkeypatch.setattr(posterior, "sample_posterior", short)
     code = _readme_api_code()
     for _ in range(2):
