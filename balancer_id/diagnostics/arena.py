@@ -23,8 +23,7 @@ from scipy.optimize import least_squares
 
 from balancer_id.diagnostics.explanations.base import Explanation, Stage, Verdict
 from balancer_id.identify.data import FitData, TrialData
-from balancer_id.identify.matching import MatchResult
-from balancer_id.identify.structure import residual_around_steps
+from balancer_id.identify.matching import MatchResult, residual_around_steps
 from balancer_id.model.spec import Model
 
 if TYPE_CHECKING:

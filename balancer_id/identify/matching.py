@@ -1034,6 +1034,54 @@ def _optima_note(optima: list[basins.Optimum], n_starts: int) -> Note:
     )
 
 
+def residual_around_steps(match: MatchResult) -> list[tuple[TrialData, np.ndarray, np.ndarray]]:
+    """Each trial that starts from rest, with its residual before its step and after.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    list of (TrialData, numpy.ndarray, numpy.ndarray)
+        The trial, its residual at rest and its residual in motion, in the fit's order.
+    """
+    out = []
+    residual = match.residual
+    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
+        if td.continues or td.input.x0 is not None:
+            continue
+        r = residual[sl]
+        t = np.asarray(td.time, dtype=float)
+        if t.size != r.size:
+            continue
+        before = t < td.t_step
+        out.append((td, r[before], r[~before]))
+    return out
+
+
+def residual_continuing(match: MatchResult) -> list[np.ndarray]:
+    """The residuals of the trials that continue a session (the thrust changed while the
+    load moved): motion with no rest of its own, held to the other trials' rests.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        One residual per continuing trial, in the fit's order.
+    """
+    return [
+        match.residual[sl]
+        for td, sl in zip(match.data.trials, match.data.slices(), strict=True)
+        if td.continues
+    ]
+
+
 def _sensor_tau(result: MatchResult) -> float:
     """The sensor's noise correlation time (samples, >= 1): the residual's at rest before
     the steps where there are 50 resting samples, at most the whole residual's.
@@ -1043,8 +1091,6 @@ def _sensor_tau(result: MatchResult) -> float:
     good" and untrusted the misfit fits whose refits diagnose compares (a Stribeck law on
     a heavy balancer went undiscovered).
     """
-    from balancer_id.identify.structure import residual_around_steps  # it imports this
-
     whole = max(float(result.metrics.get("residual_tau", 1.0) or 1.0), 1.0)
     try:
         rests = [r for _, r, _ in residual_around_steps(result) if r.size >= 20]

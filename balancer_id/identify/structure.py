@@ -16,7 +16,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from balancer_id.identify.data import TrialData
-from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.matching import (
+    MatchResult,
+    residual_around_steps,
+    residual_continuing,
+)
 from balancer_id.identify.metrics import correlation_time
 from balancer_id.notes import Note
 
@@ -37,54 +41,6 @@ MIN_REST = 50
 #: estimate varies by a few tenths).
 TAU_FACTOR = 2.0
 TAU_MARGIN = 1.5
-
-
-def residual_around_steps(match: MatchResult) -> list[tuple[TrialData, np.ndarray, np.ndarray]]:
-    """Each trial that starts from rest, with its residual before its step and after.
-
-    Parameters
-    ----------
-    match : MatchResult
-        The fit.
-
-    Returns
-    -------
-    list of (TrialData, numpy.ndarray, numpy.ndarray)
-        The trial, its residual at rest and its residual in motion, in the fit's order.
-    """
-    out = []
-    residual = match.residual
-    for td, sl in zip(match.data.trials, match.data.slices(), strict=True):
-        if td.continues or td.input.x0 is not None:
-            continue
-        r = residual[sl]
-        t = np.asarray(td.time, dtype=float)
-        if t.size != r.size:
-            continue
-        before = t < td.t_step
-        out.append((td, r[before], r[~before]))
-    return out
-
-
-def residual_continuing(match: MatchResult) -> list[np.ndarray]:
-    """The residuals of the trials that continue a session (the thrust changed while the
-    load moved): motion with no rest of its own, held to the other trials' rests.
-
-    Parameters
-    ----------
-    match : MatchResult
-        The fit.
-
-    Returns
-    -------
-    list of numpy.ndarray
-        One residual per continuing trial, in the fit's order.
-    """
-    return [
-        match.residual[sl]
-        for td, sl in zip(match.data.trials, match.data.slices(), strict=True)
-        if td.continues
-    ]
 
 
 def _power(parts: Sequence[np.ndarray]) -> tuple[float, float]:
