@@ -18,6 +18,10 @@ import numpy as np
 from balancer_id.segment.robust import rate_of
 from balancer_id.segment.trial import Trial
 
+#: :func:`scipy.signal.resample_poly`'s default filter reaches this many times the
+#: decimation factor of input samples either side of each output sample.
+FILTER_HALF_LENGTH = 10
+
 #: Decimate down to no less than this rate (Hz); the result lies in [MIN_RATE_HZ, 2 MIN_RATE_HZ).
 MIN_RATE_HZ = 200.0
 
@@ -47,7 +51,7 @@ class Decimation:
         sample nearer than this to a jump of the acceleration is a blend of both sides."""
         if self.factor <= 1 or not self.rate_in_hz > 0:
             return 0.0
-        return (10 * self.factor + 1) / self.rate_in_hz
+        return (FILTER_HALF_LENGTH * self.factor + 1) / self.rate_in_hz
 
 
 def decimation_factor(rate_hz: float, min_rate_hz: float = MIN_RATE_HZ) -> int:
@@ -134,7 +138,7 @@ def decimate_trial(trial: Trial, min_rate_hz: float = MIN_RATE_HZ) -> tuple[Tria
 
 def _lowpass_decimate(signal: object, x: np.ndarray, q: int) -> np.ndarray:
     """Anti-aliased decimation by ``q``; ends point-reflected to keep their level and slope."""
-    pad = min(10 * q, x.size - 1)  # resample_poly's filter reaches 10 q samples either side
+    pad = min(FILTER_HALF_LENGTH * q, x.size - 1)  # the filter's reach either side
     pad -= pad % q  # whole output samples, so the kept samples stay on the log's times
     left = 2.0 * x[:q].mean() - x[pad:0:-1]
     right = 2.0 * x[-q:].mean() - x[-2 : -pad - 2 : -1]
