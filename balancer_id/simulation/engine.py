@@ -10,7 +10,7 @@ import numpy as np
 
 from balancer_id.model.spec import Model
 from balancer_id.simulation.inputs import Thrust
-from balancer_id.simulation.kernel import OUT_COLUMNS, get_kernel
+from balancer_id.simulation.kernel import OUT_COLUMNS, Kernel, get_kernel
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -312,26 +312,41 @@ class PackedTrials:
         kernel_cols = kernel.columns(cols_arr)
 
         def run(pvec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            kernel.simulate_batch_sens(
-                self.t_all,
-                self.offsets,
-                self.bt_all,
-                self.bu_all,
-                self.boffsets,
-                self.zr_all,
-                self.vr_all,
-                self.x0_all,
-                kernel.parameters(pvec),
-                substeps,
-                kernel_cols,
-                out,
-                sens,
-                s_in,
-                s_out,
-            )
+            self._sens_into(kernel, pvec, substeps, kernel_cols, out, sens, s_in, s_out)
             return out, sens
 
         return run
+
+    def _sens_into(
+        self,
+        kernel: Kernel,
+        pvec: np.ndarray,
+        substeps: int,
+        kernel_cols: np.ndarray,
+        out: np.ndarray,
+        sens: np.ndarray,
+        s_in: np.ndarray,
+        s_out: np.ndarray,
+    ) -> None:
+        """Run ``kernel``'s sensitivity kernel over the pack into ``out``, ``sens`` and
+        ``s_out`` (``kernel_cols``: the columns in the kernel's own parameter places)."""
+        kernel.simulate_batch_sens(
+            self.t_all,
+            self.offsets,
+            self.bt_all,
+            self.bu_all,
+            self.boffsets,
+            self.zr_all,
+            self.vr_all,
+            self.x0_all,
+            kernel.parameters(pvec),
+            substeps,
+            kernel_cols,
+            out,
+            sens,
+            s_in,
+            s_out,
+        )
 
     def _simulate_sens(
         self,
@@ -347,23 +362,7 @@ class PackedTrials:
         sens = np.empty((self.t_all.size, cols.size))
         s_out = np.empty_like(s_in)
         kernel = get_kernel(model)
-        kernel.simulate_batch_sens(
-            self.t_all,
-            self.offsets,
-            self.bt_all,
-            self.bu_all,
-            self.boffsets,
-            self.zr_all,
-            self.vr_all,
-            self.x0_all,
-            kernel.parameters(pvec),
-            substeps,
-            kernel.columns(cols),
-            out,
-            sens,
-            s_in,
-            s_out,
-        )
+        self._sens_into(kernel, pvec, substeps, kernel.columns(cols), out, sens, s_in, s_out)
         return out, sens, s_out
 
     def stream(
