@@ -322,6 +322,10 @@ def ar_coefficients(acf: Sequence[float], n: int) -> tuple[float, float]:
 def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[float, int]:
     """RSS and samples of residuals prewhitened trial by trial with AR(2) coefficients.
 
+    Every sample counts, a trial's first two by the exact start of the AR(2) likelihood
+    (:func:`_startup_weights`): a trial that continues a session starts on its step, and
+    a late channel shows in those samples first.
+
     Parameters
     ----------
     parts : sequence of numpy.ndarray
@@ -334,6 +338,7 @@ def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[
     tuple
     """
     p1, p2 = ar
+    start = _startup_weights(p1, p2)
     rss, n = 0.0, 0
     for r in parts:
         if r.size < 3:
@@ -341,7 +346,30 @@ def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[
         e = r[2:] - p1 * r[1:-1] - p2 * r[:-2]
         rss += float(e @ e)
         n += e.size
+        if start is not None:
+            # a trial's first two samples, whitened exactly (those of a trial that
+            # continues a session sit on its step: its timing is read there)
+            w0, rho1, w1 = start
+            rss += float((w0 * r[0]) ** 2 + (w1 * (r[1] - rho1 * r[0])) ** 2)
+            n += 2
     return rss, n
+
+
+def _startup_weights(p1: float, p2: float) -> tuple[float, float, float] | None:
+    """How an AR(2) series' first two samples are whitened: ``e0 = w0 r0`` and
+    ``e1 = w1 (r1 - rho1 r0)`` (the exact Gaussian likelihood's start, the Cholesky
+    factor of the stationary covariance of ``r0, r1`` in innovation units).
+
+    Returns None for a non-stationary pair (those samples are then left out).
+    """
+    den = (1.0 + p2) * ((1.0 - p2) ** 2 - p1 * p1)
+    if abs(p2) >= 1.0 or den <= 1e-9:
+        return None
+    gamma0 = (1.0 - p2) / den  # the marginal variance over the innovation's
+    rho1 = p1 / (1.0 - p2)
+    if gamma0 <= 0 or abs(rho1) >= 1.0:
+        return None
+    return float(np.sqrt(1.0 / gamma0)), float(rho1), float(np.sqrt(1.0 / (gamma0 * (1 - rho1**2))))
 
 
 def current(inp: ArenaInput) -> tuple[float, int, int]:
