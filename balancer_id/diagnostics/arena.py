@@ -265,7 +265,7 @@ def fit_varying(
         outs = sims.outputs(model, pvecs(x))
         if post is not None:
             post.param = float(x[-1])  # type: ignore[attr-defined]
-            outs = [post(i, o) for i, o in enumerate(outs)]
+            outs = mapped_outputs(post, outs)
         r = np.concatenate([y - o for y, o in zip(ys, outs, strict=True)])
         return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
 
@@ -278,6 +278,63 @@ def fit_varying(
     base.update(zip(names, sol.x[: len(names)], strict=True))
     ex = float(sol.x[-1]) if extra is not None else None
     return np.split(r, cuts), base, sol.x[len(names) : len(names) + q], ex
+
+
+def session_chains(trials: Sequence[TrialData]) -> list[list[int]]:
+    """The trials in chains: each trial that continues a session joins the one before it.
+
+    A sensor's map with a memory (a filter, a channel's delay) runs over a session as over
+    one record: a trial that continues one starts on its thrust step, and what the sensor
+    shows there depends on what came just before.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        In recording order.
+
+    Returns
+    -------
+    list of list of int
+        Trial indices, each chain in order; a trial that starts at rest is a chain's head.
+    """
+    out: list[list[int]] = []
+    for k, td in enumerate(trials):
+        if out and td.continues and trials[k - 1].source == td.source:
+            out[-1].append(k)
+        else:
+            out.append([k])
+    return out
+
+
+def mapped_outputs(
+    post: Callable[[int, np.ndarray], np.ndarray], outs: list[np.ndarray]
+) -> list[np.ndarray]:
+    """Each trial's simulated output through the sensor's map ``post(i, y)``.
+
+    A map with a ``chains`` attribute (:func:`session_chains`) is given each chain's
+    outputs joined, as ``post(head, y)``, and its result is cut back into the trials'.
+
+    Parameters
+    ----------
+    post : callable
+        The map.
+    outs : list of numpy.ndarray
+        Each trial's output.
+
+    Returns
+    -------
+    list of numpy.ndarray
+    """
+    chains = getattr(post, "chains", None)
+    if chains is None:
+        return [post(i, o) for i, o in enumerate(outs)]
+    mapped: list[np.ndarray] = list(outs)
+    for chain in chains:
+        joined = post(chain[0], np.concatenate([outs[j] for j in chain]))
+        cuts = np.cumsum([outs[j].size for j in chain])[:-1]
+        for j, part in zip(chain, np.split(joined, cuts), strict=True):
+            mapped[j] = part
+    return mapped
 
 
 def held(match: MatchResult) -> dict[str, float]:
