@@ -306,7 +306,7 @@ def lowpass_at(
     dt = 1.0 / fs
     if float(np.max(np.diff(time))) < 1.5 * dt:
         return lowpass(y, cutoff, fs, order)
-    grid = time[0] + np.arange(int(round((time[-1] - time[0]) * fs)) + 1) * dt
+    grid = time[0] + np.arange(round(float(time[-1] - time[0]) * fs) + 1) * dt
     return np.interp(time, grid, lowpass(np.interp(grid, time, y), cutoff, fs, order))
 
 
