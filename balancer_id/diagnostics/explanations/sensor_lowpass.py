@@ -74,9 +74,9 @@ class SensorLowpass(ExplanationKind):
         """The model's output through the low-pass: its cut-off started at the resting
         noise's, or, without that evidence, at the acceleration's lag behind its drive
         (none where it does not clearly lag). The filter's order is not known: a
-        2nd-order one (a MEMS sensor's digital filter) and a 1st-order one (an RC before
-        the converter, a running average) of the same lag are both fitted, the better by
-        BIC kept (one parameter each)."""
+        2nd-order one (a MEMS sensor's digital filter) and a 1st-order one (an
+        exponential running average in the sensor's firmware) of about the same lag are
+        both fitted, the better by BIC kept (one parameter each)."""
         rest_fc = inp.rest_cutoff_hz
         from_response = rest_fc is None
         late = _late_acceleration(inp)
@@ -250,9 +250,11 @@ def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _first_order(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients of a 1st-order low-pass (bilinear, prewarped)."""
-    w = np.tan(np.pi * min(cutoff, 0.45 * fs) / fs)
-    return np.array([w, w]) / (1 + w), np.array([1.0, (w - 1) / (1 + w)])
+    """Coefficients of a 1st-order low-pass as sensors' firmware runs it: the exponential
+    running average ``y[n] = y[n-1] + (1 - a) (x[n] - y[n-1])``, ``a = exp(-2 pi fc / fs)``
+    (the sample just read enters at once; a bilinear form would lag it half a sample)."""
+    a = float(np.exp(-2.0 * np.pi * min(cutoff, 0.45 * fs) / fs))
+    return np.array([1.0 - a]), np.array([1.0, -a])
 
 
 def lowpass(y: np.ndarray, cutoff: float, fs: float, order: int = 2) -> np.ndarray:
