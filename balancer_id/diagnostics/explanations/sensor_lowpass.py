@@ -228,9 +228,10 @@ def _cutoff_of_lag(inp: ArenaInput, lag: float) -> float | None:
 
 def _late_acceleration(inp: ArenaInput) -> Explanation | None:
     """The channel-timing explanation, where it found the acceleration late by more than
-    two of its standard errors and with a benefit (BIC), else None."""
+    two of its standard errors and with a benefit (BIC), else None. A lag under half a
+    sample counts (no finding as a late channel, but a filter's lag at a low rate)."""
     for e in inp.found:
-        if e.key != "force_delay" or e.null or e.delta_bic <= arena.CLOSE_BIC:
+        if e.key != "force_delay" or e.delta_bic <= arena.CLOSE_BIC:
             continue
         d = e.detail.get("force_delay_s")
         se = e.detail.get("force_delay_stderr_s")
