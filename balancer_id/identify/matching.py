@@ -51,7 +51,7 @@ class ParameterEstimate:
     #: The part of ``stderr`` from where the steps lie between their samples
     #: (:func:`~balancer_id.identify.timing.sampling_variance`): no new trial reduces it.
     phase_se: float = 0.0
-    #: How many times the trials' scatter widened ``stderr``
+    #: How many times the thrust levels' errors and the trials' scatter widened ``stderr``
     #: (:func:`~balancer_id.identify.trial_scatter.widen_by_trial_scatter`; 1: not at all):
     #: a profile interval's threshold is widened alike.
     scatter_ratio: float = 1.0

@@ -186,7 +186,7 @@ def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return g
 
 
-def sampling_variance(match: MatchResult) -> float:
+def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
     """The variance of the drive's timing that the force's sampling leaves (s^2).
 
     A step is seen first at one sample; it happened somewhere since the sample before,
@@ -196,24 +196,38 @@ def sampling_variance(match: MatchResult) -> float:
     a whole number of samples), so the spread is not divided by their number: a mean
     over them is no better known than one of them.
 
+    A smooth force (a guided move, a window) keeps each sample's value until the next
+    (:func:`~balancer_id.identify.data.measured_thrust`): against the force between the
+    samples it is late by anything from nothing to a whole sample (half a sample, for
+    a force read at its instant; less, where the sensors' own filters lag the
+    acceleration alike), ``dt^2 / 3`` about the hold's instant. Counted only with
+    ``smooth`` (the values' standard errors): the timing test's own statistics keep to
+    the steps' places.
+
     Parameters
     ----------
     match : MatchResult
         The fit.
+    smooth : bool
+        Count a smooth force's hold too (``dt^2 / 3``).
 
     Returns
     -------
     float
-        0 when every trial's force is a smooth measured series (held at each interval's
-        mean: no step to place).
+        0 when every trial's force is a smooth measured series (held at each sample:
+        no step to place) and ``smooth`` is False.
     """
     spreads = []
     for td in match.data.trials:
         times = np.asarray(td.input.thrust.times, dtype=float)
         t = np.asarray(td.time, dtype=float)
-        if t.size < 2 or (times.size == t.size and np.array_equal(times, t)):
-            continue  # a smooth series on the samples' own times
+        if t.size < 2:
+            continue
         dt = float(np.median(np.diff(t)))
+        if times.size == t.size and np.array_equal(times, t):  # a smooth series, held
+            if smooth:
+                spreads.append(dt * dt / 3.0)
+            continue
         spreads.append(dt * dt / 12.0)
     return float(np.median(spreads)) if spreads else 0.0
 
@@ -446,8 +460,9 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         per_s = -np.linalg.solve(gram[:k, :k], gram[:k, k])
     except np.linalg.LinAlgError:
         per_s = np.zeros(k)
+    held = sampling_variance(match, smooth=True)  # a smooth force's hold counts too
     phase_se = {
-        name: float(abs(per_s[j]) * np.sqrt(phase))
+        name: float(abs(per_s[j]) * np.sqrt(held))
         for j, name in enumerate(names)
         if np.isfinite(per_s[j])
     }
