@@ -85,6 +85,9 @@ FIT_METRICS: tuple[MetricField, ...] = (
     # the largest ratio of a standard error from the trials' scatter to the one from the
     # noise within them (identify/trial_scatter.py; the standard errors take the larger)
     MetricField("trial_scatter_ratio", "trial scatter", digits=3),
+    # the largest ratio of a standard error with the thrust levels' errors (each hold's
+    # mean of a noisy force, less its zero; identify/level_errors.py) to the one without
+    MetricField("level_error_ratio", "level errors", digits=3),
 )
 
 

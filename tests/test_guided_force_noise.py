@@ -48,3 +48,30 @@ def test_a_noisy_guided_force_is_no_late_sensor(tmp_path):
     for name, value in TRUTH.items():
         p = result.match.parameters[name]
         assert abs(p.value - value) < 3 * p.stderr, (name, p.value, p.stderr)
+
+
+def test_a_held_force_at_50_hz_puts_its_sample_into_the_values(tmp_path):
+    # issue 31 (bench_universe world 14420044007, without its faults): a clean guided
+    # move at 50 Hz; the force changes between the samples (16.5 ms before each, here),
+    # the model holds each sample's value to the next, and T_a came out 24 ms (13
+    # standard errors) short, trusted. The hold's sample now enters each value's error.
+    truth = {"m_a": 1.195, "T_a": 0.181, "D0": 1.564, "A": 1.32}
+    rate = 50.0
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 9.0, 1.0 / rate)
+    thrust = guided_move_thrust(1.6, 5.09, 1.7635, rate)
+    (sim,) = simulate_many(
+        resolve_model("variable_viscosity"), truth, [TrialInput(t, thrust)], substeps=8
+    )
+    up = up_vector(8.6, 40.0)
+    rec = Recording(
+        name="Run #1", time=t, force=np.asarray(sim.operating_force, float),
+        accel=(sim.accel + 9.80665)[:, None] * up[None, :] + rng.normal(0.0, 0.0075, (t.size, 3)),
+        accel_includes_gravity=True, accel_axes=("x", "y", "z"), sample_rate_hz=rate,
+    )  # fmt: skip
+    path = tmp_path / "guided_50hz.csv"
+    write_log(path, [rec], "pasco-capstone")
+    out = fit(str(path)).to_dict()
+    for name, value in truth.items():
+        lo, hi = out["parameters"][name]["ci95"]
+        assert lo <= value <= hi, (name, lo, hi)

@@ -265,7 +265,7 @@ def fit_varying(
         outs = sims.outputs(model, pvecs(x))
         if post is not None:
             post.param = float(x[-1])  # type: ignore[attr-defined]
-            outs = [post(i, o) for i, o in enumerate(outs)]
+            outs = mapped_outputs(post, outs)
         r = np.concatenate([y - o for y, o in zip(ys, outs, strict=True)])
         return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
 
@@ -278,6 +278,63 @@ def fit_varying(
     base.update(zip(names, sol.x[: len(names)], strict=True))
     ex = float(sol.x[-1]) if extra is not None else None
     return np.split(r, cuts), base, sol.x[len(names) : len(names) + q], ex
+
+
+def session_chains(trials: Sequence[TrialData]) -> list[list[int]]:
+    """The trials in chains: each trial that continues a session joins the one before it.
+
+    A sensor's map with a memory (a filter, a channel's delay) runs over a session as over
+    one record: a trial that continues one starts on its thrust step, and what the sensor
+    shows there depends on what came just before.
+
+    Parameters
+    ----------
+    trials : sequence of TrialData
+        In recording order.
+
+    Returns
+    -------
+    list of list of int
+        Trial indices, each chain in order; a trial that starts at rest is a chain's head.
+    """
+    out: list[list[int]] = []
+    for k, td in enumerate(trials):
+        if out and td.continues and trials[k - 1].source == td.source:
+            out[-1].append(k)
+        else:
+            out.append([k])
+    return out
+
+
+def mapped_outputs(
+    post: Callable[[int, np.ndarray], np.ndarray], outs: list[np.ndarray]
+) -> list[np.ndarray]:
+    """Each trial's simulated output through the sensor's map ``post(i, y)``.
+
+    A map with a ``chains`` attribute (:func:`session_chains`) is given each chain's
+    outputs joined, as ``post(head, y)``, and its result is cut back into the trials'.
+
+    Parameters
+    ----------
+    post : callable
+        The map.
+    outs : list of numpy.ndarray
+        Each trial's output.
+
+    Returns
+    -------
+    list of numpy.ndarray
+    """
+    chains = getattr(post, "chains", None)
+    if chains is None:
+        return [post(i, o) for i, o in enumerate(outs)]
+    mapped: list[np.ndarray] = list(outs)
+    for chain in chains:
+        joined = post(chain[0], np.concatenate([outs[j] for j in chain]))
+        cuts = np.cumsum([outs[j].size for j in chain])[:-1]
+        for j, part in zip(chain, np.split(joined, cuts), strict=True):
+            mapped[j] = part
+    return mapped
 
 
 def held(match: MatchResult) -> dict[str, float]:
@@ -322,6 +379,10 @@ def ar_coefficients(acf: Sequence[float], n: int) -> tuple[float, float]:
 def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[float, int]:
     """RSS and samples of residuals prewhitened trial by trial with AR(2) coefficients.
 
+    Every sample counts, a trial's first two by the exact start of the AR(2) likelihood
+    (:func:`_startup_weights`): a trial that continues a session starts on its step, and
+    a late channel shows in those samples first.
+
     Parameters
     ----------
     parts : sequence of numpy.ndarray
@@ -334,6 +395,7 @@ def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[
     tuple
     """
     p1, p2 = ar
+    start = _startup_weights(p1, p2)
     rss, n = 0.0, 0
     for r in parts:
         if r.size < 3:
@@ -341,7 +403,30 @@ def whitened_rss(parts: Sequence[np.ndarray], ar: tuple[float, float]) -> tuple[
         e = r[2:] - p1 * r[1:-1] - p2 * r[:-2]
         rss += float(e @ e)
         n += e.size
+        if start is not None:
+            # a trial's first two samples, whitened exactly (those of a trial that
+            # continues a session sit on its step: its timing is read there)
+            w0, rho1, w1 = start
+            rss += float((w0 * r[0]) ** 2 + (w1 * (r[1] - rho1 * r[0])) ** 2)
+            n += 2
     return rss, n
+
+
+def _startup_weights(p1: float, p2: float) -> tuple[float, float, float] | None:
+    """How an AR(2) series' first two samples are whitened: ``e0 = w0 r0`` and
+    ``e1 = w1 (r1 - rho1 r0)`` (the exact Gaussian likelihood's start, the Cholesky
+    factor of the stationary covariance of ``r0, r1`` in innovation units).
+
+    Returns None for a non-stationary pair (those samples are then left out).
+    """
+    den = (1.0 + p2) * ((1.0 - p2) ** 2 - p1 * p1)
+    if abs(p2) >= 1.0 or den <= 1e-9:
+        return None
+    gamma0 = (1.0 - p2) / den  # the marginal variance over the innovation's
+    rho1 = p1 / (1.0 - p2)
+    if gamma0 <= 0 or abs(rho1) >= 1.0:
+        return None
+    return float(np.sqrt(1.0 / gamma0)), float(rho1), float(np.sqrt(1.0 / (gamma0 * (1 - rho1**2))))
 
 
 def current(inp: ArenaInput) -> tuple[float, int, int]:

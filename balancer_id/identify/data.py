@@ -59,6 +59,11 @@ class TrialData:
         noise over the samples after the onset), for a step trial driven by its measured
         force; None otherwise. The level's error moves the whole response at once
         (errors in variables); :mod:`~balancer_id.identify.structure` allows for it.
+    zero_se_N : float or None
+        Standard error (N) of the force's zero, read in the rest before the first step of
+        the trial's chain (its 20 %-trimmed mean) and subtracted from every level after it:
+        an error shared by a session's trials. None where ``level_se_N`` is None.
+        :mod:`~balancer_id.identify.level_errors` carries both into the standard errors.
     """
 
     index: int
@@ -72,6 +77,7 @@ class TrialData:
     previous: TrialData | None = field(default=None, repr=False)
     decimation: Decimation | None = None
     level_se_N: float | None = None
+    zero_se_N: float | None = None
 
     @property
     def lead_in(self) -> TrialInput | None:
@@ -345,6 +351,27 @@ def _level_se(trial: Trial, fine: tuple[np.ndarray, np.ndarray] | None) -> float
     return float(sigma / np.sqrt(n)) if np.isfinite(sigma) else None
 
 
+#: Variance of a 20 %-trimmed mean of normal samples against their plain mean's (the
+#: force's zero, :func:`~balancer_id.segment.robust.level`).
+TRIMMED_MEAN_VARIANCE = 1.2
+
+
+def _zero_se(trial: Trial, fine: tuple[np.ndarray, np.ndarray] | None) -> float | None:
+    """The standard error (N) of the force's zero read in the rest before a step trial's
+    onset (the 20 %-trimmed mean that segmentation subtracts, up to its guard before the
+    onset); None where :func:`_level_se` is None or no rest is seen."""
+    if _level_se(trial, fine) is None or fine is None:
+        return None
+    t, f = fine
+    ok = np.isfinite(f)
+    before = ok & (t < trial.t_step - StepSettings().guard_before_s)
+    n = int(before.sum())
+    if n < 3:
+        return None
+    sigma = noise_sigma(f[ok])
+    return float(sigma * np.sqrt(TRIMMED_MEAN_VARIANCE / n)) if np.isfinite(sigma) else None
+
+
 def _trial_thrust(
     trial: Trial,
     time: np.ndarray,
@@ -467,6 +494,11 @@ def from_trials(
                 previous=out[-1] if continues else None,
                 decimation=decimation if decimation.factor > 1 else None,
                 level_se_N=_level_se(trial, fine),
+                zero_se_N=(
+                    out[-1].zero_se_N  # one zero for a chain (segmentation's ref_chain)
+                    if out and getattr(trial, "continues", False)
+                    else _zero_se(trial, fine)
+                ),
             )
         )
         prev = trial

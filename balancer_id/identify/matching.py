@@ -51,7 +51,7 @@ class ParameterEstimate:
     #: The part of ``stderr`` from where the steps lie between their samples
     #: (:func:`~balancer_id.identify.timing.sampling_variance`): no new trial reduces it.
     phase_se: float = 0.0
-    #: How many times the trials' scatter widened ``stderr``
+    #: How many times the thrust levels' errors and the trials' scatter widened ``stderr``
     #: (:func:`~balancer_id.identify.trial_scatter.widen_by_trial_scatter`; 1: not at all):
     #: a profile interval's threshold is widened alike.
     scatter_ratio: float = 1.0
@@ -1127,11 +1127,16 @@ def _starts_disagree(
             se = result.parameters[name].stderr or 0.0
             a, b = float(best.x[j]), float(other.x[j])
             if abs(a - b) > max(3 * se, 0.01 * max(abs(a), abs(b))):
+                apart = (
+                    f"{abs(a - b) / se:.3g} standard errors apart"
+                    if np.isfinite(se) and se > 0
+                    else "its standard error undefined"
+                )
                 return Note(
                     "fit.starts_disagree",
                     f"starts ended at different optima about as good as each other ({name} "
-                    f"{a:.4g} and {b:.4g}, {abs(a - b) / max(se, 1e-300):.1f} standard errors "
-                    "apart): the trials do not decide between them; the fit cannot be trusted "
+                    f"{a:.4g} and {b:.4g}, {apart}): the trials do not decide between them; "
+                    "the fit cannot be trusted "
                     "until more trials (other thrust levels, longer motions) or --fix settle it",
                     subject=name,
                     severity="error",

@@ -33,7 +33,7 @@ EXCESS = 0.25
 SIGMAS = 3.0
 
 #: Fewest resting samples (over all trials) the test needs.
-MIN_REST = 50
+MIN_REST = 20
 
 #: The residual in motion is structured when its correlation time exceeds the noise's at
 #: rest by this factor plus :data:`TAU_MARGIN` samples (a misfit at a third of the

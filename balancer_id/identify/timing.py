@@ -136,6 +136,36 @@ def _row_times(match: MatchResult) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
+def _run_slices(match: MatchResult) -> list[slice]:
+    """The rows of each stretch the model runs through without a break: a session's
+    trials that continue one another (the simulation carries its state over) are one.
+
+    A step inside a session begins the next trial, so the response's jump at the step
+    (the viscosity changing with the thrust while the balancer moves) lies on the
+    trials' border. Shifted or differentiated trial by trial, the output never moves
+    that jump across the border, and a force channel time-stamped late, whose steps
+    the acceleration answers before the recorded force changes, went unseen (a 23 ms
+    lateness read as 1 +- 3 ms while A sat 3.4 standard errors off).
+    """
+    trials = match.data.trials
+    out: list[slice] = []
+    for i, sl in enumerate(match.data.slices()):
+        td = trials[i]
+        joined = (
+            bool(out)
+            and td.continues
+            and td.previous is not None
+            and td.previous.time[-1] == trials[i - 1].time[-1]
+            and trials[i - 1].source == td.source
+            and out[-1].stop == sl.start
+        )
+        if joined:
+            out[-1] = slice(out[-1].start, sl.stop)
+        else:
+            out.append(sl)
+    return out
+
+
 def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """``dy/dt`` row by row, one-sided at each trial's first and last row."""
     g = np.zeros_like(y)
@@ -156,7 +186,7 @@ def _derivative(y: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return g
 
 
-def sampling_variance(match: MatchResult) -> float:
+def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
     """The variance of the drive's timing that the force's sampling leaves (s^2).
 
     A step is seen first at one sample; it happened somewhere since the sample before,
@@ -166,24 +196,38 @@ def sampling_variance(match: MatchResult) -> float:
     a whole number of samples), so the spread is not divided by their number: a mean
     over them is no better known than one of them.
 
+    A smooth force (a guided move, a window) keeps each sample's value until the next
+    (:func:`~balancer_id.identify.data.measured_thrust`): against the force between the
+    samples it is late by anything from nothing to a whole sample (half a sample, for
+    a force read at its instant; less, where the sensors' own filters lag the
+    acceleration alike), ``dt^2 / 3`` about the hold's instant. Counted only with
+    ``smooth`` (the values' standard errors): the timing test's own statistics keep to
+    the steps' places.
+
     Parameters
     ----------
     match : MatchResult
         The fit.
+    smooth : bool
+        Count a smooth force's hold too (``dt^2 / 3``).
 
     Returns
     -------
     float
-        0 when every trial's force is a smooth measured series (held at each interval's
-        mean: no step to place).
+        0 when every trial's force is a smooth measured series (held at each sample:
+        no step to place) and ``smooth`` is False.
     """
     spreads = []
     for td in match.data.trials:
         times = np.asarray(td.input.thrust.times, dtype=float)
         t = np.asarray(td.time, dtype=float)
-        if t.size < 2 or (times.size == t.size and np.array_equal(times, t)):
-            continue  # a smooth series on the samples' own times
+        if t.size < 2:
+            continue
         dt = float(np.median(np.diff(t)))
+        if times.size == t.size and np.array_equal(times, t):  # a smooth series, held
+            if smooth:
+                spreads.append(dt * dt / 3.0)
+            continue
         spreads.append(dt * dt / 12.0)
     return float(np.median(spreads)) if spreads else 0.0
 
@@ -232,11 +276,11 @@ SHIFT_CELLS = 4_000_000
 
 def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
     """The model's output were the drive ``lead`` seconds earlier (negative: later):
-    each trial's output moved in time by ``lead`` (a time-invariant model from rest; its
-    first and last values held)."""
+    each stretch's output (:func:`_run_slices`: a session's trials as one) moved in time
+    by ``lead`` (a time-invariant model from rest; its first and last values held)."""
     y_model = np.asarray(match.y_model, dtype=float)
     out = np.empty_like(y_model)
-    for sl in match.data.slices():
+    for sl in _run_slices(match):
         tt = t[sl]
         out[sl] = np.interp(tt + lead, tt, y_model[sl]) if tt.size > 1 else y_model[sl]
     return out
@@ -378,7 +422,7 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         return None
     pvec = np.array([match.parameters[p.name].value for p in model.params], dtype=float)
     t = _row_times(match)
-    starts = np.cumsum([0] + [sl.stop - sl.start for sl in match.data.slices()])[:-1]
+    starts = np.array([sl.start for sl in _run_slices(match)], dtype=int)
     y = match.data.y
     grid = _shift_grid(match, t, both=not floored)
     profile = _ShiftProfile.start(match, t, grid, k) if grid is not None else None
@@ -416,8 +460,9 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
         per_s = -np.linalg.solve(gram[:k, :k], gram[:k, k])
     except np.linalg.LinAlgError:
         per_s = np.zeros(k)
+    held = sampling_variance(match, smooth=True)  # a smooth force's hold counts too
     phase_se = {
-        name: float(abs(per_s[j]) * np.sqrt(phase))
+        name: float(abs(per_s[j]) * np.sqrt(held))
         for j, name in enumerate(names)
         if np.isfinite(per_s[j])
     }

@@ -108,7 +108,7 @@ def widen_by_trial_scatter(match: MatchResult) -> list[Note]:
         ratios[name] = se / est.stderr
         if se > est.stderr:
             est.stderr = se
-            est.scatter_ratio = float(ratios[name])
+            est.scatter_ratio = float(est.scatter_ratio * ratios[name])
     if not ratios:
         return []
     worst = max(ratios, key=lambda n: ratios[n])

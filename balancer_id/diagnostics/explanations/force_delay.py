@@ -60,13 +60,17 @@ class ForceDelay(ExplanationKind):
             return []
         times = [np.asarray(td.time, dtype=float) for td in inp.trials]
         dt = float(np.median([np.median(np.diff(t)) for t in times if t.size > 1]))
+        # a session's trials shifted as one record: the step that starts a continuing
+        # trial is seen with what came just before it
+        chains = arena.session_chains(inp.trials)
+        joined = {c[0]: np.concatenate([times[j] for j in c]) for c in chains}
 
         def shifted(i: int, y: np.ndarray, d: float) -> np.ndarray:
-            t = times[i]
+            t = joined[i]
             return np.interp(t + d, t, y) if t.size == y.size else y
 
-        d0 = _scan(inp, shifted, dt)
-        fit = fit_mapped(inp, shifted, d0, -MAX_DELAY_S, MAX_DELAY_S)
+        d0 = _scan(inp, shifted, dt, chains)
+        fit = fit_mapped(inp, shifted, d0, -MAX_DELAY_S, MAX_DELAY_S, chains=chains)
         d, se = fit.param, fit.stderr
         late = "force" if d > 0 else "acceleration"
         lead = inp.match.metrics.get("timing_lead_s")
@@ -201,19 +205,22 @@ def _timing_called(inp: ArenaInput) -> bool:
     return has_code(notes, "fit.timing")
 
 
-def _scan(inp: ArenaInput, shifted: object, dt: float) -> float:
-    """The shift that best matches the current fit's output to the data (a start)."""
+def _scan(inp: ArenaInput, shifted: object, dt: float, chains: list[list[int]]) -> float:
+    """The shift that best matches the current fit's output to the data (a start); the
+    outputs joined by session chain, as ``shifted`` takes them."""
     sims = arena.Trials(inp.trials)
     values = inp.match.values()
     pvec = np.array([values[n] for n in inp.match.model.param_names])
-    outs = sims.outputs(inp.match.model, [pvec] * len(inp.trials))
-    ys = [np.asarray(d.y, dtype=float) for d in sims.data]
+    each = sims.outputs(inp.match.model, [pvec] * len(inp.trials))
+    outs = [np.concatenate([each[j] for j in c]) for c in chains]
+    ys = [np.concatenate([np.asarray(sims.data[j].y, dtype=float) for j in c]) for c in chains]
+    heads = [c[0] for c in chains]
     grid = np.arange(-MAX_DELAY_S, MAX_DELAY_S + 1e-12, max(dt / 2, 0.001))
     pairs = list(zip(ys, outs, strict=True))
     cost = []
     for g in grid:
         total = 0.0
-        for i, (y, o) in enumerate(pairs):
+        for i, (y, o) in zip(heads, pairs, strict=True):
             total += float(np.sum((y - shifted(i, o, float(g))) ** 2))  # type: ignore[operator]
         cost.append(total)
     return float(grid[int(np.nanargmin(cost))])

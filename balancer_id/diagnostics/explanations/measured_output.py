@@ -61,6 +61,7 @@ def fit_mapped(
     k_extra: int = 1,
     values: dict[str, float] | None = None,
     max_nfev: int = 60,
+    chains: list[list[int]] | None = None,
 ) -> MappedFit:
     """The model's parameters and the map's parameter fitted together.
 
@@ -78,6 +79,10 @@ def fit_mapped(
         Where the balancer's parameters start (the current fit's by default).
     max_nfev : int
         Function evaluations.
+    chains : list of list of int, optional
+        The session's chains (:func:`~balancer_id.diagnostics.arena.session_chains`)
+        for a map with a memory: it is then given each chain's joined output, indexed by
+        the chain's first trial.
 
     Returns
     -------
@@ -89,6 +94,9 @@ def fit_mapped(
 
     def post(i: int, y: np.ndarray) -> np.ndarray:
         return output_map(i, y, post.param)  # type: ignore[attr-defined]
+
+    if chains is not None:
+        post.chains = chains  # type: ignore[attr-defined]
 
     solution: list[object] = []
     parts, base, _, param = arena.fit_varying(

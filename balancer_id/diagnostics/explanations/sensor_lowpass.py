@@ -11,6 +11,7 @@ from balancer_id.diagnostics import arena
 from balancer_id.diagnostics.explanations.base import (
     Explanation,
     ExplanationKind,
+    Stage,
     Verdict,
     head,
 )
@@ -27,9 +28,13 @@ SENSOR_TRIAL = (
 )
 
 
+#: Evaluations of the 1st-order filter's fit, started where the 2nd-order one ended.
+FIRST_ORDER_NFEV = 25
+
+
 class SensorLowpass(ExplanationKind):
-    """The accelerometer's 2nd-order low-pass, when the resting noise rolls off as a
-    filter's (40 dB per decade; :func:`rest_cutoff`).
+    """The accelerometer's low-pass (2nd or 1st order), when the resting noise rolls off
+    as a filter's (40 dB per decade; :func:`rest_cutoff`) or the response lags its drive.
 
     Fitted: the model's output through the filter, its cut-off started at the resting
     noise's and fitted with the model's parameters, or held at it (no parameter added),
@@ -40,6 +45,8 @@ class SensorLowpass(ExplanationKind):
     key = "sensor"
     kind = "sensor"
     verdict = Verdict.SENSOR_EFFECT
+    #: after the channel timing's fit, whose lag (a late acceleration) it starts from
+    stage = Stage.PAIRED
     stands_alone = True
     measurement = True
     tried = "the sensor's low-pass"
@@ -66,49 +73,82 @@ class SensorLowpass(ExplanationKind):
     def propose(self, inp: ArenaInput) -> list[Explanation]:
         """The model's output through the low-pass: its cut-off started at the resting
         noise's, or, without that evidence, at the acceleration's lag behind its drive
-        (none where it does not clearly lag)."""
+        (none where it does not clearly lag). The filter's order is not known: a
+        2nd-order one (a MEMS sensor's digital filter) and a 1st-order one (an
+        exponential running average in the sensor's firmware) of about the same lag are
+        both fitted, the better by BIC kept (one parameter each)."""
         rest_fc = inp.rest_cutoff_hz
         from_response = rest_fc is None
+        late = _late_acceleration(inp)
         start_fc = _lag_cutoff(inp) if rest_fc is None else rest_fc
+        values = inp.match.values()
+        if from_response and late is not None:
+            # the lag the channel-timing fit found, with the balancer it found there: a
+            # filter's lag and a late channel are read from the same samples
+            start_fc = _cutoff_of_lag(inp, -float(late.detail["force_delay_s"]))  # type: ignore[arg-type]
+            values = {**values, **late.detail.get("values", {})}  # type: ignore[dict-item]
         if start_fc is None:
             return []
         fc0: float = start_fc
         model = inp.match.model
         sims = arena.Trials(inp.trials)
-        dts = [float(np.median(np.diff(td.time))) for td in inp.trials]
+        # a session's trials filtered as one record: the filter remembers the motion
+        # before the step that starts a continuing trial
+        chains = arena.session_chains(inp.trials)
+        times = [np.asarray(td.time, dtype=float) for td in inp.trials]
+        joined = {c[0]: np.concatenate([times[j] for j in c]) for c in chains}
+        dts = [float(np.median(np.diff(t))) for t in times]
         fss = [1.0 / dt for dt in dts]
-
-        def post(i: int, y: np.ndarray) -> np.ndarray:
-            return lowpass(y, post.param, fss[i])  # type: ignore[attr-defined]
-
-        def measured(i: int, y: np.ndarray) -> np.ndarray:
-            return lowpass(y, fc0, fss[i])
-
         fixed = arena.held(inp.match)
         names = [n for n in model.param_names if n not in fixed]
         none = np.zeros((len(inp.trials), 0))
-        parts, base, _, fc = arena.fit_varying(
-            model,
-            sims,
-            inp.match.values(),
-            fixed,
-            names[0],
-            none,
-            post=post,
-            extra=(fc0, 0.3 * fc0, min(4 * fc0, 0.45 * min(fss))),
-        )
+
+        def fitted_filter(
+            order: int, start: float, values: dict[str, float], nfev: int
+        ) -> tuple[list[np.ndarray], dict[str, float], float]:
+            def post(i: int, y: np.ndarray) -> np.ndarray:
+                return lowpass_at(joined[i], y, post.param, fss[i], order)  # type: ignore[attr-defined]
+
+            post.chains = chains  # type: ignore[attr-defined]
+
+            parts, base, _, fc = arena.fit_varying(
+                model,
+                sims,
+                values,
+                fixed,
+                names[0],
+                none,
+                post=post,
+                extra=(start, 0.3 * start, min(4 * start, 0.45 * min(fss))),
+                max_nfev=nfev,
+            )
+            return parts, base, float(fc if fc is not None else start)
+
+        parts, base, fc = fitted_filter(2, fc0, values, 60)
         d, rmse = arena.score(inp, parts, 1)
+        order = 2
+        # the 1st-order filter of the same lag (sqrt(2) / (2 pi fc) against 1 / (2 pi fc)),
+        # from the balancer's values the 2nd-order fit found: a few steps settle it
+        parts1, base1, fc1 = fitted_filter(1, fc / np.sqrt(2.0), base, FIRST_ORDER_NFEV)
+        d1, rmse1 = arena.score(inp, parts1, 1)
+        if d1 > d:
+            parts, base, fc, d, rmse, order = parts1, base1, fc1, d1, rmse1, 1
         fitted = True
         if not from_response:
             # the cut-off as measured at rest (no parameter fitted): when the response
             # cannot place the cut-off itself, the resting noise's is the estimate
+            def measured(i: int, y: np.ndarray) -> np.ndarray:
+                return lowpass_at(joined[i], y, fc0, fss[i])
+
+            measured.chains = chains  # type: ignore[attr-defined]
+
             parts0, base0, _, _ = arena.fit_varying(
                 model, sims, inp.match.values(), fixed, names[0], none, post=measured
             )
             d0, rmse0 = arena.score(inp, parts0, 0)
             fitted = d > d0
             if not fitted:
-                d, rmse, base, fc = d0, rmse0, base0, fc0
+                d, rmse, base, fc, order = d0, rmse0, base0, fc0, 2
         return [
             self.make(
                 f"sensor low-pass at {fc:.1f} Hz",
@@ -117,6 +157,7 @@ class SensorLowpass(ExplanationKind):
                 detail={
                     "sensor": "low-pass",
                     "cutoff_hz": fc,
+                    "order": order,
                     "rest_noise_cutoff_hz": None if from_response else fc0,
                     "cutoff_fitted": fitted,
                     "values": base,
@@ -172,11 +213,31 @@ def _lag_cutoff(inp: ArenaInput) -> float | None:
         return None
     if lead >= 0 or -lead < LAG_Z * se:
         return None
+    return _cutoff_of_lag(inp, -lead)
+
+
+def _cutoff_of_lag(inp: ArenaInput, lag: float) -> float | None:
+    """The 2nd-order filter's cut-off whose lag is ``lag`` (s), within the sample rate's
+    reach."""
     dts = [float(np.median(np.diff(td.time))) for td in inp.trials if td.time.size > 1]
-    if not dts:
+    if not dts or lag <= 0:
         return None
     fs = 1.0 / max(dts)
-    return float(np.clip(np.sqrt(2.0) / (2.0 * np.pi * -lead), 0.5, 0.4 * fs))
+    return float(np.clip(np.sqrt(2.0) / (2.0 * np.pi * lag), 0.5, 0.4 * fs))
+
+
+def _late_acceleration(inp: ArenaInput) -> Explanation | None:
+    """The channel-timing explanation, where it found the acceleration late by more than
+    two of its standard errors and with a benefit (BIC), else None. A lag under half a
+    sample counts (no finding as a late channel, but a filter's lag at a low rate)."""
+    for e in inp.found:
+        if e.key != "force_delay" or e.delta_bic <= arena.CLOSE_BIC:
+            continue
+        d = e.detail.get("force_delay_s")
+        se = e.detail.get("force_delay_stderr_s")
+        if isinstance(d, float) and d < 0 and (not isinstance(se, float) or -d > LAG_Z * se):
+            return e
+    return None
 
 
 def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
@@ -189,8 +250,17 @@ def _butter2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return b, a
 
 
-def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
-    """``y`` through a 2nd-order Butterworth low-pass, started at rest on its first value.
+def _first_order(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients of a 1st-order low-pass as sensors' firmware runs it: the exponential
+    running average ``y[n] = y[n-1] + (1 - a) (x[n] - y[n-1])``, ``a = exp(-2 pi fc / fs)``
+    (the sample just read enters at once; a bilinear form would lag it half a sample)."""
+    a = float(np.exp(-2.0 * np.pi * min(cutoff, 0.45 * fs) / fs))
+    return np.array([1.0 - a]), np.array([1.0, -a])
+
+
+def lowpass(y: np.ndarray, cutoff: float, fs: float, order: int = 2) -> np.ndarray:
+    """``y`` through a Butterworth low-pass of order 2 (or 1), started at rest on its
+    first value.
 
     Parameters
     ----------
@@ -200,6 +270,8 @@ def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
         -3 dB frequency (Hz).
     fs : float
         Sample rate (Hz).
+    order : int
+        2 or 1.
 
     Returns
     -------
@@ -207,8 +279,38 @@ def lowpass(y: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
     """
     from scipy.signal import lfilter, lfilter_zi
 
-    b, a = _butter2(cutoff, fs)
+    b, a = _butter2(cutoff, fs) if order == 2 else _first_order(cutoff, fs)
     return lfilter(b, a, y, zi=lfilter_zi(b, a) * y[0])[0]
+
+
+def lowpass_at(
+    time: np.ndarray, y: np.ndarray, cutoff: float, fs: float, order: int = 2
+) -> np.ndarray:
+    """``y``, sampled at ``time``, through the low-pass of :func:`lowpass` run on the
+    sensor's own clock: a sample lost (a drop-out) does not cut the filter's time short.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        The samples' times (s); gaps where samples were lost.
+    y : numpy.ndarray
+        The signal at those times.
+    cutoff, fs : float
+        -3 dB frequency and the sensor's rate (Hz).
+    order : int
+        2 or 1.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    if time.size != y.size or time.size < 2:
+        return lowpass(y, cutoff, fs, order)
+    dt = 1.0 / fs
+    if float(np.max(np.diff(time))) < 1.5 * dt:
+        return lowpass(y, cutoff, fs, order)
+    grid = time[0] + np.arange(round(float(time[-1] - time[0]) * fs) + 1) * dt
+    return np.interp(time, grid, lowpass(np.interp(grid, time, y), cutoff, fs, order))
 
 
 #: A rest spectrum is a sensor filter's when a 2nd-order low-pass fits its log this many

@@ -198,7 +198,7 @@ class TimeTrend(ExplanationKind):
             )
             scale = max(float(np.max(np.abs(path))), 1e-300)
             rel = float(np.ptp(path)) / scale
-            d, rmse = arena.score(inp, parts, design.shape[1])
+            d, rmse = arena.score(inp, per_trial(parts, chained.data), design.shape[1])
             label = (
                 f"{name} drifting in time within the run"
                 if shape == "line"
@@ -247,6 +247,28 @@ class TimeTrend(ExplanationKind):
             f"oil warming, wear, a slow change of load); {head(e)}. See it in time: "
             f"{fit.command()} --track {p}"
         )
+
+
+def per_trial(parts: list[np.ndarray], data: list[FitData]) -> list[np.ndarray]:
+    """Each block's residual cut into its trials', as the current fit's is scored.
+
+    The arena whitens each trial's residual from its first sample (the exact start of
+    the noise's AR(2) likelihood); a block's continuing trials whitened across their
+    junctions would be scored by another rule than the current fit, and a slow misfit
+    there would read as a gain of the trend.
+
+    Parameters
+    ----------
+    parts : list of numpy.ndarray
+        One residual per block.
+    data : list of FitData
+        The blocks, packed.
+
+    Returns
+    -------
+    list of numpy.ndarray
+    """
+    return [r[sl] for r, d in zip(parts, data, strict=True) for sl in d.slices()]
 
 
 def _pm(x: float, se: object) -> str:

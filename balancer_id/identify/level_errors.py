@@ -1,0 +1,204 @@
+"""The thrust levels' errors in the standard errors: errors in variables (issue 31).
+
+A step trial is driven by its measured force, held between changes: each hold's level is
+the mean of a noisy force over the hold, less the force's zero, read in the rest before
+the first step of its chain (:attr:`~balancer_id.identify.data.TrialData.zero_se_N`).
+Both are uncertain, and the model, driven by them as if exact, bends its values to
+follow a level that is a little off: ``A``, read from how the viscosity changes between
+nearby levels, most (``bench_universe``: force noise 1.7 % of the thrust, levels 5 %
+apart, D0 and A 5-6 standard errors off, trusted; the zero's error was three times the
+held level's). The fit's own standard errors hold for the accelerometer's noise only.
+
+To first order a level error ``delta`` moves the simulated acceleration by ``S delta``
+(``S``: the output's sensitivity to the hold's level), and the fitted values by
+``(J^T J)^-1 J^T S delta``. With the holds' errors independent and each chain's zero
+shared by its holds, the values' covariance from the levels is
+
+    C = sum_h var_h a_h a_h^T + sum_c var_c (sum_{h in c} a_h)(sum_{h in c} a_h)^T,
+    a_h = (J^T J)^-1 J^T S_h,
+
+added to the fit's own (its square roots in quadrature to each standard error).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from balancer_id.identify.data import FitData, TrialData
+from balancer_id.identify.matching import MatchResult
+from balancer_id.notes import Note
+from balancer_id.simulation.engine import TrialInput
+from balancer_id.simulation.inputs import Thrust
+
+#: The level perturbation (N) per unit of the trials' largest thrust.
+LEVEL_STEP = 1e-4
+
+#: Rows simulated per block (as the fit's).
+BLOCK_ROWS = 1 << 16
+
+#: Most simulations spent (one per hold of the longest chain, plus the base).
+MAX_SIMULATIONS = 64
+
+#: Widening (ratio of standard errors) above which the note says it.
+NOTE_RATIO = 1.2
+
+
+def _chains(trials: Sequence[TrialData]) -> list[list[int]]:
+    """The trials that carry their state over (a session's), as lists of indices."""
+    out: list[list[int]] = []
+    for i, td in enumerate(trials):
+        prev = trials[i - 1] if i else None
+        if (
+            prev is not None
+            and td.continues
+            and td.previous is not None
+            and td.previous.time[-1] == prev.time[-1]
+            and prev.source == td.source
+        ):
+            out[-1].append(i)
+        else:
+            out.append([i])
+    return out
+
+
+def _pushed(td: TrialData, step: float) -> TrialData:
+    """The trial with its held level raised by ``step`` N from its onset on."""
+    thrust = td.input.thrust
+    times = np.asarray(thrust.times, dtype=float)
+    values = np.array(thrust.values, dtype=float, copy=True)
+    dt = float(np.median(np.diff(td.time))) if td.time.size > 1 else 0.0
+    values[times >= td.t_step - 0.75 * dt] += step
+    inp = td.input
+    moved = TrialInput(inp.time, Thrust(times, values), inp.z_ref, inp.v_ref, inp.x0)
+    return dataclasses.replace(td, input=moved)
+
+
+def _level_sources(match: MatchResult) -> tuple[list[list[int]], np.ndarray, np.ndarray] | None:
+    """The chains, each trial's hold variance and each chain's zero variance (N^2);
+    None where a trial is not driven by a held measured force."""
+    trials = match.data.trials
+    if not trials or any(td.level_se_N is None for td in trials):
+        return None
+    chains = _chains(trials)
+    hold = np.array([float(td.level_se_N or 0.0) ** 2 for td in trials])
+    zero = np.array([float(trials[c[0]].zero_se_N or 0.0) ** 2 for c in chains])
+    if not (np.all(np.isfinite(hold)) and np.all(np.isfinite(zero))):
+        return None
+    return chains, hold, zero
+
+
+def level_error_covariance(match: MatchResult) -> tuple[list[str], np.ndarray] | None:
+    """The fitted values' covariance from the errors of the thrust levels.
+
+    Parameters
+    ----------
+    match : MatchResult
+        A converged fit.
+
+    Returns
+    -------
+    (list of str, numpy.ndarray) or None
+        The fitted parameters' names and their covariance; None when the trials are not
+        step trials driven by a held measured force, nothing is fitted, the chains are
+        too long to simulate hold by hold, or ``J^T J`` is singular.
+    """
+    sources = _level_sources(match)
+    if sources is None:
+        return None
+    chains, hold, zero = sources
+    model = match.model
+    names = [p.name for p in model.params if match.parameters[p.name].vary]
+    free = [model.param_names.index(n) for n in names]
+    longest = max(len(c) for c in chains)
+    if not free or longest + 1 > MAX_SIMULATIONS:
+        return None
+    trials = match.data.trials
+    pvec = np.array([match.parameters[p.name].value for p in model.params], dtype=float)
+    step = LEVEL_STEP * max(max(abs(td.thrust_N) for td in trials), 1e-9)
+    slices = match.data.slices()
+    with np.errstate(all="ignore"):
+        base = match.data.packed.run(model, pvec)[:, 0]
+        # S: one column per trial's hold, each only over its chain's rows from that hold
+        # on; the w-th hold of every chain is pushed in the same simulation (chains share
+        # no state)
+        cols: list[tuple[int, np.ndarray]] = [(0, np.zeros(0))] * len(trials)
+        for w in range(longest):
+            pushed = {c[w] for c in chains if len(c) > w}
+            moved = [_pushed(td, step) if i in pushed else td for i, td in enumerate(trials)]
+            out = FitData.build(moved).packed.run(model, pvec)[:, 0]
+            for c in chains:
+                if len(c) > w:
+                    a, b = slices[c[w]].start, slices[c[-1]].stop
+                    cols[c[w]] = (a, (out[a:b] - base[a:b]) / step)
+        jtj = np.zeros((len(free), len(free)))
+        jts = np.zeros((len(free), len(trials)))
+        for first, _, jac in match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS):
+            stop = first + jac.shape[0]
+            jtj += jac.T @ jac
+            for h, (a, col) in enumerate(cols):
+                lo, hi = max(a, first), min(a + col.size, stop)
+                if hi > lo:
+                    jts[:, h] += jac[lo - first : hi - first].T @ col[lo - a : hi - a]
+    if not (np.all(np.isfinite(jtj)) and np.all(np.isfinite(jts))):
+        return None
+    try:
+        a = np.linalg.solve(jtj, jts)  # (k, trials): each hold's error's move of the values
+    except np.linalg.LinAlgError:
+        return None
+    cov = (a * hold) @ a.T
+    for c, var in zip(chains, zero, strict=True):
+        shared = a[:, c].sum(axis=1)
+        cov += var * np.outer(shared, shared)
+    return names, cov
+
+
+def widen_by_level_errors(match: MatchResult) -> list[Note]:
+    """Add the thrust levels' errors to each fitted value's standard error.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its estimates' ``stderr`` and ``scatter_ratio`` changed in place; the
+        largest ratio goes into ``metrics["level_error_ratio"]``).
+
+    Returns
+    -------
+    list of Note
+        A ``fit.correlated_residual`` note (severity ``info``) when a standard error
+        grew by more than :data:`NOTE_RATIO`.
+    """
+    found = level_error_covariance(match)
+    if found is None:
+        return []
+    names, cov = found
+    ratios: dict[str, float] = {}
+    for j, name in enumerate(names):
+        est = match.parameters[name]
+        extra = float(np.sqrt(max(cov[j, j], 0.0)))
+        if est.stderr is None or not np.isfinite(est.stderr) or est.stderr <= 0:
+            continue
+        if not np.isfinite(extra):
+            continue
+        widened = float(np.hypot(est.stderr, extra))
+        ratios[name] = widened / est.stderr
+        est.stderr = widened
+        est.scatter_ratio = float(est.scatter_ratio * ratios[name])
+    if not ratios:
+        return []
+    worst = max(ratios, key=lambda n: ratios[n])
+    match.metrics["level_error_ratio"] = float(ratios[worst])
+    if ratios[worst] <= NOTE_RATIO:
+        return []
+    return [
+        Note(
+            "fit.correlated_residual",
+            f"the thrust levels are read from a noisy force (each hold's mean, less the "
+            f"force's zero read at rest): their errors are in the standard errors (up to "
+            f"{ratios[worst]:.1f}x, {worst})",
+            subject=worst,
+            severity="info",
+        )
+    ]
