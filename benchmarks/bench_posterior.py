@@ -9,7 +9,7 @@ Recordings where the Wald interval is known to fail, each over fresh seeds:
   and A barely in the data, the cost far from quadratic (with two levels a ridge, D0 and
   A both large, fits about as well as the truth);
 * **light cart**: 0.2 kg (``variable_viscosity``, T_a 0.04 s), four 1 s steps (±0.5, ±1 N),
-  each step anywhere between two samples at 200 Hz (the trial told the sample before):
+  each step anywhere between two samples at 200 Hz (the trial told the nearest one):
   T_a's standard error is mostly the steps' places and the trials' scatter, which the
   likelihood lacks (``--likelihood-only`` measures the credible intervals without the
   spread added for them).
@@ -74,8 +74,8 @@ CASES = {
         0.05,
     ),
 }
-#: Cases whose steps fall anywhere between two samples (the trial told the sample
-#: before): T_a's standard error is then mostly that spread on a light cart.
+#: Cases whose steps fall anywhere between two samples (the trial told the nearest):
+#: T_a's standard error is then mostly that spread on a light cart.
 BETWEEN = {"light cart (0.2 kg, steps between samples)"}
 
 
@@ -83,11 +83,11 @@ def step_trials(
     spec, truth, thrusts, seconds, noise, rng, between: bool = False
 ) -> list[TrialData]:
     """Step trials of ``truth`` with white noise (1 s rest before each step, 200 Hz); with
-    ``between`` each step lies uniformly between two samples, the trial told the one
-    before."""
+    ``between`` each step lies anywhere within half a sample of the one the trial is told
+    (the nearest: a step found from the force's samples)."""
     model = parse_model(spec)
     t = np.arange(0.0, 1.0 + seconds, 0.005)
-    offsets = rng.uniform(0.0, 0.005, len(thrusts)) if between else np.zeros(len(thrusts))
+    offsets = rng.uniform(-0.0025, 0.0025, len(thrusts)) if between else np.zeros(len(thrusts))
     inputs = [TrialInput(t, Thrust.step(1.0 + o, f)) for f, o in zip(thrusts, offsets, strict=True)]
     told = [TrialInput(t, Thrust.step(1.0, f)) for f in thrusts]
     sims = simulate_many(model, truth, inputs)

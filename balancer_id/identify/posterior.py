@@ -940,16 +940,21 @@ def _run_chain(
         state = sampler.run_mcmc(start, min_steps, progress=False, skip_initial_state_check=True)
         steps = min_steps
         tau = _autocorr(sampler)
-        while steps < max_steps and steps < CHAIN_TAUS * _longest(tau):
+        # run to CHAIN_TAUS autocorrelation times and a split R-hat within RHAT_MAX (a
+        # chain just 50 autocorrelation times long had 1.056-1.065 on two levels), or
+        # to max_steps
+        while steps < max_steps and (
+            steps < CHAIN_TAUS * _longest(tau) or not _mixed(sampler, tau, steps)
+        ):
             if deadline is not None and time.monotonic() > deadline:
                 timed_out = True
                 break
-            more = int(min(max_steps - steps, max(200, CHAIN_TAUS * _longest(tau) - steps)))
+            want = max(200, CHAIN_TAUS * _longest(tau) - steps, steps // 4)
+            more = int(min(max_steps - steps, want))
             state = sampler.run_mcmc(state, more, progress=False)
             steps += more
             tau = _autocorr(sampler)
-    longest = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else steps / 10
-    burn = min(int(2 * longest), steps // 2)
+    burn = _burn(tau, steps)
     thin = max(1, int(0.5 * float(np.nanmin(tau)))) if np.all(np.isfinite(tau)) else 1
     return _Chain(
         sampler.get_chain(discard=burn, thin=thin, flat=True),
@@ -961,6 +966,21 @@ def _run_chain(
         timed_out,
         split_rhat(sampler.get_chain(discard=burn)),
     )
+
+
+def _mixed(sampler, tau: np.ndarray, steps: int) -> bool:
+    """Whether every split R-hat after burn-in is within :data:`RHAT_MAX` (True where no
+    autocorrelation time is estimated: a stuck chain is not run on for it)."""
+    if not np.all(np.isfinite(tau)):
+        return True
+    return bool(np.all(split_rhat(sampler.get_chain(discard=_burn(tau, steps))) <= RHAT_MAX))
+
+
+def _burn(tau: np.ndarray, steps: int) -> int:
+    """Steps dropped: two autocorrelation times (a tenth of the chain where none is
+    estimated), at most half the chain."""
+    longest = float(np.nanmax(tau)) if np.all(np.isfinite(tau)) else steps / 10
+    return min(int(2 * longest), steps // 2)
 
 
 def split_rhat(chain: np.ndarray) -> np.ndarray:
