@@ -134,7 +134,7 @@ def main() -> None:
     if args.likelihood_only:
         import balancer_id.identify.posterior as posterior
 
-        posterior.unmodelled_spread = lambda match, names: dict.fromkeys(names, 0.0)
+        posterior.unmodelled_spread = lambda match, names, *bounds: dict.fromkeys(names, 0.0)
     seed0 = int(args.seed if args.seed is not None else np.random.SeedSequence().entropy % 10**6)
     print(
         f"seed {seed0} (repeat with --seed {seed0}); {args.seeds} seeds per case"
