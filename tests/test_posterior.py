@@ -420,26 +420,3 @@ def test_the_chain_runs_on_until_its_split_rhat_is_within_bounds(monkeypatch):
     monkeypatch.setattr(posterior, "RHAT_MAX", 1.0)  # never met: the budget stops it
     strict = run(0)
     assert strict.steps == 3000 > easy.steps
-
-
-def test_a_viscosity_scale_with_a_free_rate_is_sampled_as_its_logarithm():
-    # D0 exp(-A |h|): each level's valley is straight in (log D0, A). A mirror-valley fit
-    # on two levels (D0 4.8 +- 1.7, under 3 standard errors above 0) left D0 sampled as
-    # itself and the truth's valley curved (acceptance 0.08, autocorrelation 363 steps)
-    from types import SimpleNamespace
-
-    from balancer_id.identify.posterior import _logged
-
-    def estimate(value, stderr, ci):
-        return SimpleNamespace(value=value, stderr=stderr, ci95=ci)
-
-    d0 = estimate(4.83, 1.74, (1.42, 8.24))
-    a = estimate(0.044, 0.015, (0.014, 0.073))
-    varying = SimpleNamespace(parameters={"D0": d0, "A": a})
-    assert list(_logged(varying, ["D0", "A"], np.zeros(2))) == [True, False]
-    # the viscous model (no rate): D0 is logged only well away from 0, as before
-    viscous = SimpleNamespace(parameters={"D0": d0})
-    assert list(_logged(viscous, ["D0"], np.zeros(1))) == [False]
-    # nor with its interval down to 0 (the tail the logarithm would stretch without end)
-    near = SimpleNamespace(parameters={"D0": estimate(0.2, 0.3, (0.0, 0.8)), "A": a})
-    assert not _logged(near, ["D0", "A"], np.zeros(2))[0]

@@ -1024,29 +1024,16 @@ LOG_AWAY = 3.0
 SPANS_DECADE = 10.0
 
 
-#: A scale multiplying ``exp(-rate |h|)`` and its rate (``D0`` and ``A``): while the rate
-#: is free and the scale's interval lies above 0, the scale is sampled as its logarithm,
-#: in which the valley ``log D0 - A |h| = const`` of each level is straight. On two levels
-#: a fit in the mirror valley (D0 4.8 +- 1.7, under 3 standard errors from 0) left D0
-#: sampled as itself, and the truth's valley (D0 7.2, A 0.13) curved: acceptance 0.08,
-#: autocorrelation 363 steps (5000 not enough); logged 0.25 and 49 steps.
-EXPONENT_SCALES = {"D0": "A"}
-
-
 def _logged(
     match: MatchResult, names: Sequence[str], lo: np.ndarray, centres: np.ndarray | None = None
 ) -> np.ndarray:
     """Which parameters are sampled as their logarithm (see :data:`LOG_AWAY`; also one
-    whose modes, ``centres``' rows, lie above 0 and span more than :data:`SPANS_DECADE`,
-    and a scale of :data:`EXPONENT_SCALES` whose rate is free and interval above 0)."""
+    whose modes, ``centres``' rows, lie above 0 and span more than :data:`SPANS_DECADE`)."""
     out = []
     for j, (n, a) in enumerate(zip(names, lo, strict=True)):
         p = match.parameters[n]
         se = p.stderr if p.stderr is not None and math.isfinite(p.stderr) else math.inf
         ci = p.ci95
-        if EXPONENT_SCALES.get(n) in names and a >= 0 and ci is not None and ci[0] > 0:
-            out.append(True)
-            continue
         decades = ci is not None and a >= 0 and ci[0] > 0 and ci[1] > SPANS_DECADE * ci[0]
         # or its interval reaches more than a factor 10 above its fitted value (a ridge
         # the profile follows to the support's top: D0 and A both large on a short log)
