@@ -3,6 +3,8 @@ do not, agree with Wald's where the cost is quadratic, and priors checked up fro
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from test_fit import step_trials
@@ -33,6 +35,10 @@ def test_credible_interval_respects_the_bound_where_wald_does_not(near_bound):
     assert lo <= truth["D0"] <= hi
     codes = {(n.code, n.subject) for n in result.all_notes if hasattr(n, "code")}
     assert ("fit.posterior_disagrees", "D0") in codes
+    # said for D0 (Wald's reaches below 0), not for the mass, where the two agree
+    assert ("fit.posterior_disagrees", "m_a") not in codes
+    said = [n.text for n in post.notes if n.code == "fit.posterior_disagrees"]
+    assert len(said) == 1 and "reaches past the bound 0" in said[0]
     # the well-determined mass: credible and Wald agree within a quarter of the width
     m_lo, m_hi = post.credible()["m_a"]
     w_lo, w_hi = result.match.parameters["m_a"].wald_ci95
@@ -47,6 +53,14 @@ def test_result_carries_the_posterior_everywhere(near_bound):
     assert out["converged"] is True and out["n_samples"] > 500
     assert out["parameters"]["D0"]["wald95"][0] < 0 <= out["parameters"]["D0"]["credible95"][0]
     assert result.band().method == "posterior"
+    # the convergence diagnostics and the spread added beside each interval
+    from balancer_id.identify.posterior import unmodelled_spread
+
+    bounds = np.array([result.posterior.bounds[n] for n in ("m_a", "D0")])
+    added = unmodelled_spread(result.match, ["m_a", "D0"], bounds[:, 0], bounds[:, 1])
+    for name in ("m_a", "D0"):
+        assert 1.0 <= out["parameters"][name]["rhat"] < 1.05
+        assert out["parameters"][name]["added_sd"] == pytest.approx(added[name])
     assert "[[Posterior]]" in result.summary()
 
 
@@ -221,10 +235,34 @@ def test_credible_interval_is_one_sided_only_where_the_posterior_piles_at_a_boun
         5,
         bounds={"m_a": (0.013, 1e3), "D0": (0.0, 60.0)},
     )
-    cred = post.credible()
+    cred, equal = post.credible(), post.credible(kind="equal")
     assert cred["D0"][0] == 0.0 and cred["D0"][1] == pytest.approx(0.57, abs=0.02)
-    assert cred["m_a"][0] == pytest.approx(np.percentile(m_a, 2.5))
-    assert cred["m_a"][1] == pytest.approx(np.percentile(m_a, 97.5))
+    assert equal["m_a"][0] == pytest.approx(np.percentile(m_a, 2.5))
+    assert equal["m_a"][1] == pytest.approx(np.percentile(m_a, 97.5))
+    # the highest-density interval spans both valleys too (each holds half)
+    assert cred["m_a"][0] < 0.7 and 15.0 < cred["m_a"][1]
+
+
+def test_credible_interval_keeps_the_sharp_edge_of_a_skewed_marginal():
+    # a short log's D0: the likelihood drops sharply below (D0 ~ 5) and leaves the ridge
+    # open above (flat in log D0 to 100x). The equal-tailed interval cut 2.5 % of the long
+    # side's mass off the sharp one and started above a truth just inside the edge (six
+    # steps of 1.5 s: D0 and A held the truth 80 / 85 %); the highest-density interval
+    # starts at the edge and gives up the thin upper tail instead
+    from balancer_id.identify.posterior import Posterior, highest_density
+
+    rng = np.random.default_rng(11)
+    edge, n = 5.0, 8000
+    d0 = edge * np.exp(np.abs(rng.normal(0.0, 0.05, n)) + rng.exponential(1.0, n))
+    post = Posterior(
+        ["D0"], d0[:, None], {"D0": 12.0}, {}, {}, {"D0": 10.0}, 0.3, 16, 1000, 20, 5,
+        bounds={"D0": (0.0, 1e4)},
+    )
+    lo, hi = post.credible()["D0"]
+    e_lo, e_hi = post.credible(kind="equal")["D0"]
+    assert np.mean((d0 >= lo) & (d0 <= hi)) == pytest.approx(0.95, abs=0.002)
+    assert lo < edge * 1.05 < e_lo and hi < e_hi and hi - lo < e_hi - e_lo
+    assert highest_density(np.arange(100.0), 0.9) == (0.0, 89.0)
 
 
 def test_the_chain_is_measured_in_steps_and_the_clock_only_stops_it_named(near_bound):
@@ -265,3 +303,98 @@ def test_optima_without_a_barrier_between_them_are_one_valley():
     assert list(valleys(on_ridge, ridge)) == [0, 0, 0]
     apart = np.array([[0.0, 0.0], [3.0, 1.0], [0.1, 0.05]])
     assert list(valleys(apart, bumps)) == [0, 1, 0]
+
+
+def test_convergence_is_judged_by_the_autocorrelation_and_split_rhat():
+    # differential-evolution walkers in a valley cut by a bound accept 0.13 while their
+    # chain is 50 autocorrelation times long and mixed: converged (the stretch move's
+    # 0.15 floor called such chains unconverged). Walkers that never left the two places
+    # they started in are not, whatever the acceptance
+    from balancer_id.identify.posterior import RHAT_MAX, Posterior, posterior_notes, split_rhat
+
+    rng = np.random.default_rng(2)
+    mixed = rng.normal(size=(1000, 16, 2))
+    stuck = mixed + np.where(np.arange(16) < 8, 0.0, 3.0)[None, :, None]
+    assert np.all(np.abs(split_rhat(mixed) - 1) < 0.01)
+    assert np.all(split_rhat(stuck) > 1.5)
+
+    def post(rhat, acceptance=0.13):
+        return Posterior(
+            ["m_a", "T_a"], rng.normal(size=(2000, 2)), {"m_a": 0.0, "T_a": 0.0}, {}, {},
+            {"m_a": 40.0, "T_a": 38.0}, acceptance, 16, 2100, 80, 20,
+            rhat=dict(zip(["m_a", "T_a"], map(float, rhat), strict=True)),
+        )
+
+    assert post(split_rhat(mixed)).converged
+    bad = post(split_rhat(stuck))
+    assert not bad.converged and max(bad.rhat.values()) > RHAT_MAX
+    said = [n.text for n in posterior_notes(bad) if n.code == "fit.posterior_not_converged"]
+    assert said and "split R-hat" in said[0] and "split R-hat" in bad.diagnostics_text()
+    assert not post(split_rhat(mixed), acceptance=0.05).converged  # stuck walkers
+
+
+def test_walkers_start_shaped_as_the_valley(near_bound):
+    # the walkers start in the valley's Laplace shape in the sampler's coordinates (log m_a,
+    # D0 itself near its bound): a round ball spent the chain's first autocorrelation times
+    # stretching into it. At the optimum that shape is the fit's own covariance
+    from balancer_id.identify.band import covariance_of
+    from balancer_id.identify.posterior import START_SHARE, _laplace_shape, _shaped_start
+
+    _, result = near_bound
+    match = result.match
+    names = ["m_a", "D0"]
+    logged = np.array([True, False])
+    centre = np.array([np.log(match.parameters["m_a"].value), match.parameters["D0"].value])
+    cov_u = _laplace_shape(match, names, logged)(centre)
+    _, cov = covariance_of(match)
+    scatter = np.array([match.parameters[n].scatter_ratio for n in names])
+    jac = np.array([1.0 / match.parameters["m_a"].value, 1.0])
+    expected = cov / np.outer(scatter, scatter) * np.outer(jac, jac)
+    assert cov_u == pytest.approx(expected, rel=0.05)
+    rng = np.random.default_rng(0)
+    start = _shaped_start(cov_u, centre, 4000, rng, lambda us: np.zeros(len(us)))
+    assert np.cov(start, rowvar=False) == pytest.approx(START_SHARE**2 * cov_u, rel=0.1)
+    # a draw where the posterior vanishes is drawn again
+    inside = _shaped_start(cov_u, centre, 50, rng, lambda us: np.where(us[:, 1] > 0.2, 0, -np.inf))
+    assert inside.shape == (50, 2) and np.all(inside[:, 1] > 0.2)
+
+
+def test_samples_carry_the_spread_the_likelihood_lacks():
+    # a 0.2 kg cart's T_a: its standard error 2.4 ms is mostly the steps' places between
+    # samples (1.7 ms) and the trials' scatter (4.2x the noise's); the likelihood holds
+    # only the noise's 0.4 ms, and credible intervals from it alone missed the truth.
+    # The samples get the rest as independent normal spread, reflected into the bounds
+    from types import SimpleNamespace
+
+    from balancer_id.identify.posterior import _spread, unmodelled_spread
+
+    def estimate(value, stderr, phase_se, scatter_ratio):
+        wald = (value - 1.96 * stderr, value + 1.96 * stderr)
+        return SimpleNamespace(
+            value=value, stderr=stderr, phase_se=phase_se, scatter_ratio=scatter_ratio,
+            wald_ci95=wald,
+        )
+
+    match = SimpleNamespace(
+        parameters={
+            "T_a": estimate(0.044, 0.0024, 0.0017, 4.24),
+            "m_a": estimate(0.2, 0.01, 0.0, 1.0),
+            # a ridge's D0: its Wald interval reaches below 0, its error meaningless
+            "D0": estimate(28000.0, 9e4, 10.0, 1.5),
+        }
+    )
+    names = ["T_a", "m_a", "D0"]
+    added = unmodelled_spread(match, names, np.zeros(3), np.full(3, 1e6))
+    se = np.sqrt(0.0024**2 - 0.0017**2) / 4.24
+    assert added["T_a"] == pytest.approx(np.sqrt(0.0024**2 - se**2))
+    assert added["m_a"] == 0.0 and added["D0"] == 0.0
+    rng = np.random.default_rng(1)
+    x = _spread(np.full((20000, 2), [0.04, 0.001]), np.array([0.0023, 0.002]),
+                np.array([0.0, 0.0]), np.array([1.0, 1.0]), rng)
+    assert np.std(x[:, 0]) == pytest.approx(0.0023, rel=0.03)
+    assert np.all(x[:, 1] >= 0.0)  # reflected at the bound, not piled on it or beyond
+    mu, sd = 0.001, 0.002  # a folded normal's mean
+    folded = sd * np.sqrt(2 / np.pi) * np.exp(-0.5 * (mu / sd) ** 2) + mu * math.erf(
+        mu / (sd * np.sqrt(2))
+    )
+    assert np.mean(x[:, 1]) == pytest.approx(folded, rel=0.03)

@@ -17,7 +17,7 @@ from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_log import PerLogFit
 from balancer_id.identify.per_trial import PerTrialFit, fit_each_trial
 from balancer_id.identify.reach import settle_unreached
-from balancer_id.identify.rest_level import resting_level
+from balancer_id.identify.rest_level import resting_level, resting_offset, sensor_reading
 from balancer_id.identify.result import PARAMETER_NOTES, FitResult, fit_match, robot_coupling
 from balancer_id.identify.rivals import check_rivals
 from balancer_id.identify.starts import fit_start
@@ -322,10 +322,12 @@ def _settled_match(
     seed: int,
     max_nfev: int,
     bounds: Mapping[str, tuple[float, float]] | None,
+    ts: TrialSet | None = None,
 ) -> Any:
     """Match the simulation to the trials; refuse a fit that did not converge or whose
-    mass ends on a bound the data did not choose (after looking for an optimum inside);
-    limits not reached become bounds."""
+    mass ends on a bound the data did not choose (after looking for an optimum inside),
+    naming the sensor's calibration first when the rest says it is off (``ts``); limits
+    not reached become bounds."""
     match = match_trials(
         mdl, data, start=start, fixed=fixed, n_starts=n_starts, seed=seed,
         max_nfev=max_nfev, bounds=bounds,
@@ -343,6 +345,16 @@ def _settled_match(
         match = _inside_optimum(mdl, data, match, fixed, max_nfev, bounds)
         mass = match.parameters["m_a"]
     if mass.vary and mass.at_bound:
+        offset = resting_offset(match, ts) if ts is not None else None
+        if offset is not None:  # the sensor before the balancer (issue 31.4)
+            level, _, g = offset
+            raise IdentificationError(
+                f"nothing identified: {sensor_reading(level, g)}, and the model "
+                f"'{mdl.spec}' has no offset to follow it: m_a ended at its "
+                f"{mass.at_bound}imum bound ({mass.value:.4g} kg); divide the acceleration "
+                f"by {1.0 + level / g:.3f} (or subtract the offset) and refit, or add "
+                f"the offset with --model {mdl.spec}+bias"
+            )
         raise IdentificationError(
             f"nothing identified: m_a ended at its {mass.at_bound}imum bound "
             f"({mass.value:.4g} kg), a limit the data did not choose; the model '{mdl.spec}' "
@@ -544,7 +556,7 @@ def fit(
 
         return fit_per_log(mdl, data, per_log, start=start, fixed=fixed, held_out=held_out)
     data = _with_move_start(mdl, ts, data, start, fixed, notes)
-    match = _settled_match(mdl, data, start, fixed, n_starts, seed, max_nfev, bounds)
+    match = _settled_match(mdl, data, start, fixed, n_starts, seed, max_nfev, bounds, ts)
     notes[:0] = _sensor_checks(match, ts)  # the sensor before the balancer: leads
     notes.extend(_fit_checks(match))
     if profile:

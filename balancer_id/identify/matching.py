@@ -1127,11 +1127,16 @@ def _starts_disagree(
             se = result.parameters[name].stderr or 0.0
             a, b = float(best.x[j]), float(other.x[j])
             if abs(a - b) > max(3 * se, 0.01 * max(abs(a), abs(b))):
+                apart = (
+                    f"{abs(a - b) / se:.3g} standard errors apart"
+                    if np.isfinite(se) and se > 0
+                    else "its standard error undefined"
+                )
                 return Note(
                     "fit.starts_disagree",
                     f"starts ended at different optima about as good as each other ({name} "
-                    f"{a:.4g} and {b:.4g}, {abs(a - b) / max(se, 1e-300):.1f} standard errors "
-                    "apart): the trials do not decide between them; the fit cannot be trusted "
+                    f"{a:.4g} and {b:.4g}, {apart}): the trials do not decide between them; "
+                    "the fit cannot be trusted "
                     "until more trials (other thrust levels, longer motions) or --fix settle it",
                     subject=name,
                     severity="error",

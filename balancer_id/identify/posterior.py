@@ -24,9 +24,10 @@ around the optimum, moved by differential evolution (a positive parameter as its
 the chain runs until it is 50
 autocorrelation times long or 5000 steps (counted in steps, so a seed gives the same
 answer on any machine; a wall clock only as a named safety net), the first two autocorrelation times
-are dropped and the rest thinned by half of one. Credible intervals are the 2.5 and 97.5 %
-quantiles, or, where the posterior piles against a bound, from the bound to the 95 %
-quantile.
+are dropped and the rest thinned by half of one. Credible intervals are the highest-density
+ones (the shortest holding 95 % of the samples; the equal-tailed ones missed the truth on
+the sharp side of a skewed marginal), or, where the posterior piles against a bound, from
+the bound to the 95 % quantile.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ from balancer_id.identify.posterior_modes import (
 )
 from balancer_id.notes import Note
 
-__all__ = ["Posterior", "Prior", "parse_prior", "sample_posterior"]
+__all__ = ["Posterior", "Prior", "highest_density", "parse_prior", "sample_posterior"]
 
 #: A chain this many autocorrelation times long gives stable quantiles (emcee's advice).
 CHAIN_TAUS = 50
@@ -74,8 +75,16 @@ MODE_NOTE_WEIGHT = 0.05
 #: An optimum whose log posterior density is this far below the best optimum's is not
 #: sampled (a share below e^-30 unless its valley were e^30 times wider).
 MODE_DROP = 30.0
-#: Acceptance fractions outside this range say the sampler is not mixing well.
-ACCEPTANCE_RANGE = (0.15, 0.75)
+#: Acceptance fractions outside this range say the sampler is not mixing well. The floor
+#: was 0.15 (the stretch move's rule of thumb); differential-evolution moves in a valley
+#: cut by a bound (a short log's mirror, the lag at its 10 s bound) accept 0.13-0.14 while
+#: their chains are 50 autocorrelation times long with a split R-hat of 1.0x: the
+#: acceptance says only whether walkers are stuck, the autocorrelation time and R-hat
+#: whether the chain mixed.
+ACCEPTANCE_RANGE = (0.10, 0.75)
+#: The split R-hat (Gelman-Rubin, each walker's chain after burn-in cut in halves, BDA3
+#: 11.4) above which the walkers have not forgotten where they started.
+RHAT_MAX = 1.05
 
 
 @dataclass(frozen=True)
@@ -182,6 +191,12 @@ class Posterior:
     stopped_by_time : bool
         A chain was cut short by the wall-clock safety net (:data:`SAFETY_SECONDS`): not
         converged, whatever its length says.
+    rhat : dict of str to float
+        Each parameter's split R-hat (the largest over the valleys that hold samples;
+        :data:`RHAT_MAX`).
+    added_sd : dict of str to float
+        The spread added to each parameter's samples for what the fit's standard error
+        holds and the likelihood does not (:func:`unmodelled_spread`).
     """
 
     names: list[str]
@@ -201,32 +216,49 @@ class Posterior:
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     modes: list[dict[str, object]] = field(default_factory=list)
     stopped_by_time: bool = False
+    rhat: dict[str, float] = field(default_factory=dict)
+    added_sd: dict[str, float] = field(default_factory=dict)
 
     @property
     def converged(self) -> bool:
         """Whether the chain is :data:`CHAIN_TAUS` autocorrelation times long, the
-        acceptance fraction is in :data:`ACCEPTANCE_RANGE` and no chain was stopped by
-        the wall-clock safety net."""
+        acceptance fraction is in :data:`ACCEPTANCE_RANGE`, every split R-hat is at most
+        :data:`RHAT_MAX` and no chain was stopped by the wall-clock safety net."""
         if self.stopped_by_time:
             return False
         longest = max(self.tau.values(), default=0.0)
         ok_len = np.isfinite(longest) and self.n_steps >= CHAIN_TAUS * longest
-        return bool(ok_len and ACCEPTANCE_RANGE[0] <= self.acceptance <= ACCEPTANCE_RANGE[1])
+        worst = max(self.rhat.values(), default=1.0)
+        ok_rhat = bool(np.isfinite(worst) and worst <= RHAT_MAX)
+        return bool(
+            ok_len and ok_rhat and ACCEPTANCE_RANGE[0] <= self.acceptance <= ACCEPTANCE_RANGE[1]
+        )
 
-    def credible(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
-        """Credible intervals: equal-tailed, or one-sided where the posterior piles
-        against a bound.
+    def credible(
+        self, level: float = 0.95, kind: str = "hdi"
+    ) -> dict[str, tuple[float, float]]:
+        """Credible intervals: the highest-density ones, or one-sided where the posterior
+        piles against a bound.
 
-        Where the posterior piles against a parameter's bound (its
-        :data:`PILE_QUANTILE` % quantile within :data:`PILE_SHARE` of the equal-tailed
-        interval's width from it: the posterior is cut by the bound, D0 near 0), the
-        interval runs from the bound to the ``level`` quantile instead, as the profile
-        interval ends at a bound the data do not exclude.
+        The highest-density interval (``kind="hdi"``, the shortest holding ``level`` of
+        the samples, in the parameter's own unit, as ArviZ reports) and not the
+        equal-tailed one: on a marginal the data close sharply on one side and leave open
+        on the other (a short log's D0 and A, up the ridge where the viscosity at the
+        heavier levels vanishes), the equal-tailed interval cuts 2.5 % of the long side's
+        mass off the sharp side and moves its end past the edge where the likelihood
+        drops, and missed the truth there (DECISIONS.md). Where the posterior piles
+        against a parameter's bound (its :data:`PILE_QUANTILE` % quantile within
+        :data:`PILE_SHARE` of the equal-tailed interval's width from it: D0 near 0), the
+        interval runs from the bound to the ``level`` quantile, as the profile interval
+        ends at a bound the data do not exclude.
 
         Parameters
         ----------
         level : float
             Probability inside.
+        kind : {"hdi", "equal"}
+            Highest-density or equal-tailed (the 2.5 and 97.5 % quantiles) away from a
+            bound.
 
         Returns
         -------
@@ -244,6 +276,8 @@ class Posterior:
                 lo, hi = b_lo, float(np.percentile(x, 100 * level))
             elif b_hi - edge_hi < PILE_SHARE * width:
                 lo, hi = float(np.percentile(x, 100 * (1 - level))), b_hi
+            elif kind == "hdi":
+                lo, hi = highest_density(x, level)
             out[n] = (lo, hi)
         return out
 
@@ -255,25 +289,34 @@ class Posterior:
 
     def diagnostics_text(self) -> str:
         """One line: the ensemble, the chain's length against its autocorrelation time,
-        the acceptance and whether that counts as converged."""
+        the acceptance, the split R-hat and whether that counts as converged."""
         longest = max(self.tau.values(), default=float("nan"))
         ratio = self.n_steps / longest if math.isfinite(longest) and longest > 0 else float("nan")
+        rhat = max(self.rhat.values(), default=float("nan"))
+        verdict = (
+            "converged"
+            if self.converged
+            else "NOT converged" + (": stopped by time" if self.stopped_by_time else "")
+        )
         return (
             f"emcee, {self.n_walkers} walkers x {self.n_steps} steps "
             f"({self.samples.shape[0]} samples kept after {self.burn} burn-in, thinned by "
             f"{self.thin}); autocorrelation time {longest:.0f} steps ({ratio:.0f} of them "
-            f"run, {CHAIN_TAUS} wanted); acceptance {self.acceptance:.2f}: "
-            + (
-                "converged"
-                if self.converged
-                else "NOT converged" + (": stopped by time" if self.stopped_by_time else "")
-            )
+            f"run, {CHAIN_TAUS} wanted); acceptance {self.acceptance:.2f}"
+            + (f"; split R-hat {rhat:.3f} (at most {RHAT_MAX} wanted)" if self.rhat else "")
+            + f": {verdict}"
         )
 
     def lines(self) -> list[str]:
         """The ``[[Posterior]]`` block of ``summary()``: intervals of each kind side by side."""
         cred, med = self.credible(), self.median()
         out = ["[[Posterior]]", f"    {self.diagnostics_text()}"]
+        if self.added_sd:
+            spread = ", ".join(f"{n} {v:.3g}" for n, v in self.added_sd.items())
+            out.append(
+                f"    samples spread by the steps' places between samples and the trials' "
+                f"scatter, which the likelihood lacks (sd {spread})"
+            )
         if self.priors:
             given = ", ".join(f"{p.name} ~ N({p.mu:g}, {p.sd:g})" for p in self.priors)
             out.append(f"    priors: {given}; the others the reference prior within their bounds")
@@ -302,6 +345,8 @@ class Posterior:
                     "wald95": list(w) if (w := self.wald.get(n)) else None,
                     "profile95": list(self.profile[n]) if n in self.profile else None,
                     "tau_steps": self.tau.get(n),
+                    "rhat": self.rhat.get(n),
+                    "added_sd": self.added_sd.get(n, 0.0),
                 }
                 for n in self.names
             },
@@ -317,6 +362,28 @@ class Posterior:
             "seed": self.seed,
             "modes": [dict(m) for m in self.modes],
         }
+
+
+def highest_density(x: np.ndarray, level: float = 0.95) -> tuple[float, float]:
+    """The shortest interval holding ``level`` of the samples ``x``.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Samples of one parameter.
+    level : float
+        The share inside.
+
+    Returns
+    -------
+    (float, float)
+    """
+    xs = np.sort(np.asarray(x, float))
+    n = xs.size
+    m = min(n, max(1, math.ceil(level * n)))
+    spans = xs[m - 1 :] - xs[: n - m + 1]
+    i = int(np.argmin(spans))
+    return float(xs[i]), float(xs[i + m - 1])
 
 
 def support(
@@ -360,6 +427,71 @@ def support(
         lo.append(a)
         hi.append(b)
     return np.array(lo, float), np.array(hi, float)
+
+
+def unmodelled_spread(
+    match: MatchResult,
+    names: Sequence[str],
+    lo: np.ndarray | None = None,
+    hi: np.ndarray | None = None,
+) -> dict[str, float]:
+    """The spread of each parameter the fit's standard error holds and the likelihood does
+    not: the steps' places between samples (``phase_se``) and the trials' scatter beyond
+    the noise (``scatter_ratio``).
+
+    The standard error is ``hypot(se * r, phase_se)`` (``se`` the likelihood's, ``r`` the
+    scatter's widening, at least 1); the likelihood holds ``se`` only. On a 0.2 kg cart at
+    200 Hz the steps' places are most of T_a's standard error (1.59 of 1.62 ms) and its
+    trials scatter 2-5x the noise's: credible intervals from the likelihood alone were a
+    fraction of the Wald ones and missed.
+
+    Only where the standard error describes the parameter (its Wald interval inside the
+    support ``lo``-``hi``): on a ridge the data leave open (a short log's D0, Wald's
+    reaching below 0 and its error thousands) the posterior's own shape is the
+    uncertainty, and spread by that error the samples left it (D0's median sank to 0).
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+    names : sequence of str
+        Its sampled parameters.
+    lo, hi : numpy.ndarray, optional
+        The posterior's support (default: no limit).
+
+    Returns
+    -------
+    dict of str to float
+        ``sqrt(stderr^2 - se^2)`` per parameter (0 where nothing is added).
+    """
+    out = {}
+    for j, n in enumerate(names):
+        p = match.parameters[n]
+        se_all = p.stderr
+        wald = p.wald_ci95
+        inside = wald is not None and (lo is None or wald[0] > lo[j]) and (
+            hi is None or wald[1] < hi[j]
+        )
+        if se_all is None or not math.isfinite(se_all) or se_all <= 0 or not inside:
+            out[n] = 0.0
+            continue
+        phase = float(p.phase_se or 0.0)
+        se = math.sqrt(max(se_all**2 - phase**2, 0.0)) / max(float(p.scatter_ratio), 1.0)
+        out[n] = math.sqrt(max(se_all**2 - se**2, 0.0))
+    return out
+
+
+def _spread(
+    samples: np.ndarray, sd: np.ndarray, lo: np.ndarray, hi: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """Each column of ``samples`` plus independent normal noise of ``sd`` (the spread the
+    likelihood lacks: the posterior convolved with it), reflected into ``(lo, hi)``."""
+    if not np.any(sd > 0):
+        return samples
+    out = samples + rng.normal(size=samples.shape) * sd
+    out = np.where(out < lo, 2 * lo - out, out)
+    out = np.where(out > hi, 2 * hi - out, out)
+    return np.clip(out, lo, hi)
 
 
 def _log_posterior_fn(
@@ -527,6 +659,65 @@ def _start_ensemble(
     return np.clip(pos, lo + margin, hi - margin)
 
 
+#: The walkers start within this share of the valley's Laplace spread (a ball the full
+#: width put walkers where the posterior is e^-2 of its peak, or past a bound).
+START_SHARE = 0.3
+
+
+def _laplace_shape(match: MatchResult, names: Sequence[str], logged: np.ndarray):
+    """A callable: a point in the sampler's coordinates to the Laplace covariance there
+    (``sigma^2 tau inv(S_u^T S_u)``, ``S_u`` the response's sensitivities to the
+    sampler's coordinates: a logged parameter's column times its value), or None where
+    that is not finite or not positive definite."""
+    model = match.model
+    base = np.asarray(model.vector(match.values()), float)
+    idx = [list(model.param_names).index(n) for n in names]
+    n, k = match.y.size, len(names)
+    tau = max(float(match.metrics.get("residual_tau", 1.0)), 1.0)
+    var = float(np.sum(match.residual**2)) / max(n - k, 1) * tau
+    runner = match.data.packed.sens_runner(model, idx)
+
+    def shape(u: np.ndarray) -> np.ndarray | None:
+        theta = _from_log(np.atleast_2d(u), logged)[0]
+        p = base.copy()
+        p[idx] = theta
+        with np.errstate(all="ignore"):
+            _, sens = runner(p)
+            sens_u = sens * np.where(logged, theta, 1.0)
+            info = sens_u.T @ sens_u
+        if not np.all(np.isfinite(info)):
+            return None
+        try:
+            cov = var * np.linalg.inv(info)
+            np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            return None
+        return cov if np.all(np.isfinite(cov)) else None
+
+    return shape
+
+
+def _shaped_start(
+    cov: np.ndarray | None, u_centre: np.ndarray, n_walkers: int, rng: np.random.Generator,
+    log_pus,
+) -> np.ndarray | None:
+    """``n_walkers`` points drawn around ``u_centre`` with :data:`START_SHARE` of the
+    covariance ``cov``, each inside the posterior's support (a draw outside it, of zero
+    density, drawn again, at most ten times); None without a covariance or when the
+    draws keep leaving the support."""
+    if cov is None:
+        return None
+    chol = np.linalg.cholesky(cov)
+    out = np.empty((0, u_centre.size))
+    for _ in range(10):
+        draws = u_centre + START_SHARE * rng.normal(size=(n_walkers, u_centre.size)) @ chol.T
+        ok = np.isfinite(log_pus(draws))
+        out = np.concatenate([out, draws[ok]])
+        if len(out) >= n_walkers:
+            return out[:n_walkers]
+    return None
+
+
 def sample_posterior(
     match: MatchResult,
     *,
@@ -606,6 +797,7 @@ def sample_posterior(
     def log_pu(u: np.ndarray) -> float:
         return float(log_pus(u)[0])
 
+
     u_centres = np.where(logged, np.log(np.maximum(centres, 1e-300)), centres)
     # an optimum whose posterior density is far below the best's holds no share (the
     # ridge's corners, where the prior vanishes): not sampled (its chain accepted nothing)
@@ -622,6 +814,7 @@ def sample_posterior(
     def nearest(us: np.ndarray) -> np.ndarray:
         return group[nearest_optimum(us)]
 
+    shape_at = _laplace_shape(match, names, logged)
     deadline = None if max_seconds is None else time.monotonic() + max_seconds
     runs = []
     for j in range(n_valleys):
@@ -645,6 +838,15 @@ def sample_posterior(
             ]
         )
         start = np.where(logged, np.log(np.maximum(start, 1e-300)), start)
+        # the walkers shaped as the valley is (its Laplace covariance in the sampler's
+        # coordinates), where it can be had: a round ball spends the chain's first
+        # autocorrelation times stretching into the valley
+        shaped = [
+            _shaped_start(shape_at(u_centres[c]), u_centres[c], int(n_c), rng, log_pus)
+            for c, n_c in zip(members, counts, strict=True)
+        ]
+        if all(x is not None for x in shaped):
+            start = np.concatenate(shaped)  # type: ignore[arg-type]
         runs.append(_run_chain(log_pk, start, rng, min_steps, max_steps, deadline))
     centres = centres[[int(np.flatnonzero(group == j)[0]) for j in range(n_valleys)]]
     weights = bridge_weights([r.chain for r in runs], log_pu, nearest, rng)
@@ -656,6 +858,8 @@ def sample_posterior(
         if int(w * total) > 0
     ]
     samples = _from_log(np.concatenate(pooled), logged)
+    added = unmodelled_spread(match, names, lo, hi)
+    samples = _spread(samples, np.array([added[n] for n in names]), lo, hi, rng)
     # the diagnostics of the valley whose chain is shortest against its autocorrelation,
     # of those that hold a share of the samples (a valley of no weight adds none)
     weighty = [r for r, w in zip(runs, weights, strict=True) if w >= WEIGHTY] or runs
@@ -690,6 +894,11 @@ def sample_posterior(
             for c, w in zip(centres, weights, strict=True)
         ],
         stopped_by_time=timed_out,
+        rhat={
+            n: float(np.nanmax([r.rhat[j] for r in weighty if r.rhat is not None] or [np.nan]))
+            for j, n in enumerate(names)
+        },
+        added_sd={n: v for n, v in added.items() if v > 0},
     )
     post.notes.extend(posterior_notes(post))
     return post
@@ -706,6 +915,7 @@ class _Chain:
     burn: int
     thin: int
     timed_out: bool = False
+    rhat: np.ndarray | None = None
 
 
 def _run_chain(
@@ -749,7 +959,36 @@ def _run_chain(
         burn,
         thin,
         timed_out,
+        split_rhat(sampler.get_chain(discard=burn)),
     )
+
+
+def split_rhat(chain: np.ndarray) -> np.ndarray:
+    """The split R-hat of each parameter (Gelman et al., BDA3 11.4): each walker's chain
+    cut in halves, the variance between the halves' means against the variance within.
+
+    Parameters
+    ----------
+    chain : numpy.ndarray
+        ``steps x walkers x k`` after burn-in.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``k`` values; near 1 once the walkers have forgotten where they started (nan for
+        a chain too short or with no spread).
+    """
+    steps, _, k = chain.shape
+    half = steps // 2
+    if half < 2:
+        return np.full(k, np.nan)
+    seqs = np.concatenate([chain[:half], chain[half : 2 * half]], axis=1)  # half x 2W x k
+    means = seqs.mean(axis=0)
+    within = seqs.var(axis=0, ddof=1).mean(axis=0)
+    between = half * means.var(axis=0, ddof=1)
+    with np.errstate(all="ignore"):
+        pooled = (half - 1) / half * within + between / half
+        return np.sqrt(pooled / within)
 
 
 #: A parameter that cannot be negative is sampled as its logarithm when its fitted value
@@ -848,8 +1087,13 @@ def posterior_notes(post: Posterior) -> list[Note]:
                 "fit.posterior_not_converged",
                 f"the posterior chain may not have converged ({post.n_steps} steps, "
                 f"{post.n_steps / longest:.0f} autocorrelation times of {longest:.0f} steps "
-                f"where {CHAIN_TAUS} are wanted; acceptance {post.acceptance:.2f}): read its "
-                "intervals as rough",
+                f"where {CHAIN_TAUS} are wanted; acceptance {post.acceptance:.2f}"
+                + (
+                    f"; split R-hat {max(post.rhat.values()):.3f}, at most {RHAT_MAX} wanted"
+                    if post.rhat
+                    else ""
+                )
+                + "): read its intervals as rough",
             )
             if math.isfinite(longest)
             else Note(
@@ -903,13 +1147,18 @@ def posterior_notes(post: Posterior) -> list[Note]:
                 if any(p.name == n for p in post.priors)
                 else ("a bound or a curved (banana-shaped) valley of the cost")
             )
+            how = (
+                f"which reaches past the bound {b_lo if wald[0] < b_lo else b_hi:.4g}"
+                if crosses
+                else "by more than a quarter of its width at an end"
+            )
             notes.append(
                 Note(
                     "fit.posterior_disagrees",
                     f"{n}: the 95 % credible interval {lo:.4g} .. {hi:.4g} differs from the "
-                    f"Wald interval {wald[0]:.4g} .. {wald[1]:.4g} (by more than a quarter of "
-                    f"its width): the uncertainty is not Gaussian here ({why}); trust the "
-                    "credible (or profile) interval over the standard error",
+                    f"Wald interval {wald[0]:.4g} .. {wald[1]:.4g} ({how}): the uncertainty "
+                    f"is not Gaussian here ({why}); trust the credible (or profile) interval "
+                    "over the standard error",
                     subject=n,
                     severity="info",
                 )

@@ -30,9 +30,10 @@ LEVEL_Z = 5.0
 MIN_SAMPLES = 20
 
 
-def resting_level(match: MatchResult, trials: TrialSet) -> Note | None:
-    """A ``fit.rest_level`` note (severity ``error``) when the acceleration at rest is
-    clearly not 0 in a log that reads gravity and a model without an offset; else None.
+def resting_offset(match: MatchResult, trials: TrialSet) -> tuple[float, float, float] | None:
+    """The acceleration's level at rest, its standard error and the g removed, when the
+    level is clearly not 0 in a log that reads gravity and a model without an offset;
+    else None.
 
     Parameters
     ----------
@@ -43,9 +44,8 @@ def resting_level(match: MatchResult, trials: TrialSet) -> Note | None:
 
     Returns
     -------
-    Note or None
-        The note says the level, the sensor's resting magnitude against g, the gain (or
-        the zero offset) it means and the correction.
+    tuple of float or None
+        ``(level, stderr, g)`` in m/s^2; the sensor reads ``g + level`` at rest.
     """
     if any(e.name == "bias" for e in match.model.effects):
         return None  # the model has the offset: it fits it
@@ -70,13 +70,56 @@ def resting_level(match: MatchResult, trials: TrialSet) -> Note | None:
     g = float(getattr(trials.options, "g", G_DEFAULT) or G_DEFAULT)
     if abs(level) < max(LEVEL_SHARE * g, LEVEL_Z * se):
         return None
+    return level, se, g
+
+
+def sensor_reading(level: float, g: float) -> str:
+    """What a resting ``level`` says of the accelerometer, in words (its gain or zero).
+
+    Parameters
+    ----------
+    level : float
+        The acceleration at rest with ``g`` removed (m/s^2).
+    g : float
+        The gravity removed (m/s^2).
+
+    Returns
+    -------
+    str
+    """
+    return (
+        f"the accelerometer reads {g + level:.3f} m/s^2 at rest against g = {g:.3f}, a gain "
+        f"of {1.0 + level / g:.3f} (or a zero offset of {level:+.3f} m/s^2), the sensor's "
+        "calibration, not the balancer"
+    )
+
+
+def resting_level(match: MatchResult, trials: TrialSet) -> Note | None:
+    """A ``fit.rest_level`` note (severity ``error``) when the acceleration at rest is
+    clearly not 0 in a log that reads gravity and a model without an offset; else None.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its trials' acceleration, g removed).
+    trials : TrialSet
+        Where the trials came from: whether the logs read gravity, and the g removed.
+
+    Returns
+    -------
+    Note or None
+        The note says the level, the sensor's resting magnitude against g, the gain (or
+        the zero offset) it means and the correction.
+    """
+    found = resting_offset(match, trials)
+    if found is None:
+        return None
+    level, se, g = found
     gain = 1.0 + level / g
     return Note(
         "fit.rest_level",
-        f"the acceleration at rest reads {level:+.3f} m/s^2 (± {se:.3f}), not 0: the "
-        f"accelerometer reads {g + level:.3f} m/s^2 at rest against g = {g:.3f}, a gain "
-        f"of {gain:.3f} (or a zero offset of {level:+.3f} m/s^2), the sensor's "
-        "calibration, not the balancer; the model follows a level the balancer never had, "
+        f"the acceleration at rest reads {level:+.3f} m/s^2 (± {se:.3f}), not 0: "
+        f"{sensor_reading(level, g)}; the model follows a level the balancer never had, "
         f"so its values are not trusted: divide the acceleration by {gain:.3f} (or "
         "subtract the offset) and refit, or run 'balancer-id diagnose', whose sensor "
         "explanations refit both",

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -200,74 +201,103 @@ def _run_windows(
     if inside.sum() < 10:
         span = f"{time[0]:.2f}-{time[-1]:.2f} s"
         return f"fewer than 10 samples inside the windows (the run spans {span})"
-    if force_sign is None:
-        fc = force[inside] - np.mean(force[inside])
-        ac = accel[inside] - np.mean(accel[inside])
-        orientation = float(np.sign(fc @ ac)) or 1.0
-        how = "force sign from the motion"
-        corr = abs(fc @ ac) / max(float(np.sqrt((fc @ fc) * (ac @ ac))), 1e-300)
-        if corr < 0.3:  # a force that hardly varies (a tension): its level moves the load
-            orientation = float(np.sign(np.mean(force[inside]) * np.mean(accel[inside]))) or 1.0
-            how = "force sign from the mean force and motion (the force hardly varies)"
-    else:
-        orientation = float(force_sign)
-        how = "force sign as given"
+    orientation, how = _orientation(force[inside], accel[inside], force_sign)
     out: list[Trial] = []
     for a, b in wins:
         sl = np.flatnonzero((time >= a) & (time <= b))
         if sl.size < 10:
             continue
         lo, hi = int(sl[0]), int(sl[-1]) + 1
-        rest = _quietest(smooth(force, 3), width, lo)
-        f_ref = float(np.median(force[rest]))
-        a_ref = float(np.median(accel[rest]))
-        if lo < width:  # no rest before it: the acceleration's zero is g's removal
-            a_ref = 0.0
-        zero = force_zero(time, force, accel - a_ref, f_ref, lo, hi)
-        if zero is None and lo < width:
-            zero = "no rest before it (it starts with the run)"
-        where = f"window {a:g}:{b:g} s of {rec.name}"
-        notes = []
-        if zero is not None:  # issue 31: the force's zero is known only where nothing pushes
-            f_ref = 0.0
-            notes.append(
-                f"warning: {where}: {zero}; the absolute force drives the model (zero the "
-                "sensor before recording, or give a window with a rest before it where "
-                "nothing but the measured force holds the load)"
-            )
-        # the velocity at the window's start: the measured motion since that rest
-        k0 = rest.stop
-        seg_t, seg_a = time[k0 : lo + 1], accel[k0 : lo + 1] - a_ref
-        v0 = float(np.sum(0.5 * (seg_a[1:] + seg_a[:-1]) * np.diff(seg_t)))
-        u = orientation * (force[lo:hi] - f_ref)
-        peak = float(u[int(np.argmax(np.abs(u)))])
         out.append(
-            Trial(
-                index=first_index + len(out),
-                recording=rec.name,
-                t_step=float(time[lo]),
-                t_start=float(time[lo]),
-                t_end=float(time[hi - 1]),
-                thrust_N=peak,
-                direction="up" if peak >= 0 else "down",
-                time=time[lo:hi].copy(),
-                accel=accel[lo:hi] - a_ref,
-                force=u,
-                end_reason="window",
-                source=source,
-                notes=[
-                    f"{where} given: the measured force drives the model; {how}; "
-                    + (
-                        f"rest levels from {time[rest.start]:.2f}-{time[rest.stop - 1]:.2f} s"
-                        if zero is None
-                        else "the absolute force (its zero unknown)"
-                    ),
-                    *notes,
-                ],
-                kind="window",
-                vertical=vertical_name(motion, rec.accel_axes),
-                vertical_sign_known=motion.sign_known,
-                initial_state=(float(u[0]), v0, 0.0),
+            _window_trial(
+                rec,
+                motion,
+                (a, b),
+                (lo, hi),
+                (force, accel, width),
+                (orientation, how),
+                source,
+                first_index + len(out),
             )
         )
     return out or "no samples inside the windows"
+
+
+def _orientation(force: np.ndarray, accel: np.ndarray, force_sign: int | None) -> tuple[float, str]:
+    """The force's sign (a rise moves the load up, over every window together) and how it
+    was found: given, from the motion, or from the means where the force hardly varies."""
+    if force_sign is not None:
+        return float(force_sign), "force sign as given"
+    fc = force - np.mean(force)
+    ac = accel - np.mean(accel)
+    corr = abs(fc @ ac) / max(float(np.sqrt((fc @ fc) * (ac @ ac))), 1e-300)
+    if corr < 0.3:  # a force that hardly varies (a tension): its level moves the load
+        orientation = float(np.sign(np.mean(force) * np.mean(accel))) or 1.0
+        return orientation, "force sign from the mean force and motion (the force hardly varies)"
+    return float(np.sign(fc @ ac)) or 1.0, "force sign from the motion"
+
+
+def _window_trial(
+    rec: Recording,
+    motion: Any,
+    window: tuple[float, float],
+    span: tuple[int, int],
+    signals: tuple[np.ndarray, np.ndarray, int],
+    sign: tuple[float, str],
+    source: str,
+    index: int,
+) -> Trial:
+    """One window's trial: its force's zero (the rest before it, or none: the absolute
+    force, said), the load's velocity at its start, the force as the model's input."""
+    (a, b), (lo, hi), (force, accel, width), (orientation, how) = window, span, signals, sign
+    time = rec.time
+    rest = _quietest(smooth(force, 3), width, lo)
+    f_ref = float(np.median(force[rest]))
+    a_ref = float(np.median(accel[rest]))
+    if lo < width:  # no rest before it: the acceleration's zero is g's removal
+        a_ref = 0.0
+    zero = force_zero(time, force, accel - a_ref, f_ref, lo, hi)
+    if zero is None and lo < width:
+        zero = "no rest before it (it starts with the run)"
+    where = f"window {a:g}:{b:g} s of {rec.name}"
+    notes = []
+    if zero is not None:  # issue 31: the force's zero is known only where nothing pushes
+        f_ref = 0.0
+        notes.append(
+            f"warning: {where}: {zero}; the absolute force drives the model (zero the "
+            "sensor before recording, or give a window with a rest before it where "
+            "nothing but the measured force holds the load)"
+        )
+    # the velocity at the window's start: the measured motion since that rest
+    k0 = rest.stop
+    seg_t, seg_a = time[k0 : lo + 1], accel[k0 : lo + 1] - a_ref
+    v0 = float(np.sum(0.5 * (seg_a[1:] + seg_a[:-1]) * np.diff(seg_t)))
+    u = orientation * (force[lo:hi] - f_ref)
+    peak = float(u[int(np.argmax(np.abs(u)))])
+    return Trial(
+        index=index,
+        recording=rec.name,
+        t_step=float(time[lo]),
+        t_start=float(time[lo]),
+        t_end=float(time[hi - 1]),
+        thrust_N=peak,
+        direction="up" if peak >= 0 else "down",
+        time=time[lo:hi].copy(),
+        accel=accel[lo:hi] - a_ref,
+        force=u,
+        end_reason="window",
+        source=source,
+        notes=[
+            f"{where} given: the measured force drives the model; {how}; "
+            + (
+                f"rest levels from {time[rest.start]:.2f}-{time[rest.stop - 1]:.2f} s"
+                if zero is None
+                else "the absolute force (its zero unknown)"
+            ),
+            *notes,
+        ],
+        kind="window",
+        vertical=vertical_name(motion, rec.accel_axes),
+        vertical_sign_known=motion.sign_known,
+        initial_state=(float(u[0]), v0, 0.0),
+    )
