@@ -78,6 +78,9 @@ class TrialData:
     decimation: Decimation | None = None
     level_se_N: float | None = None
     zero_se_N: float | None = None
+    #: How far the force moves over the rest where its zero is read (N, a line's rise
+    #: over that stretch) and that rise's standard error; None where ``zero_se_N`` is.
+    zero_drift_N: tuple[float, float] | None = None
 
     @property
     def lead_in(self) -> TrialInput | None:
@@ -372,6 +375,42 @@ def _zero_se(trial: Trial, fine: tuple[np.ndarray, np.ndarray] | None) -> float 
     return float(sigma * np.sqrt(TRIMMED_MEAN_VARIANCE / n)) if np.isfinite(sigma) else None
 
 
+def zero_drift(
+    trial: Trial, fine: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[float, float] | None:
+    """How far a step trial's force rises over the rest where its zero is read (a line
+    fitted there, N) and that rise's standard error; None where :func:`_zero_se` is.
+
+    A force that moves there is no zero: a push or a tension already acting (a guided
+    move read as steps), and subtracting its mean as an offset moves every level.
+
+    Parameters
+    ----------
+    trial : Trial
+        A segmented trial.
+    fine : tuple of numpy.ndarray or None
+        Its time and force before decimation.
+
+    Returns
+    -------
+    tuple of float or None
+        The rise (N) and its standard error (N).
+    """
+    if _zero_se(trial, fine) is None or fine is None:
+        return None
+    t, f = fine
+    ok = np.isfinite(f)
+    before = ok & (t < trial.t_step - StepSettings().guard_before_s)
+    tb, fb = t[before], f[before]
+    span = float(tb[-1] - tb[0]) if tb.size > 1 else 0.0
+    sxx = float(np.sum((tb - tb.mean()) ** 2))
+    sigma = noise_sigma(f[ok])
+    if not (span > 0 and sxx > 0 and np.isfinite(sigma)):
+        return None
+    slope = float(np.sum((tb - tb.mean()) * (fb - fb.mean())) / sxx)
+    return slope * span, float(sigma * span / np.sqrt(sxx))
+
+
 def _trial_thrust(
     trial: Trial,
     time: np.ndarray,
@@ -498,6 +537,9 @@ def from_trials(
                     out[-1].zero_se_N  # one zero for a chain (segmentation's ref_chain)
                     if out and getattr(trial, "continues", False)
                     else _zero_se(trial, fine)
+                ),
+                zero_drift_N=(
+                    None if out and getattr(trial, "continues", False) else zero_drift(trial, fine)
                 ),
             )
         )
