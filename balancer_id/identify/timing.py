@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from balancer_id.identify.data import centred_samples
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.starts import lag_floor
 from balancer_id.notes import Note
@@ -196,13 +197,14 @@ def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
     a whole number of samples), so the spread is not divided by their number: a mean
     over them is no better known than one of them.
 
-    A smooth force (a guided move, a window) keeps each sample's value until the next
+    A window's force keeps each sample's value until the next
     (:func:`~balancer_id.identify.data.measured_thrust`): against the force between the
     samples it is late by anything from nothing to a whole sample (half a sample, for
     a force read at its instant; less, where the sensors' own filters lag the
-    acceleration alike), ``dt^2 / 3`` about the hold's instant. Counted only with
-    ``smooth`` (the values' standard errors): the timing test's own statistics keep to
-    the steps' places.
+    acceleration alike), ``dt^2 / 3`` about the hold's instant. A guided move's force is
+    held about each sample (:func:`~balancer_id.identify.data.centred_samples`):
+    ``dt^2 / 12``. Both are counted only with ``smooth`` (the values' standard errors):
+    the timing test's own statistics keep to the steps' places.
 
     Parameters
     ----------
@@ -227,6 +229,10 @@ def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
         if times.size == t.size and np.array_equal(times, t):  # a smooth series, held
             if smooth:
                 spreads.append(dt * dt / 3.0)
+            continue
+        if times.size == t.size and np.array_equal(times, centred_samples(t)):
+            if smooth:  # a guided move's force, held about each sample
+                spreads.append(dt * dt / 12.0)
             continue
         spreads.append(dt * dt / 12.0)
     return float(np.median(spreads)) if spreads else 0.0
