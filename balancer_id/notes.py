@@ -54,6 +54,7 @@ CODES: dict[str, str] = {
     "fit.held_at_limit": "a parameter held at its physical limit (0) against the data",
     "fit.structured_residual": "the residual in motion carries more than the noise at rest",
     "fit.rest_level": "the acceleration at rest is not 0: the accelerometer's gain or zero",
+    "fit.force_zero": "the force moves where its zero is read (a push, preload or tension)",
     "fit.timing": "the acceleration is early or late against its drive (late channel, dead time)",
     "fit.rival": "a model with one more library effect fits as well and moves a trusted value",
     "fit.classic_disagrees": "the paper's method disagrees with the simulation fit",

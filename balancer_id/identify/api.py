@@ -11,7 +11,7 @@ from balancer_id.identify.basins import scaled_starts
 from balancer_id.identify.classic import paper_method
 from balancer_id.identify.data import TrialData, from_trials
 from balancer_id.identify.group_fits import GroupFits
-from balancer_id.identify.level_errors import widen_by_level_errors
+from balancer_id.identify.level_errors import unsteady_zero, widen_by_level_errors
 from balancer_id.identify.matching import match_trials
 from balancer_id.identify.move_start import refine_move_start
 from balancer_id.identify.per_log import PerLogFit
@@ -380,6 +380,9 @@ def _fit_checks(match: Any) -> list[Note | str]:
     structured = structured_residual(match)
     if structured is not None:
         notes.append(structured)
+    zero = unsteady_zero(match)  # a force that moves where its zero is read
+    if zero is not None:
+        notes.append(zero)
     notes.extend(widen_by_level_errors(match))  # errors in variables, then the scatter
     notes.extend(widen_by_trial_scatter(match))
     notes.extend(check_timing(match))

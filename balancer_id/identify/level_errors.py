@@ -202,3 +202,60 @@ def widen_by_level_errors(match: MatchResult) -> list[Note]:
             severity="info",
         )
     ]
+
+
+#: A force rising over its zero's rest by this many standard errors ...
+ZERO_DRIFT_Z = 4.0
+
+#: ... and by this share of the trial's step is no rest: its zero is unknown.
+ZERO_DRIFT_SHARE = 0.1
+
+
+def unsteady_zero(match: MatchResult) -> Note | None:
+    """A ``fit.force_zero`` note (severity ``error``) when the force moves over the rest
+    where its zero is read (:attr:`~balancer_id.identify.data.TrialData.zero_drift_N`)
+    by :data:`ZERO_DRIFT_Z` standard errors and :data:`ZERO_DRIFT_SHARE` of the step,
+    else None.
+
+    The zero is the force's mean there, subtracted from every level after it. A force
+    that rises there is already pushing (a person's smooth push read as steps, a preload
+    let go, a tension): every level is then off by an unknown amount, and the values
+    bend to follow it (``bench_universe`` clean world 12757897038: a guided move read as
+    four steps, m_a 1.7 times the truth, T_a a quarter of it, 10-20 standard errors off,
+    trusted).
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit.
+
+    Returns
+    -------
+    Note or None
+    """
+    worst: tuple[float, TrialData] | None = None
+    for td in match.data.trials:
+        if td.zero_drift_N is None or td.thrust_N == 0:
+            continue
+        rise, se = td.zero_drift_N
+        if not (se > 0 and np.isfinite(rise)):
+            continue
+        z = abs(rise) / se
+        if z >= ZERO_DRIFT_Z and abs(rise) >= ZERO_DRIFT_SHARE * abs(td.thrust_N):
+            if worst is None or z > worst[0]:
+                worst = (z, td)
+    if worst is None:
+        return None
+    z, td = worst
+    rise = td.zero_drift_N[0] if td.zero_drift_N else float("nan")
+    return Note(
+        "fit.force_zero",
+        f"trial {td.index}: the force moves by {rise:+.3g} N ({z:.0f} standard errors, "
+        f"{abs(rise / td.thrust_N):.0%} of its step) over the rest before its step, where "
+        "its zero is read: something already pushed (a smooth push read as steps, a "
+        "preload, a tension), so every level read against that zero is off and the values "
+        "bend with it; check the trials with 'balancer-id inspect --plot' and give "
+        "stretches where only the measured force acts with --window",
+        severity="error",
+        subject=f"trial {td.index}",
+    )

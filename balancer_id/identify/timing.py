@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from balancer_id.identify.data import centred_samples
 from balancer_id.identify.matching import MatchResult
 from balancer_id.identify.starts import lag_floor
 from balancer_id.notes import Note
@@ -196,13 +197,14 @@ def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
     a whole number of samples), so the spread is not divided by their number: a mean
     over them is no better known than one of them.
 
-    A smooth force (a guided move, a window) keeps each sample's value until the next
+    A window's force keeps each sample's value until the next
     (:func:`~balancer_id.identify.data.measured_thrust`): against the force between the
     samples it is late by anything from nothing to a whole sample (half a sample, for
     a force read at its instant; less, where the sensors' own filters lag the
-    acceleration alike), ``dt^2 / 3`` about the hold's instant. Counted only with
-    ``smooth`` (the values' standard errors): the timing test's own statistics keep to
-    the steps' places.
+    acceleration alike), ``dt^2 / 3`` about the hold's instant. A guided move's force is
+    held about each sample (:func:`~balancer_id.identify.data.centred_samples`):
+    ``dt^2 / 12``. Both are counted only with ``smooth`` (the values' standard errors):
+    the timing test's own statistics keep to the steps' places.
 
     Parameters
     ----------
@@ -227,6 +229,10 @@ def sampling_variance(match: MatchResult, smooth: bool = False) -> float:
         if times.size == t.size and np.array_equal(times, t):  # a smooth series, held
             if smooth:
                 spreads.append(dt * dt / 3.0)
+            continue
+        if times.size == t.size and np.array_equal(times, centred_samples(t)):
+            if smooth:  # a guided move's force, held about each sample
+                spreads.append(dt * dt / 12.0)
             continue
         spreads.append(dt * dt / 12.0)
     return float(np.median(spreads)) if spreads else 0.0
@@ -274,13 +280,16 @@ SHIFT_GRID = 100
 SHIFT_CELLS = 4_000_000
 
 
-def _shifted(match: MatchResult, t: np.ndarray, lead: float) -> np.ndarray:
+def _shifted(
+    match: MatchResult, t: np.ndarray, lead: float, slices: list[slice] | None = None
+) -> np.ndarray:
     """The model's output were the drive ``lead`` seconds earlier (negative: later):
-    each stretch's output (:func:`_run_slices`: a session's trials as one) moved in time
-    by ``lead`` (a time-invariant model from rest; its first and last values held)."""
+    each stretch's output (``slices``, default :func:`_run_slices`: a session's trials as
+    one) moved in time by ``lead`` (a time-invariant model from rest; its first and last
+    values held)."""
     y_model = np.asarray(match.y_model, dtype=float)
     out = np.empty_like(y_model)
-    for sl in _run_slices(match):
+    for sl in _run_slices(match) if slices is None else slices:
         tt = t[sl]
         out[sl] = np.interp(tt + lead, tt, y_model[sl]) if tt.size > 1 else y_model[sl]
     return out
@@ -316,9 +325,16 @@ class _ShiftProfile:
     jd: np.ndarray
 
     @classmethod
-    def start(cls, match: MatchResult, t: np.ndarray, grid: np.ndarray, k: int) -> _ShiftProfile:
+    def start(
+        cls,
+        match: MatchResult,
+        t: np.ndarray,
+        grid: np.ndarray,
+        k: int,
+        slices: list[slice] | None = None,
+    ) -> _ShiftProfile:
         y_model = np.asarray(match.y_model, dtype=float)
-        deltas = np.stack([_shifted(match, t, float(d)) - y_model for d in grid])
+        deltas = np.stack([_shifted(match, t, float(d), slices) - y_model for d in grid])
         g = grid.size
         return cls(grid, deltas, np.zeros(g), np.zeros(g), np.zeros((k, g)))
 
@@ -426,6 +442,15 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     y = match.data.y
     grid = _shift_grid(match, t, both=not floored)
     profile = _ShiftProfile.start(match, t, grid, k) if grid is not None else None
+    # a session's trials also shifted each on its own: the response after each step late
+    # while the step's jump stays (a sensor's low-pass smoothing the jumps, a misfit the
+    # whole session's shift does not take)
+    by_trial = match.data.slices()
+    each = (
+        _ShiftProfile.start(match, t, grid, k, by_trial)
+        if grid is not None and len(by_trial) != len(_run_slices(match))
+        else None
+    )
     gram = np.zeros((k + 2, k + 2))
     with np.errstate(all="ignore"):
         blocks = match.data.packed.stream_sens(model, pvec, free, BLOCK_ROWS)
@@ -438,8 +463,9 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
             if not np.isfinite(x).all():
                 return None
             gram += x.T @ x
-            if profile is not None:
-                profile.add(first, stop, r, sens)
+            for prof in (profile, each):
+                if prof is not None:
+                    prof.add(first, stop, r, sens)
     xtx, xtr, rtr = gram[: k + 1, : k + 1], gram[: k + 1, k + 1], gram[k + 1, k + 1]
     try:
         inv = np.linalg.inv(xtx)
@@ -473,10 +499,11 @@ def timing_check(match: MatchResult) -> TimingCheck | None:
     )
     if floored:
         check = replace(check, floor_lead_s=max(match.parameters[n].value for n in floored))
-    if profile is not None and not check.clear:
-        whole = _whole_shift(profile, gram, k, n, match, t, check)
-        if whole is not None:
-            check = whole
+    for prof in (profile, each):
+        if prof is not None and not check.clear:
+            whole = _whole_shift(prof, gram, k, n, match, t, check)
+            if whole is not None:
+                check = whole
     if not check.clear:
         return check
     shift = check.shift
