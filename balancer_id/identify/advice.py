@@ -180,6 +180,12 @@ class Advice:
         return advice_lines(self.to_dict())
 
 
+def _signed(value: float | None) -> str:
+    """A margin with its sign, or why it has none (a servo of no stiffness: the stability
+    condition's right side is 0, the margin infinite, ``null`` in the JSON)."""
+    return "unbounded (no servo stiffness)" if value is None else f"{value:+.3g}"
+
+
 def advice_lines(advice: Mapping[str, Any]) -> list[str]:
     """Short lines of text from an ``advice`` record (:meth:`Advice.to_dict`).
 
@@ -208,7 +214,7 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
     margin = (
         f"unstable beyond a {1e3 * now['delay_margin_s']:.0f} ms servo delay"
         if late_now and now.get("delay_margin_s") is not None
-        else f"stability margin {now['stability_margin']:+.3g}"
+        else f"stability margin {_signed(now.get('stability_margin'))}"
     )
     out = [
         f"coupled mode today:{late} {now['oscillation_hz']:.3g} Hz, damping ratio "
@@ -223,7 +229,7 @@ def advice_lines(advice: Mapping[str, Any]) -> list[str]:
         if s["advised"] is None or p is None:
             out.append(f"  {s['what']} alone: not reachable ({s['note']})")
             continue
-        margin = "" if late_now else f", margin {p['stability_margin']:+.3g}"
+        margin = "" if late_now else f", margin {_signed(p.get('stability_margin'))}"
         text = (
             f"  {s['what']}: {s['current']:.4g} -> {s['advised']:.4g} "
             f"({s['change_percent'] or 0.0:+.0f} %): {p['oscillation_hz']:.3g} Hz, "

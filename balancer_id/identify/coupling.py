@@ -52,8 +52,10 @@ class Coupling:
 
     @property
     def stable(self) -> bool:
-        """Whether every pole lies in the left half plane."""
-        return all(p.real < 0 for p in self.poles)
+        """Whether every pole lies in the left half plane; with no servo stiffness the
+        position's own pole at 0 (the load stays where it is left) is no instability."""
+        free = self.terms.get("k_r", 1.0) == 0.0
+        return all(p.real < 0 or (free and p == 0) for p in self.poles)
 
     @property
     def lightly_damped(self) -> bool:

@@ -30,6 +30,8 @@ SENSOR_TRIAL = (
 
 #: Evaluations of the 1st-order filter's fit, started where the 2nd-order one ended.
 FIRST_ORDER_NFEV = 25
+#: Evaluations of the 2nd-order filter's fit started from a late channel's fit.
+LATE_START_NFEV = 30
 
 
 class SensorLowpass(ExplanationKind):
@@ -124,7 +126,9 @@ class SensorLowpass(ExplanationKind):
             )
             return parts, base, float(fc if fc is not None else start)
 
-        parts, base, fc = fitted_filter(2, fc0, values, 60)
+        # from the late channel's fit the balancer's values are nearly settled already
+        nfev = LATE_START_NFEV if from_response and late is not None else 60
+        parts, base, fc = fitted_filter(2, fc0, values, nfev)
         d, rmse = arena.score(inp, parts, 1)
         order = 2
         # the 1st-order filter of the same lag (sqrt(2) / (2 pi fc) against 1 / (2 pi fc)),
@@ -228,10 +232,13 @@ def _cutoff_of_lag(inp: ArenaInput, lag: float) -> float | None:
 
 def _late_acceleration(inp: ArenaInput) -> Explanation | None:
     """The channel-timing explanation, where it found the acceleration late by more than
-    two of its standard errors and with a benefit (BIC), else None. A lag under half a
-    sample counts (no finding as a late channel, but a filter's lag at a low rate)."""
+    two of its standard errors and with a benefit (BIC, and a tenth of the error above
+    the noise floor removed), else None. A lag under half a sample counts (no finding as
+    a late channel, but a filter's lag at a low rate)."""
     for e in inp.found:
         if e.key != "force_delay" or e.delta_bic <= arena.CLOSE_BIC:
+            continue
+        if e.excess_drop <= arena.MIN_EXCESS_DROP:
             continue
         d = e.detail.get("force_delay_s")
         se = e.detail.get("force_delay_stderr_s")
