@@ -29,6 +29,7 @@ import numpy as np
 
 from balancer_id.identify.data import FitData, TrialData
 from balancer_id.identify.matching import MatchResult
+from balancer_id.identify.trial_scatter import widen_stderrs
 from balancer_id.notes import Note
 from balancer_id.simulation.engine import TrialInput
 from balancer_id.simulation.inputs import Thrust
@@ -41,10 +42,6 @@ BLOCK_ROWS = 1 << 16
 
 #: Most simulations spent (one per hold of the longest chain, plus the base).
 MAX_SIMULATIONS = 64
-
-#: Widening (ratio of standard errors) above which the note says it.
-NOTE_RATIO = 1.2
-
 
 def _chains(trials: Sequence[TrialData]) -> list[list[int]]:
     """The trials that carry their state over (a session's), as lists of indices."""
@@ -168,40 +165,27 @@ def widen_by_level_errors(match: MatchResult) -> list[Note]:
     -------
     list of Note
         A ``fit.correlated_residual`` note (severity ``info``) when a standard error
-        grew by more than :data:`NOTE_RATIO`.
+        grew by more than :data:`~balancer_id.identify.trial_scatter.NOTE_RATIO`.
     """
     found = level_error_covariance(match)
     if found is None:
         return []
     names, cov = found
-    ratios: dict[str, float] = {}
+    widened = {}
     for j, name in enumerate(names):
-        est = match.parameters[name]
-        extra = float(np.sqrt(max(cov[j, j], 0.0)))
-        if est.stderr is None or not np.isfinite(est.stderr) or est.stderr <= 0:
-            continue
-        if not np.isfinite(extra):
-            continue
-        widened = float(np.hypot(est.stderr, extra))
-        ratios[name] = widened / est.stderr
-        est.stderr = widened
-        est.scatter_ratio = float(est.scatter_ratio * ratios[name])
-    if not ratios:
-        return []
-    worst = max(ratios, key=lambda n: ratios[n])
-    match.metrics["level_error_ratio"] = float(ratios[worst])
-    if ratios[worst] <= NOTE_RATIO:
-        return []
-    return [
-        Note(
-            "fit.correlated_residual",
+        se, extra = match.parameters[name].stderr, float(np.sqrt(max(cov[j, j], 0.0)))
+        if se is not None and np.isfinite(extra):
+            widened[name] = float(np.hypot(se, extra))
+    return widen_stderrs(
+        match,
+        widened,
+        "level_error_ratio",
+        lambda ratio, worst: (
             f"the thrust levels are read from a noisy force (each hold's mean, less the "
             f"force's zero read at rest): their errors are in the standard errors (up to "
-            f"{ratios[worst]:.1f}x, {worst})",
-            subject=worst,
-            severity="info",
-        )
-    ]
+            f"{ratio:.1f}x, {worst})"
+        ),
+    )
 
 
 #: A force rising over its zero's rest by this many standard errors ...

@@ -20,6 +20,8 @@ trials or more.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+
 import numpy as np
 
 from balancer_id.identify.matching import MatchResult
@@ -100,8 +102,47 @@ def widen_by_trial_scatter(match: MatchResult) -> list[Note]:
     scatter = trial_scatter_stderr(match)
     if scatter is None:
         return []
+    return widen_stderrs(
+        match,
+        scatter,
+        "trial_scatter_ratio",
+        lambda ratio, worst: (
+            f"the trials scatter more than the noise within each says: standard errors "
+            f"widened to that scatter (up to {ratio:.1f}x, {worst}; a thrust level "
+            "read from a noisy force, a trial's own offset or a slow drift pull a whole "
+            "trial at once)"
+        ),
+    )
+
+
+def widen_stderrs(
+    match: MatchResult,
+    widened: Mapping[str, float],
+    metric: str,
+    say: Callable[[float, str], str],
+) -> list[Note]:
+    """Raise each fitted standard error to ``widened`` where that is larger, record the
+    largest ratio in ``metrics[metric]`` and say so past :data:`NOTE_RATIO`.
+
+    Parameters
+    ----------
+    match : MatchResult
+        The fit (its estimates' ``stderr`` and ``scatter_ratio`` changed in place).
+    widened : mapping of str to float
+        Each parameter's standard error with the new source of error counted.
+    metric : str
+        The metric that holds the largest ratio of new to old standard error.
+    say : callable
+        The note's text from that ratio and its parameter's name.
+
+    Returns
+    -------
+    list of Note
+        A ``fit.correlated_residual`` note (severity ``info``) when a standard error
+        grew by more than :data:`NOTE_RATIO`.
+    """
     ratios = {}
-    for name, se in scatter.items():
+    for name, se in widened.items():
         est = match.parameters[name]
         if est.stderr is None or not np.isfinite(est.stderr) or est.stderr <= 0:
             continue
@@ -112,17 +153,11 @@ def widen_by_trial_scatter(match: MatchResult) -> list[Note]:
     if not ratios:
         return []
     worst = max(ratios, key=lambda n: ratios[n])
-    match.metrics["trial_scatter_ratio"] = float(ratios[worst])
+    match.metrics[metric] = float(ratios[worst])
     if ratios[worst] <= NOTE_RATIO:
         return []
     return [
         Note(
-            "fit.correlated_residual",
-            f"the trials scatter more than the noise within each says: standard errors "
-            f"widened to that scatter (up to {ratios[worst]:.1f}x, {worst}; a thrust level "
-            "read from a noisy force, a trial's own offset or a slow drift pull a whole "
-            "trial at once)",
-            subject=worst,
-            severity="info",
+            "fit.correlated_residual", say(ratios[worst], worst), subject=worst, severity="info"
         )
     ]
